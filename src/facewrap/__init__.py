@@ -1,0 +1,1 @@
+"""facewrap: wrap templates onto face scans, transfer deformations, make avatar blendshapes."""

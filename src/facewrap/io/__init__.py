@@ -1,0 +1,9 @@
+"""Readers and writers: meshes (OBJ, PLY), landmarks and markers.
+
+:func:`read_mesh` / :func:`write_mesh` pick the format from the file extension.
+"""
+
+from .obj import read_obj, write_obj
+from .dispatch import read_mesh, write_mesh
+
+__all__ = ["read_obj", "write_obj", "read_mesh", "write_mesh"]

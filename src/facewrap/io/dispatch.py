@@ -1,0 +1,46 @@
+"""Pick a mesh reader or writer from the file extension."""
+
+from __future__ import annotations
+
+import os
+
+from ..errors import InputError
+from ..mesh import Mesh
+
+__all__ = ["read_mesh", "write_mesh"]
+
+
+def _ext(path) -> str:
+    return os.path.splitext(os.fspath(path))[1].lower()
+
+
+def read_mesh(path) -> Mesh:
+    """Read an OBJ or PLY mesh, chosen by extension.
+
+    Raises
+    ------
+    InputError
+        For a missing file, an unknown extension or malformed content.
+    """
+    from .obj import read_obj
+    from .ply import read_ply
+    readers = {".obj": read_obj, ".ply": read_ply}
+    ext = _ext(path)
+    if ext not in readers:
+        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
+                         "use .obj or .ply", path)
+    if not os.path.isfile(path):
+        raise InputError("no such file", path)
+    return readers[ext](path)
+
+
+def write_mesh(path, mesh: Mesh) -> None:
+    """Write an OBJ or PLY mesh, chosen by extension (atomic)."""
+    from .obj import write_obj
+    from .ply import write_ply
+    writers = {".obj": write_obj, ".ply": write_ply}
+    ext = _ext(path)
+    if ext not in writers:
+        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
+                         "use .obj or .ply", path)
+    writers[ext](path, mesh)

@@ -1,0 +1,203 @@
+"""Landmarks: an ordered list of named points on a mesh.
+
+A landmark is one of three kinds, and one set may mix them:
+
+* a **vertex** landmark, ``vertex[i] >= 0`` — follows the mesh as it deforms;
+* a **surface** landmark, ``triangle[i] >= 0`` with ``barycentric[i]`` — a point
+  inside a triangle of the mesh's triangulation (:attr:`Mesh.triangles`), also
+  following the mesh;
+* a **free** point, ``points[i]`` finite — a 3D position, typically picked on a scan.
+
+:meth:`Landmarks.positions` turns any set into 3D points for given vertices.
+:func:`pair_landmarks` matches two sets by name when both are named, else by order.
+File formats live in :mod:`facewrap.io.landmarks`.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["Landmarks", "pair_landmarks"]
+
+
+def _ro(a):
+    a = np.array(a, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+class Landmarks:
+    """An ordered, optionally named set of landmarks (see module docstring).
+
+    Use the constructors :meth:`from_vertices`, :meth:`from_points` and
+    :meth:`from_barycentric`, or the readers in :mod:`facewrap.io.landmarks`.
+
+    Parameters
+    ----------
+    vertex : (k,) int, -1 where the landmark is not a vertex
+    triangle : (k,) int, -1 where the landmark is not a surface point
+    barycentric : (k, 3) float, used where ``triangle >= 0``
+    points : (k, 3) float, NaN where the landmark is not a free point
+    names : sequence of k str, optional
+
+    Examples
+    --------
+    >>> lm = Landmarks.from_vertices([2, 0], names=["nose_tip", "chin"])
+    >>> lm.positions(np.eye(3)).tolist()
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]
+    """
+
+    def __init__(self, vertex, triangle, barycentric, points,
+                 names: Sequence[str] | None = None):
+        vertex = np.asarray(vertex, dtype=np.int64).reshape(-1)
+        k = len(vertex)
+        triangle = np.asarray(triangle, dtype=np.int64).reshape(-1)
+        barycentric = np.asarray(barycentric, dtype=np.float64).reshape(k, 3)
+        points = np.asarray(points, dtype=np.float64).reshape(k, 3)
+        if len(triangle) != k:
+            raise ValueError("vertex and triangle must have the same length")
+        kinds = ((vertex >= 0).astype(int) + (triangle >= 0)
+                 + np.isfinite(points).all(axis=1))
+        if np.any(kinds != 1):
+            i = int(np.argmax(kinds != 1))
+            raise ValueError(f"landmark {i} must be exactly one of vertex, surface "
+                             "point or free point")
+        if names is not None:
+            names = tuple(str(n) for n in names)
+            if len(names) != k:
+                raise ValueError(f"{len(names)} names for {k} landmarks")
+            if len(set(names)) != k:
+                raise ValueError("landmark names must be unique")
+        self.vertex, self.triangle = _ro(vertex), _ro(triangle)
+        self.barycentric, self.points = _ro(barycentric), _ro(points)
+        self.names = names
+
+    # -- constructors ---------------------------------------------------------------
+    @classmethod
+    def from_vertices(cls, indices, names=None) -> "Landmarks":
+        """Landmarks at mesh vertices (0-based indices)."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        k = len(idx)
+        return cls(idx, np.full(k, -1), np.zeros((k, 3)), np.full((k, 3), np.nan), names)
+
+    @classmethod
+    def from_points(cls, points, names=None) -> "Landmarks":
+        """Free 3D points, (k, 3)."""
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"points must have shape (k, 3), got {pts.shape}")
+        if not np.isfinite(pts).all():
+            raise ValueError("landmark points must be finite")
+        k = len(pts)
+        return cls(np.full(k, -1), np.full(k, -1), np.zeros((k, 3)), pts, names)
+
+    @classmethod
+    def from_barycentric(cls, triangles, barycentric, names=None) -> "Landmarks":
+        """Points inside triangles: (k,) triangle ids and (k, 3) barycentric coords."""
+        tri = np.asarray(triangles, dtype=np.int64).reshape(-1)
+        k = len(tri)
+        return cls(np.full(k, -1), tri, barycentric, np.full((k, 3), np.nan), names)
+
+    # -- queries ------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.vertex)
+
+    @property
+    def kinds(self) -> np.ndarray:
+        """(k,) str: 'vertex', 'surface' or 'point' for each landmark."""
+        out = np.full(len(self), "point", dtype=object)
+        out[self.vertex >= 0] = "vertex"
+        out[self.triangle >= 0] = "surface"
+        return out
+
+    @property
+    def on_mesh(self) -> bool:
+        """True when no landmark is a free point (all follow a mesh)."""
+        return bool(np.all((self.vertex >= 0) | (self.triangle >= 0)))
+
+    def check(self, n_vertices: int | None = None, n_triangles: int | None = None):
+        """Raise ``ValueError`` if an index does not fit a mesh of the given size."""
+        if n_vertices is not None and len(self) and self.vertex.max() >= n_vertices:
+            i = int(np.argmax(self.vertex >= n_vertices))
+            raise ValueError(f"landmark {self.label(i)}: vertex {self.vertex[i]} "
+                             f"out of range (mesh has {n_vertices} vertices)")
+        if n_triangles is not None and len(self) and self.triangle.max() >= n_triangles:
+            i = int(np.argmax(self.triangle >= n_triangles))
+            raise ValueError(f"landmark {self.label(i)}: triangle {self.triangle[i]} "
+                             f"out of range (mesh has {n_triangles} triangles)")
+
+    def label(self, i: int) -> str:
+        """Name of landmark ``i``, or its index when unnamed."""
+        return self.names[i] if self.names is not None else str(i)
+
+    def positions(self, vertices, triangles=None) -> np.ndarray:
+        """3D positions for the given mesh geometry.
+
+        Parameters
+        ----------
+        vertices : (n, 3) float, or a Mesh
+        triangles : (t, 3) int, optional
+            Needed for surface landmarks (taken from the Mesh when one is given).
+
+        Returns
+        -------
+        (k, 3) float64
+        """
+        if hasattr(vertices, "triangles") and hasattr(vertices, "vertices"):
+            triangles = vertices.triangles if triangles is None else triangles
+            vertices = vertices.vertices
+        V = np.asarray(vertices, dtype=np.float64)
+        out = np.array(self.points, dtype=np.float64)
+        iv = self.vertex >= 0
+        if iv.any():
+            self.check(n_vertices=len(V))
+            out[iv] = V[self.vertex[iv]]
+        it = self.triangle >= 0
+        if it.any():
+            if triangles is None:
+                raise ValueError("surface landmarks need the mesh triangles")
+            T = np.asarray(triangles)
+            self.check(n_triangles=len(T))
+            corners = V[T[self.triangle[it]]]  # (k, 3, 3)
+            out[it] = np.einsum("kj,kjd->kd", self.barycentric[it], corners)
+        return out
+
+    def subset(self, index) -> "Landmarks":
+        """Landmarks ``index`` (int array or bool mask), names kept."""
+        idx = np.arange(len(self))[index]
+        names = None if self.names is None else [self.names[i] for i in idx]
+        return Landmarks(self.vertex[idx], self.triangle[idx], self.barycentric[idx],
+                         self.points[idx], names)
+
+    def __repr__(self) -> str:
+        kinds, counts = np.unique(self.kinds.astype(str), return_counts=True)
+        what = ", ".join(f"{c} {k}" for k, c in zip(kinds, counts))
+        return f"<Landmarks {len(self)}: {what}{', named' if self.names else ''}>"
+
+
+def pair_landmarks(a: Landmarks, b: Landmarks) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(ia, ib)`` such that ``a[ia[j]]`` corresponds to ``b[ib[j]]``.
+
+    Both named: matched by name (landmarks whose name is only in one set are left
+    out; no common name is an error).  Otherwise by order, and the counts must agree.
+
+    Examples
+    --------
+    >>> a = Landmarks.from_vertices([0, 1, 2], names=["a", "b", "c"])
+    >>> b = Landmarks.from_points(np.zeros((2, 3)), names=["c", "a"])
+    >>> [x.tolist() for x in pair_landmarks(a, b)]
+    [[0, 2], [1, 0]]
+    """
+    if a.names is not None and b.names is not None:
+        pos_b = {n: j for j, n in enumerate(b.names)}
+        ia = [i for i, n in enumerate(a.names) if n in pos_b]
+        if not ia:
+            raise ValueError("the two landmark sets have no name in common")
+        ib = [pos_b[a.names[i]] for i in ia]
+        return np.asarray(ia, dtype=np.int64), np.asarray(ib, dtype=np.int64)
+    if len(a) != len(b):
+        raise ValueError(f"landmark counts differ: {len(a)} vs {len(b)}")
+    idx = np.arange(len(a), dtype=np.int64)
+    return idx, idx.copy()
