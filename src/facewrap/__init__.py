@@ -1,1 +1,24 @@
-"""facewrap: wrap templates onto face scans, transfer deformations, make avatar blendshapes."""
+"""facewrap: wrap a template head onto raw face scans, transfer deformations, and
+make blendshapes for any avatar.
+
+The public API, grouped (see ``docs/architecture.md`` for how data flows):
+
+* mesh model and files: :class:`Mesh`, :func:`read_mesh`, :func:`write_mesh`
+* landmarks: :class:`Landmarks`, :func:`read_landmarks`, :func:`pair_landmarks`
+* built-in sample: :mod:`facewrap.sample`; real data sets: :mod:`facewrap.datasets`
+* geometry queries: :mod:`facewrap.geometry`
+"""
+
+__version__ = "0.1.0"
+
+from .errors import InputError
+from .mesh import Mesh
+from .landmarks import IBUG68_NAMES, Landmarks, pair_landmarks
+from .io import read_mesh, write_mesh
+from .io.landmarks import read_landmarks, read_markers
+
+__all__ = [
+    "__version__", "InputError",
+    "Mesh", "read_mesh", "write_mesh",
+    "Landmarks", "IBUG68_NAMES", "pair_landmarks", "read_landmarks", "read_markers",
+]

@@ -19,7 +19,20 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Landmarks", "pair_landmarks"]
+__all__ = ["Landmarks", "pair_landmarks", "IBUG68_NAMES"]
+
+
+def _names(prefix, count):
+    return tuple(f"{prefix}_{k}" for k in range(count))
+
+
+#: Names of the 68 iBUG/Multi-PIE face landmarks in their standard order.  "r"/"l"
+#: are the *subject's* right/left: points 17-21 and 36-41 lie on the subject's right
+#: (the image's left in a frontal photo).
+IBUG68_NAMES: tuple[str, ...] = (
+    _names("jaw", 17) + _names("brow_r", 5) + _names("brow_l", 5)
+    + _names("nose_bridge", 4) + _names("nose_base", 5) + _names("eye_r", 6)
+    + _names("eye_l", 6) + _names("mouth_outer", 12) + _names("mouth_inner", 8))
 
 
 def _ro(a):

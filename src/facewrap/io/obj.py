@@ -21,12 +21,24 @@ from ..errors import InputError
 from ..mesh import Mesh
 from .atomic import atomic_write
 
-__all__ = ["read_obj", "write_obj"]
+__all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 
 _NAMED = ("usemtl", "g", "o", "mtllib")
 
 
-def _read_text(path) -> str:
+class _Lazy:
+    """A value computed on first call (index arrays only errors need)."""
+
+    def __init__(self, make):
+        self._make, self._value = make, None
+
+    def __call__(self):
+        if self._value is None:
+            self._value = self._make()
+        return self._value
+
+
+def _read_bytes(path) -> bytes:
     try:
         data = open(path, "rb").read()
     except OSError as exc:
@@ -35,66 +47,157 @@ def _read_text(path) -> str:
         raise InputError("empty file", path)
     if b"\0" in data:
         raise InputError("binary data, not a text OBJ file", path)
-    return data.decode("utf-8", errors="replace")
+    if b"\\\n" in data:  # line continuation (rare): join, keeping byte offsets
+        data = data.replace(b"\\\n", b"  ")
+    if b"\n " in data or b"\n\t" in data or data[:1] in (b" ", b"\t"):
+        # indented lines (rare): strip them so keywords start each line
+        data = b"\n".join(line.strip() for line in data.split(b"\n"))
+    return data
 
 
-def _bulk_floats(rows: list[str], width: int, what: str, path, line_no) -> np.ndarray:
-    """Parse ``rows`` (text after the keyword) into an (n, width) array."""
+def _fromstring(text: str, dtype=np.float64) -> np.ndarray | None:
+    """Parse white-space separated numbers in C; None when a token is not a number."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        try:
+            return np.fromstring(text, dtype=dtype, sep=" ")
+        except ValueError:
+            return None
+
+
+class _Lines:
+    """Byte-level index of an OBJ file: where each line starts and ends.
+
+    Classifying millions of lines with numpy on the raw bytes, and parsing all rows
+    of one keyword with a single C call, is what makes reading fast; Python looks at
+    single lines only to name the line of an error.
+    """
+
+    def __init__(self, data: bytes):
+        buf = np.frombuffer(data, dtype=np.uint8)
+        newline = np.flatnonzero(buf == 10)
+        self.data = data
+        self.starts = np.concatenate([[0], newline + 1]).astype(np.int64)
+        self.ends = np.concatenate([newline, [len(buf)]]).astype(np.int64)
+        padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
+        self.c = [padded[self.starts + k] for k in range(3)]
+        # blanked copy: keyword bytes become spaces so a block of rows is just numbers
+        self.blank = bytearray(data)
+        self._blank_view = np.frombuffer(self.blank, dtype=np.uint8)
+
+    @staticmethod
+    def _space(c):
+        return (c == 32) | (c == 9) | (c == 13)
+
+    def rows(self, keyword: bytes) -> "_Rows":
+        c0, c1, c2 = self.c
+        if len(keyword) == 1:
+            mask = (c0 == keyword[0]) & self._space(c1)
+        else:
+            mask = (c0 == keyword[0]) & (c1 == keyword[1]) & self._space(c2)
+        idx = np.flatnonzero(mask)
+        for k in range(len(keyword)):
+            self._blank_view[self.starts[idx] + k] = 32
+        return _Rows(self, idx, len(keyword) + 1)
+
+    def text(self, i: int) -> str:
+        return self.data[self.starts[i]:self.ends[i]].decode("utf-8", "replace")
+
+
+class _Rows:
+    """The lines of one OBJ keyword, in file order."""
+
+    def __init__(self, lines: _Lines, idx: np.ndarray, skip: int):
+        self.lines, self.numbers, self.skip = lines, idx, skip
+        # contiguous runs of rows -> few large byte slices
+        cut = np.flatnonzero(np.diff(idx) != 1) + 1
+        first = np.concatenate([[0], cut]) if len(idx) else np.zeros(0, np.int64)
+        last = np.concatenate([cut - 1, [len(idx) - 1]]) if len(idx) else first
+        self._spans = [(int(lines.starts[idx[a]]), int(lines.ends[idx[b]]))
+                       for a, b in zip(first, last)]
+
+    def __len__(self) -> int:
+        return len(self.numbers)
+
+    def joined(self, blank: bool = True) -> bytes:
+        """All rows as one byte string (keywords blanked), newline separated."""
+        src = self.lines.blank if blank else self.lines.data
+        return b"\n".join(bytes(src[a:b]) for a, b in self._spans)
+
+    def row(self, k: int) -> str:
+        """Text of row ``k`` after the keyword."""
+        return self.lines.text(self.numbers[k])[self.skip:]
+
+    @property
+    def text(self) -> list[str]:
+        return [self.row(k) for k in range(len(self))]
+
+    def line(self, k) -> int:
+        """1-based line number of row ``k``."""
+        return int(self.numbers[int(k)]) + 1
+
+
+def _bulk_floats(rows: _Rows, width: int, what: str, path) -> np.ndarray:
+    """Parse the rows into an (n, width) float array, or name the bad line."""
     n = len(rows)
     if n == 0:
         return np.zeros((0, width))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        flat = np.fromstring(" ".join(rows), sep=" ")
-    if flat.size == n * width:
+    flat = _fromstring(rows.joined())
+    if flat is not None and flat.size == n * width:
         out = flat.reshape(n, width)
     else:
         # Slow path: per-line token counts decide (extra 'w' or colour columns) or
         # point at the bad line.
         out = np.empty((n, width))
-        for k, row in enumerate(rows):
-            toks = row.split()
+        for k, row in enumerate(rows.text):
             try:
-                vals = [float(t) for t in toks]
+                vals = [float(t) for t in row.split()]
             except ValueError:
                 raise InputError(f"{what} line has a value that is not a number: "
-                                 f"{row.strip()[:60]!r}", path, int(line_no[k]) + 1) from None
+                                 f"{row.strip()[:60]!r}", path, rows.line(k)) from None
             if len(vals) < width:
                 raise InputError(f"{what} line needs {width} numbers, found {len(vals)}",
-                                 path, int(line_no[k]) + 1)
+                                 path, rows.line(k))
             out[k] = vals[:width]
     bad = ~np.isfinite(out).all(axis=1)
     if bad.any():
-        k = int(np.argmax(bad))
-        raise InputError(f"{what} has a NaN or infinite value", path, int(line_no[k]) + 1)
+        raise InputError(f"{what} has a NaN or infinite value", path,
+                         rows.line(np.argmax(bad)))
     return out
 
 
-def _vertex_rows(rows, path, line_no):
+def _vertex_rows(rows: _Rows, path):
     """Positions, plus colours when every line carries ``x y z r g b``."""
     n = len(rows)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        flat = np.fromstring(" ".join(rows), sep=" ")
-    if n and flat.size == 6 * n and np.isfinite(flat).all():
+    flat = _fromstring(rows.joined())
+    if n and flat is not None and flat.size == 6 * n and np.isfinite(flat).all():
         data = flat.reshape(n, 6)
         return data[:, :3].copy(), data[:, 3:].copy()
-    return _bulk_floats(rows, 3, "vertex", path, line_no), None
+    return _bulk_floats(rows, 3, "vertex", path), None
 
 
-def _parse_corners(rows: list[str], path, line_no):
-    """Face rows -> sizes, and (c, 3) int64 [v, vt, vn] (0 where absent, 1-based)."""
-    toks = [r.split() for r in rows]
-    sizes = np.fromiter(map(len, toks), dtype=np.int64, count=len(toks))
+def _parse_corners(rows: _Rows, path):
+    """Face rows -> sizes (m,), and (c, 3) int64 [v, vt, vn] (0 where absent)."""
+    original = rows.joined(blank=False)
+    fast = not any(x in original for x in (b"  ", b"\t", b" \n", b" \r", b"\r\n"))
+    fast = fast and not original.endswith(b" ")
+    if fast:  # single spaces only: corners per face = spaces on the line
+        spaces = np.flatnonzero(np.frombuffer(original, dtype=np.uint8) == 32)
+        eol = np.flatnonzero(np.frombuffer(original + b"\n", dtype=np.uint8) == 10)
+        sizes = np.diff(np.concatenate([[0], np.searchsorted(spaces, eol)]))
+        joined = rows.joined().decode("ascii", "replace")
+        corners = None
+    else:
+        toks = [r.split() for r in rows.text]
+        sizes = np.fromiter(map(len, toks), dtype=np.int64, count=len(toks))
+        corners = [c for t in toks for c in t]
+        joined = " ".join(corners)
     small = np.flatnonzero(sizes < 3)
     if len(small):
-        k = int(small[0])
-        raise InputError(f"face needs at least 3 corners, found {sizes[k]}", path,
-                         int(line_no[k]) + 1)
-    corners = [c for t in toks for c in t]
-    n = len(corners)
-    joined = " ".join(corners)
-    first = corners[0]
+        raise InputError(f"face needs at least 3 corners, found {sizes[small[0]]}",
+                         path, rows.line(small[0]))
+    n = int(sizes.sum())
+    first = joined.split(None, 1)[0]
     n_slash, double = first.count("/"), "//" in first
     uniform = (joined.count("/") == n * n_slash
                and joined.count("//") == (n if double else 0) and n_slash <= 2)
@@ -102,23 +205,22 @@ def _parse_corners(rows: list[str], path, line_no):
     if uniform:
         if double:
             cols = [0, 2]
-            joined = joined.replace("//", " ")
+            flat = _fromstring(joined.replace("//", " "), np.int64)
         else:
             cols = list(range(n_slash + 1))
-            joined = joined.replace("/", " ")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)
-            flat = np.fromstring(joined, dtype=np.int64, sep=" ")
-        if flat.size == n * len(cols):
+            flat = _fromstring(joined.replace("/", " ") if n_slash else joined, np.int64)
+        if flat is not None and flat.size == n * len(cols):
             out[:, cols] = flat.reshape(n, len(cols))
             return sizes, out
     # Mixed corner formats or a bad token: parse corner by corner, naming the line.
+    if corners is None:
+        corners = joined.split()
     face_of_corner = np.repeat(np.arange(len(rows)), sizes)
     for c, tok in enumerate(corners):
         parts = tok.split("/")
         if len(parts) > 3 or parts[0] == "":
             raise InputError(f"bad face corner {tok!r}", path,
-                             int(line_no[face_of_corner[c]]) + 1)
+                             rows.line(face_of_corner[c]))
         for j, p in enumerate(parts):
             if p == "":
                 continue
@@ -126,24 +228,8 @@ def _parse_corners(rows: list[str], path, line_no):
                 out[c, j] = int(p)
             except ValueError:
                 raise InputError(f"face index is not an integer: {tok!r}", path,
-                                 int(line_no[face_of_corner[c]]) + 1) from None
+                                 rows.line(face_of_corner[c])) from None
     return sizes, out
-
-
-def _resolve(idx, rows_no, corner_line, total, what, path):
-    """1-based (or negative = relative) OBJ indices -> 0-based, checked."""
-    neg = idx < 0
-    if neg.any():
-        before = np.searchsorted(rows_no, corner_line)  # elements defined so far
-        out = np.where(neg, before + idx, idx - 1)
-    else:
-        out = idx - 1
-    bad = (out < 0) | (out >= total)
-    if bad.any():
-        c = int(np.argmax(bad))
-        raise InputError(f"{what} index {idx[c]} out of range (the file has {total})",
-                         path, int(corner_line[c]) + 1)
-    return out
 
 
 def read_obj(path) -> Mesh:
@@ -167,78 +253,66 @@ def read_obj(path) -> Mesh:
         Naming the file and line: empty or binary file, a non-number, NaN/inf, a
         face with fewer than 3 corners, an index out of range or 0.
     """
-    text = _read_text(path)
-    if "\\\n" in text:  # line continuation
-        text = text.replace("\\\n", " ")
-    lines = text.splitlines()
-    v, vt, vn, f = [], [], [], []
-    v_no, vt_no, vn_no, f_no = [], [], [], []
-    named = []  # (line number, keyword, name)
-    for i, line in enumerate(lines):
-        if not line:
-            continue
-        if line[0] in " \t":
-            line = line.strip()
-            if not line:
-                continue
-        head = line[:2]
-        if head == "v " or head == "v\t":
-            v.append(line[2:])
-            v_no.append(i)
-        elif head == "vt":
-            vt.append(line[3:])
-            vt_no.append(i)
-        elif head == "vn":
-            vn.append(line[3:])
-            vn_no.append(i)
-        elif head == "f " or head == "f\t":
-            f.append(line[2:])
-            f_no.append(i)
-        elif line[0] != "#":
-            key, _, rest = line.partition(" ")
-            if key in _NAMED:
-                named.append((i, key, rest.strip()))
-    if not v:
+    lines = _Lines(_read_bytes(path))
+    v, vt, vn, f = (lines.rows(k) for k in (b"v", b"vt", b"vn", b"f"))
+    if not len(v):
         raise InputError("no vertices ('v' lines)", path)
-    if not f:
+    if not len(f):
         raise InputError("no faces ('f' lines)", path)
-    v_no, vt_no, vn_no, f_no = (np.asarray(a, dtype=np.int64)
-                                for a in (v_no, vt_no, vn_no, f_no))
 
-    vertices, colors = _vertex_rows(v, path, v_no)
-    uvs = _bulk_floats(vt, 2, "texture coordinate", path, vt_no) if vt else None
-    normals = _bulk_floats(vn, 3, "normal", path, vn_no) if vn else None
+    vertices, colors = _vertex_rows(v, path)
+    uvs = _bulk_floats(vt, 2, "texture coordinate", path) if len(vt) else None
+    normals = _bulk_floats(vn, 3, "normal", path) if len(vn) else None
 
-    sizes, corner = _parse_corners(f, path, f_no)
-    corner_line = np.repeat(f_no, sizes)
+    sizes, corner = _parse_corners(f, path)
     offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])
+    face_of_corner = _Lazy(lambda: np.repeat(np.arange(len(sizes)), sizes))
 
-    def resolve(col, rows_no, total, what):
-        return _resolve(corner[:, col], rows_no, corner_line, total, what, path)
+    def corner_line(c):
+        return f.line(face_of_corner()[c])
+
+    def resolve(col, rows, total, what):
+        idx = corner[:, col]
+        neg = idx < 0
+        if neg.any():  # relative: counts elements defined before the face's line
+            line0 = f.numbers[face_of_corner()]
+            out = np.where(neg, np.searchsorted(rows.numbers, line0) + idx, idx - 1)
+        else:
+            out = idx - 1
+        bad = (out < 0) | (out >= total)
+        if bad.any():
+            c = int(np.argmax(bad))
+            raise InputError(f"{what} index {idx[c]} out of range (the file has "
+                             f"{total})", path, corner_line(c))
+        return out
 
     if np.any(corner[:, 0] == 0):
-        c = int(np.argmax(corner[:, 0] == 0))
         raise InputError("face index 0 (OBJ indices start at 1)", path,
-                         int(corner_line[c]) + 1)
-    faces = resolve(0, v_no, len(vertices), "vertex")
+                         corner_line(np.argmax(corner[:, 0] == 0)))
+    faces = resolve(0, v, len(vertices), "vertex")
     face_uvs = face_normals = None
     has_vt, has_vn = corner[:, 1] != 0, corner[:, 2] != 0
     if uvs is not None and has_vt.any():
         if not has_vt.all():
-            c = int(np.argmax(~has_vt))
             raise InputError("some face corners have texture coordinates and some do "
-                             "not", path, int(corner_line[c]) + 1)
-        face_uvs = resolve(1, vt_no, len(uvs), "texture coordinate")
+                             "not", path, corner_line(np.argmax(~has_vt)))
+        face_uvs = resolve(1, vt, len(uvs), "texture coordinate")
     elif has_vt.any():
         raise InputError("faces refer to texture coordinates but there are no 'vt' "
-                         "lines", path, int(corner_line[np.argmax(has_vt)]) + 1)
+                         "lines", path, corner_line(np.argmax(has_vt)))
     if normals is not None and has_vn.all():
-        face_normals = resolve(2, vn_no, len(normals), "normal")
+        face_normals = resolve(2, vn, len(normals), "normal")
     elif has_vn.any() and normals is None:
         raise InputError("faces refer to normals but there are no 'vn' lines", path,
-                         int(corner_line[np.argmax(has_vn)]) + 1)
+                         corner_line(np.argmax(has_vn)))
 
+    first = lines.c[0]
+    maybe = np.flatnonzero((first == 117) | (first == 103) | (first == 111)
+                           | (first == 109))  # u g o m
+    named = [(int(i), key, rest.strip()) for i, (key, _, rest) in
+             ((i, lines.text(i).strip().partition(" ")) for i in maybe)
+             if key in _NAMED]
     # usemtl / g / o apply to the faces that follow them.
     mtllib = [n for _, k, n in named if k == "mtllib" and n]
 
@@ -250,7 +324,7 @@ def read_obj(path) -> Mesh:
         lut = {n: j for j, n in enumerate(names)}
         ev_line = np.array([i for i, _ in events], dtype=np.int64)
         ev_id = np.array([lut[n] for _, n in events] + [-1], dtype=np.int64)
-        pos = np.searchsorted(ev_line, f_no) - 1  # last event before each face
+        pos = np.searchsorted(ev_line, f.numbers) - 1  # last event before each face
         return ev_id[pos], tuple(names)
 
     face_materials, materials = per_face(("usemtl",))
@@ -341,3 +415,26 @@ def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with atomic_write(path, "w", encoding="utf-8", newline="\n") as fh:
         fh.writelines(parts)
+
+
+def read_obj_vertices(path, n_vertices: int | None = None) -> np.ndarray:
+    """Read only the ``v`` lines of an OBJ: fast loading of shapes in one topology.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    n_vertices : int, optional
+        Expected vertex count (a blendshape must match its neutral).
+
+    Returns
+    -------
+    (n, 3) float64
+    """
+    rows = _Lines(_read_bytes(path)).rows(b"v")
+    if not len(rows):
+        raise InputError("no vertices ('v' lines)", path)
+    vertices, _ = _vertex_rows(rows, path)
+    if n_vertices is not None and len(vertices) != n_vertices:
+        raise InputError(f"has {len(vertices)} vertices, expected {n_vertices} (the "
+                         "shape must be in the same topology)", path)
+    return vertices

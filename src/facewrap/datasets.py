@@ -1,0 +1,245 @@
+"""Loaders for public face and deformation-transfer data sets, in their own layouts.
+
+These read a user's copy of each data set as it is published, so they work the same
+on ``../shared/data`` and on any other copy:
+
+* :class:`ICTFaceKit` — the ICT-FaceKit ``FaceXModel`` folder (neutral OBJ, one OBJ
+  per expression/identity shape, ``vertex_indices.json``); shapes load lazily.
+* :func:`load_shape_folder` — a folder of OBJ shapes in one topology (blendshapes).
+* :func:`load_pose_set` / :class:`PoseSet` — Sumner-style reference + poses, with
+  :func:`load_sumner_pair` for the ``markers-*.yml`` / ``.cons`` descriptions.
+* :func:`expand_ict_facekit` — runs the compact copy's ``expand.py`` into a cache
+  folder (never into the project tree).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .io.dispatch import read_mesh
+from .io.landmarks import read_markers
+from .io.obj import read_obj, read_obj_vertices
+from .landmarks import IBUG68_NAMES, Landmarks
+from .mesh import Mesh
+
+__all__ = ["ICTFaceKit", "ICT_PARTS", "load_shape_folder", "PoseSet", "load_pose_set",
+           "load_sumner_pair", "expand_ict_facekit", "cache_dir"]
+
+#: ICT-FaceKit parts as (first vertex, last vertex, first polygon, last polygon),
+#: inclusive, from the data set's documentation.
+ICT_PARTS: dict[str, tuple[int, int, int, int]] = {
+    "face": (0, 9408, 0, 9229),
+    "narrow_face": (0, 6705, 0, 6559),
+    "head_and_neck": (9409, 11247, 9230, 11143),
+    "mouth_socket": (11248, 13293, 11144, 13225),
+    "eye_socket_left": (13294, 13677, 13226, 13629),
+    "eye_socket_right": (13678, 14061, 13630, 14033),
+    "gums_and_tongue": (14062, 17038, 14034, 17005),
+    "teeth": (17039, 21450, 17006, 21495),
+    "eyeball_left": (21451, 23020, 21496, 23093),
+    "eyeball_right": (23021, 24590, 23094, 24691),
+    "eye_extras": (24591, 26718, 24692, 26383),
+}
+
+
+def cache_dir(*parts: str) -> Path:
+    """A cache folder for expanded/converted data: ``$FACEWRAP_CACHE`` or
+    ``~/.cache/facewrap``, created on demand."""
+    root = Path(os.environ.get("FACEWRAP_CACHE", Path.home() / ".cache" / "facewrap"))
+    path = root.joinpath(*parts)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def expand_ict_facekit(compact_root, out_dir=None, names=None) -> Path:
+    """Write the FaceXModel folder from the compact copy (its own ``expand.py``).
+
+    Parameters
+    ----------
+    compact_root : path
+        Folder holding ``expand.py``, ``shapes_vertex_lines.npz`` and ``FaceXModel/``.
+    out_dir : path, optional
+        Defaults to ``cache_dir("ict-facekit")``.
+    names : list of str, optional
+        Shapes to write (all when omitted).  Shapes already written are kept.
+
+    Returns
+    -------
+    Path of the expanded FaceXModel folder.
+    """
+    compact_root = Path(compact_root)
+    script = compact_root / "expand.py"
+    if not script.is_file():
+        raise InputError("expand.py not found (not a compact ICT-FaceKit copy)",
+                         compact_root)
+    out = Path(out_dir) if out_dir is not None else cache_dir("ict-facekit")
+    wanted = list(names) if names else None
+    if wanted is not None:
+        wanted = [n for n in wanted if not (out / f"{n}.obj").is_file()]
+        if not wanted and (out / "generic_neutral_mesh.obj").is_file():
+            return out
+    subprocess.run([sys.executable, str(script), str(out), *(wanted or [])], check=True)
+    return out
+
+
+class ICTFaceKit:
+    """The ICT-FaceKit light face model, read from its FaceXModel folder.
+
+    Parameters
+    ----------
+    folder : path
+        A ``FaceXModel`` folder: ``generic_neutral_mesh.obj``, ``vertex_indices.json``
+        and one OBJ per shape (``browDown_L.obj``..., ``identity000.obj``...).
+
+    Attributes
+    ----------
+    neutral : Mesh
+        26,719 vertices, quads + triangles, 28,911 UVs, 12 materials (cm).
+    expression_names, identity_names : list of str
+        Shapes whose OBJ is present in the folder.
+    landmarks : Landmarks
+        The 68 iBUG landmark vertices (``idx_to_landmark_verts``), named
+        :data:`~facewrap.landmarks.IBUG68_NAMES`.
+    """
+
+    def __init__(self, folder):
+        self.folder = Path(folder)
+        neutral = self.folder / "generic_neutral_mesh.obj"
+        index = self.folder / "vertex_indices.json"
+        for f in (neutral, index):
+            if not f.is_file():
+                raise InputError("missing (not an ICT-FaceKit FaceXModel folder)", f)
+        self.neutral: Mesh = read_obj(neutral)
+        with open(index) as fh:
+            self.indices: dict = json.load(fh)
+        self.expression_names = [n for n in self.indices["expressions"]
+                                 if (self.folder / f"{n}.obj").is_file()]
+        self.identity_names = sorted(p.stem for p in self.folder.glob("identity*.obj"))
+        self.landmarks = Landmarks.from_vertices(self.indices["idx_to_landmark_verts"],
+                                                 names=IBUG68_NAMES)
+        self._cache: dict[str, np.ndarray] = {}
+
+    def shape(self, name: str) -> np.ndarray:
+        """(n, 3) vertex positions of one shape (read once, then cached)."""
+        if name not in self._cache:
+            path = self.folder / f"{name}.obj"
+            if not path.is_file():
+                raise InputError("shape not found", path)
+            v = read_obj_vertices(path, self.neutral.n_vertices)
+            v.setflags(write=False)
+            self._cache[name] = v
+        return self._cache[name]
+
+    def deltas(self, names) -> np.ndarray:
+        """(k, n, 3) displacements of the named shapes from the neutral."""
+        return np.stack([self.shape(n) - self.neutral.vertices for n in names])
+
+    def part_vertices(self, part: str) -> np.ndarray:
+        """int64 vertex ids of a part of :data:`ICT_PARTS`."""
+        lo, hi, _, _ = ICT_PARTS[part]
+        return np.arange(lo, hi + 1, dtype=np.int64)
+
+    def part_mesh(self, part: str = "face", vertices=None) -> Mesh:
+        """The polygons of one part as a mesh (its vertex ids start at the part's
+        first vertex, so for ``"face"`` they equal the full model's ids).
+
+        Parameters
+        ----------
+        vertices : (n, 3) float, optional
+            Positions for the full model (a shape); the neutral by default.
+        """
+        _, _, f0, f1 = ICT_PARTS[part]
+        mesh = self.neutral if vertices is None else self.neutral.with_vertices(vertices)
+        sub, vmap = mesh.submesh(np.arange(f0, f1 + 1))
+        lo = ICT_PARTS[part][0]
+        if not np.array_equal(vmap, np.arange(lo, lo + sub.n_vertices)):
+            raise RuntimeError(f"ICT part {part!r} is not a contiguous vertex range")
+        return sub
+
+
+def load_shape_folder(folder, reference: Mesh | None = None,
+                      exclude=("neutral",)) -> dict[str, np.ndarray]:
+    """Read every OBJ in a folder as a shape in one topology.
+
+    Parameters
+    ----------
+    folder : path
+    reference : Mesh, optional
+        The neutral: every shape must have its vertex count.  A file whose vertices
+        equal the reference's exactly is skipped (a neutral inside the folder).
+    exclude : sequence of str
+        File stems (case-insensitive substrings) to skip.
+
+    Returns
+    -------
+    dict name -> (n, 3) float64, sorted by name.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a folder", folder)
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".obj")
+    n = None if reference is None else reference.n_vertices
+    shapes = {}
+    for p in files:
+        if any(e.lower() in p.stem.lower() for e in exclude):
+            continue
+        v = read_obj_vertices(p, n)
+        if reference is not None and np.array_equal(v, reference.vertices):
+            continue
+        shapes[p.stem] = v
+    if not shapes:
+        raise InputError("no OBJ shapes found", folder)
+    return shapes
+
+
+@dataclass
+class PoseSet:
+    """A reference mesh and poses of it in the same topology."""
+    reference: Mesh
+    poses: list[np.ndarray] = field(default_factory=list)
+    names: list[str] = field(default_factory=list)
+
+
+def load_pose_set(reference, poses) -> PoseSet:
+    """Read a reference mesh and pose files (vertex positions only for poses)."""
+    ref = read_mesh(reference)
+    return PoseSet(ref, [read_obj_vertices(p, ref.n_vertices) for p in poses],
+                   [Path(p).stem for p in poses])
+
+
+@dataclass
+class SumnerPair:
+    """A deformation-transfer case: source and target pose sets and markers."""
+    source: PoseSet
+    target: PoseSet
+    markers: tuple[np.ndarray, np.ndarray]
+
+
+def load_sumner_pair(description) -> SumnerPair:
+    """Read a ``markers-*.yml`` description (source/target files and markers).
+
+    The YAML names ``source.reference``, ``source.poses``, ``target.reference``,
+    ``target.poses`` relative to its folder.
+    """
+    import yaml
+    description = Path(description)
+    with open(description) as fh:
+        d = yaml.safe_load(fh)
+    root = description.parent
+    try:
+        src, tgt = d["source"], d["target"]
+        source = load_pose_set(root / src["reference"], [root / p for p in src["poses"]])
+        target = load_pose_set(root / tgt["reference"],
+                               [root / p for p in tgt.get("poses", [])])
+    except (KeyError, TypeError):
+        raise InputError("expects source/target with reference and poses",
+                         description) from None
+    return SumnerPair(source, target, read_markers(description))

@@ -1,0 +1,65 @@
+"""Argument checks shared by the public functions of :mod:`facewrap.geometry`.
+
+Public functions call these once, at the door, and pass clean arrays to private
+helpers that trust them.  Every failure is a ``ValueError`` naming the argument.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_vertices(V, name: str = "V") -> np.ndarray:
+    """(n, 3) float64 view or copy of ``V``; raise ValueError naming ``name``."""
+    try:
+        V = np.asarray(V, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a float array of shape (n, 3): {exc}") from None
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (n, 3), got {V.shape}")
+    if not np.all(np.isfinite(V)):
+        raise ValueError(f"{name} must be finite (found NaN or inf)")
+    return V
+
+
+def as_index_array(T, columns: int, n: int | None, name: str) -> np.ndarray:
+    """(m, columns) int64 indices, checked against ``[0, n)`` when ``n`` is given."""
+    T = np.asarray(T)
+    if T.size == 0:
+        T = T.reshape(-1, columns)
+    if not (np.issubdtype(T.dtype, np.integer) or T.size == 0):
+        raise ValueError(f"{name} must hold integer indices, got dtype {T.dtype}")
+    if T.ndim != 2 or T.shape[1] != columns:
+        raise ValueError(f"{name} must have shape (m, {columns}), got {T.shape}")
+    T = T.astype(np.int64, copy=False)
+    if T.size and T.min() < 0:
+        raise ValueError(f"{name} has a negative index ({T.min()})")
+    if n is not None and T.size and T.max() >= n:
+        raise ValueError(f"{name} index {T.max()} out of range for {n} vertices")
+    return T
+
+
+def as_triangles(T, n: int | None = None, name: str = "T") -> np.ndarray:
+    """(t, 3) int64 triangle indices, in ``[0, n)`` when ``n`` is given."""
+    return as_index_array(T, 3, n, name)
+
+
+def as_count(n, name: str = "n") -> int:
+    """A non-negative Python int."""
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
+        raise ValueError(f"{name} must be a non-negative int, got {n!r}")
+    if n < 0:
+        raise ValueError(f"{name} must be a non-negative int, got {n}")
+    return int(n)
+
+
+def as_triangles_or_edges(T_or_edges, n: int, name: str = "T_or_edges"
+                          ) -> tuple[np.ndarray, int]:
+    """Indices of shape (t, 3) or (e, 2), and that column count."""
+    arr = np.asarray(T_or_edges)
+    columns = arr.shape[1] if arr.ndim == 2 and arr.shape[1] in (2, 3) else 3
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        if arr.size == 0:
+            return np.zeros((0, 2), dtype=np.int64), 2
+        raise ValueError(f"{name} must have shape (t, 3) or (e, 2), got {arr.shape}")
+    return as_index_array(arr, columns, n, name), columns

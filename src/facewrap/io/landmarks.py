@@ -1,0 +1,404 @@
+"""Landmark and marker files.
+
+Formats read (and, where it makes sense, written):
+
+* **vertex-index lists** — whitespace separated 0-based vertex ids, on one line or
+  many (ICT, Onizuka ``landmarks_*.txt``): :func:`read_vertex_indices`;
+* **point lists** — one ``x y z`` (or ``x,y,z``) per line, optional ``name`` as a
+  fourth column: :func:`read_points`;
+* **menpo LJSON** v1–v3 (``.ljson``) — points named ``<label>_<k>`` by their label
+  group: :func:`read_ljson`;
+* **marker pairs** — ``src tgt`` (or ``src, tgt``) per line with an optional count
+  first line (Sumner's ``.cons``), or YAML with ``markers: ["src:tgt", ...]``:
+  :func:`read_markers`;
+* **facewrap JSON** — our own documented format, any landmark kind, names kept
+  (:func:`read_landmarks_json`, :func:`write_landmarks_json`)::
+
+      {"format": "facewrap.landmarks", "version": 1,
+       "landmarks": [
+         {"name": "nose_tip", "vertex": 20},
+         {"name": "mouth_left", "triangle": 511, "barycentric": [0.2, 0.3, 0.5]},
+         {"name": "pupil_r", "point": [31.2, 10.5, 88.0]}]}
+
+  A marker-pair JSON uses ``{"format": "facewrap.markers", "version": 1,
+  "pairs": [[src, tgt], ...]}``.
+
+:func:`read_landmarks` picks a reader from the extension and, for plain text,
+from the content: all-integer text is a vertex-index list, anything else points.
+Every reader raises one :class:`~facewrap.errors.InputError` naming the file and
+line for malformed content.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+
+import numpy as np
+
+from ..errors import InputError
+from ..landmarks import Landmarks
+from .atomic import atomic_write
+
+__all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
+           "read_landmarks_json", "write_landmarks_json", "write_points",
+           "write_vertex_indices", "read_markers", "write_markers"]
+
+_INT = re.compile(r"^[+-]?\d+$")
+
+
+def _text(path) -> str:
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc.strerror}", path) from None
+    if b"\0" in data:
+        raise InputError("binary data, not a text file", path)
+    text = data.decode("utf-8", errors="replace")
+    if not text.strip():
+        raise InputError("empty file", path)
+    return text
+
+
+def _content_lines(text: str):
+    """(line number, stripped line) for lines that are not blank or comments."""
+    for i, line in enumerate(text.splitlines(), start=1):
+        s = line.split("#", 1)[0].strip()
+        if s:
+            yield i, s
+
+
+def read_vertex_indices(path, n_vertices: int | None = None) -> Landmarks:
+    """Read 0-based vertex ids separated by white space (or commas).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    n_vertices : int, optional
+        When given, ids must be below it.
+
+    Returns
+    -------
+    Landmarks
+        Vertex landmarks, in file order, unnamed.
+    """
+    ids, lines = [], []
+    for no, s in _content_lines(_text(path)):
+        for tok in s.replace(",", " ").split():
+            if not _INT.match(tok):
+                raise InputError(f"vertex index is not an integer: {tok!r}", path, no)
+            ids.append(int(tok))
+            lines.append(no)
+    if not ids:
+        raise InputError("no vertex indices", path)
+    arr = np.asarray(ids, dtype=np.int64)
+    if (arr < 0).any():
+        k = int(np.argmax(arr < 0))
+        raise InputError(f"negative vertex index {arr[k]}", path, lines[k])
+    if n_vertices is not None and (arr >= n_vertices).any():
+        k = int(np.argmax(arr >= n_vertices))
+        raise InputError(f"vertex index {arr[k]} out of range (mesh has {n_vertices} "
+                         "vertices)", path, lines[k])
+    return Landmarks.from_vertices(arr)
+
+
+def write_vertex_indices(path, landmarks: Landmarks) -> None:
+    """Write vertex landmarks as one 0-based id per line."""
+    if np.any(landmarks.vertex < 0):
+        raise ValueError("only vertex landmarks can be written as an index list")
+    with atomic_write(path, "w") as fh:
+        fh.write("".join(f"{i}\n" for i in landmarks.vertex.tolist()))
+
+
+def read_points(path) -> Landmarks:
+    """Read ``x y z`` points, one per line (commas allowed, optional 4th-column name).
+
+    Returns
+    -------
+    Landmarks
+        Free points; named when every line carries a name.
+    """
+    pts, names = [], []
+    for no, s in _content_lines(_text(path)):
+        toks = s.replace(",", " ").split()
+        if len(toks) not in (3, 4):
+            raise InputError(f"expected 'x y z' (and an optional name), found "
+                             f"{len(toks)} values", path, no)
+        try:
+            xyz = [float(t) for t in toks[:3]]
+        except ValueError:
+            raise InputError(f"not a number in {s[:60]!r}", path, no) from None
+        if not np.isfinite(xyz).all():
+            raise InputError("NaN or infinite coordinate", path, no)
+        pts.append(xyz)
+        names.append(toks[3] if len(toks) == 4 else None)
+    if not pts:
+        raise InputError("no points", path)
+    named = all(n is not None for n in names)
+    if any(n is not None for n in names) and not named:
+        raise InputError("some points have names and some do not", path)
+    try:
+        return Landmarks.from_points(np.asarray(pts), names if named else None)
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None
+
+
+def write_points(path, points_or_landmarks, names=None) -> None:
+    """Write ``x y z [name]`` lines (full float precision)."""
+    if isinstance(points_or_landmarks, Landmarks):
+        names = points_or_landmarks.names if names is None else names
+        if not np.isfinite(points_or_landmarks.points).all():
+            raise ValueError("only free-point landmarks can be written as points; "
+                             "resolve them with Landmarks.positions first")
+        pts = points_or_landmarks.points
+    else:
+        pts = np.asarray(points_or_landmarks, dtype=np.float64)
+    rows = [f"{x!r} {y!r} {z!r}" for x, y, z in pts.tolist()]
+    if names is not None:
+        rows = [f"{r} {n}" for r, n in zip(rows, names)]
+    with atomic_write(path, "w") as fh:
+        fh.write("\n".join(rows) + "\n")
+
+
+def _load_json(path):
+    text = _text(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+
+
+def read_ljson(path) -> Landmarks:
+    """Read menpo LJSON (v1, v2, v3) landmarks.
+
+    Points are named ``<label>_<k>`` (k-th point of the label's mask) when the file
+    labels them, e.g. ``chin_0``; the file order is kept.  A point that menpo marks
+    missing (``null``) is an error: this reader never invents positions.
+    """
+    d = _load_json(path)
+    if not isinstance(d, dict):
+        raise InputError("LJSON must be an object", path)
+    version = d.get("version", 1)
+    if version in (1, 2) and "landmarks" in d and "groups" not in d:
+        block = d["landmarks"]
+        raw = block.get("points") if isinstance(block, dict) else None
+        labels = d.get("labels", [])
+    else:
+        groups = d.get("groups")
+        if not isinstance(groups, dict) or not groups:
+            raise InputError("LJSON has no 'groups'", path)
+        group = groups.get("LJSON") or next(iter(groups.values()))
+        raw = group.get("landmarks", {}).get("points")
+        labels = group.get("labels", [])
+    if not isinstance(raw, list) or not raw:
+        raise InputError("LJSON has no landmark points", path)
+    if version in (1, 2) and raw and isinstance(raw[0], dict):
+        raw = [p.get("point") for p in raw]
+    for k, p in enumerate(raw):
+        if p is None or not isinstance(p, list) or len(p) != 3 or None in p:
+            raise InputError(f"landmark {k} is missing or not an [x, y, z] point", path)
+    pts = np.asarray(raw, dtype=np.float64)
+    if not np.isfinite(pts).all():
+        raise InputError("NaN or infinite landmark coordinate", path)
+    names = None
+    if labels:
+        names = [None] * len(pts)
+        for lab in labels:
+            mask = lab.get("mask", [])
+            for k, i in enumerate(mask):
+                if not isinstance(i, int) or not 0 <= i < len(pts):
+                    raise InputError(f"label {lab.get('label')!r} has a mask index "
+                                     f"out of range: {i}", path)
+                names[i] = f"{lab.get('label')}_{k}"
+        if any(n is None for n in names) or len(set(names)) != len(names):
+            names = None  # partial or overlapping labels: fall back to order only
+    return Landmarks.from_points(pts, names)
+
+
+def read_landmarks_json(path) -> Landmarks:
+    """Read the facewrap landmark JSON format (see the module docstring)."""
+    d = _load_json(path)
+    if not isinstance(d, dict) or d.get("format") != "facewrap.landmarks":
+        raise InputError("not a facewrap landmark file (\"format\": "
+                         "\"facewrap.landmarks\" missing)", path)
+    items = d.get("landmarks")
+    if not isinstance(items, list) or not items:
+        raise InputError("'landmarks' must be a non-empty list", path)
+    k = len(items)
+    vertex, triangle = np.full(k, -1), np.full(k, -1)
+    bary, points = np.zeros((k, 3)), np.full((k, 3), np.nan)
+    names = []
+    for i, it in enumerate(items):
+        where = f"landmark {i}"
+        if not isinstance(it, dict):
+            raise InputError(f"{where} must be an object", path)
+        names.append(it.get("name", str(i)))
+        keys = [key for key in ("vertex", "triangle", "point") if key in it]
+        if len(keys) != 1:
+            raise InputError(f"{where} needs exactly one of 'vertex', 'triangle' "
+                             "(+ 'barycentric') or 'point'", path)
+        try:
+            if keys[0] == "vertex":
+                vertex[i] = _nonneg_int(it["vertex"])
+            elif keys[0] == "triangle":
+                triangle[i] = _nonneg_int(it["triangle"])
+                b = np.asarray(it.get("barycentric"), dtype=np.float64)
+                if b.shape != (3,) or not np.isfinite(b).all():
+                    raise ValueError("'barycentric' must be 3 finite numbers")
+                bary[i] = b
+            else:
+                p = np.asarray(it["point"], dtype=np.float64)
+                if p.shape != (3,) or not np.isfinite(p).all():
+                    raise ValueError("'point' must be 3 finite numbers")
+                points[i] = p
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{where}: {exc}", path) from None
+    try:
+        return Landmarks(vertex, triangle, bary, points, names)
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None
+
+
+def _nonneg_int(x) -> int:
+    if isinstance(x, bool) or not isinstance(x, int) or x < 0:
+        raise ValueError(f"index must be a non-negative integer, got {x!r}")
+    return x
+
+
+def write_landmarks_json(path, landmarks: Landmarks) -> None:
+    """Write any landmark set in the facewrap JSON format (names kept)."""
+    items = []
+    for i in range(len(landmarks)):
+        it = {"name": landmarks.label(i)}
+        if landmarks.vertex[i] >= 0:
+            it["vertex"] = int(landmarks.vertex[i])
+        elif landmarks.triangle[i] >= 0:
+            it["triangle"] = int(landmarks.triangle[i])
+            it["barycentric"] = landmarks.barycentric[i].tolist()
+        else:
+            it["point"] = landmarks.points[i].tolist()
+        items.append(it)
+    with atomic_write(path, "w") as fh:
+        json.dump({"format": "facewrap.landmarks", "version": 1, "landmarks": items},
+                  fh, indent=1)
+
+
+def read_landmarks(path, kind: str = "auto") -> Landmarks:
+    """Read landmarks, choosing the reader from extension and content.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    kind : {"auto", "vertices", "points"}
+        For plain text: ``"auto"`` reads all-integer text as vertex ids and
+        anything else as ``x y z`` points.
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if not os.path.isfile(path):
+        raise InputError("no such file", path)
+    if ext == ".ljson":
+        return read_ljson(path)
+    if ext == ".json":
+        return read_landmarks_json(path)
+    if kind == "vertices":
+        return read_vertex_indices(path)
+    if kind == "points":
+        return read_points(path)
+    if kind != "auto":
+        raise ValueError(f"kind must be 'auto', 'vertices' or 'points', got {kind!r}")
+    toks = [t for _, s in _content_lines(_text(path)) for t in s.replace(",", " ").split()]
+    if toks and all(_INT.match(t) for t in toks):
+        return read_vertex_indices(path)
+    return read_points(path)
+
+
+def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
+    """Read marker pairs (source vertex id, target vertex id), 0-based.
+
+    Accepts Sumner's ``.cons`` (optional count line, then ``src, tgt`` or ``src tgt``
+    per line), YAML with ``markers: ["src:tgt", ...]`` (``.yml``/``.yaml``), and the
+    facewrap marker JSON.
+
+    Returns
+    -------
+    source : (k,) int64
+    target : (k,) int64
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext in (".yml", ".yaml"):
+        return _read_markers_yaml(path)
+    if ext == ".json":
+        d = _load_json(path)
+        if not isinstance(d, dict) or d.get("format") != "facewrap.markers":
+            raise InputError("not a facewrap marker file (\"format\": "
+                             "\"facewrap.markers\" missing)", path)
+        pairs = d.get("pairs")
+        try:
+            arr = np.asarray(pairs, dtype=np.int64)
+        except (TypeError, ValueError):
+            raise InputError("'pairs' must be a list of [source, target] integers",
+                             path) from None
+        if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
+            raise InputError("'pairs' must be a non-empty list of [source, target]", path)
+        if (arr < 0).any():
+            raise InputError("negative vertex id in 'pairs'", path)
+        return arr[:, 0].copy(), arr[:, 1].copy()
+    rows = list(_content_lines(_text(path)))
+    expected = None
+    first_toks = rows[0][1].replace(",", " ").split() if rows else []
+    if len(first_toks) == 1:
+        if not _INT.match(first_toks[0]):
+            raise InputError(f"not a marker count: {first_toks[0]!r}", path, rows[0][0])
+        expected = int(first_toks[0])
+        rows = rows[1:]
+    src, tgt = [], []
+    for no, s in rows:
+        toks = s.replace(",", " ").split()
+        if len(toks) != 2 or not all(_INT.match(t) for t in toks):
+            raise InputError(f"expected 'source_vertex target_vertex', found {s[:60]!r}",
+                             path, no)
+        a, b = int(toks[0]), int(toks[1])
+        if a < 0 or b < 0:
+            raise InputError("negative vertex id", path, no)
+        src.append(a)
+        tgt.append(b)
+    if not src:
+        raise InputError("no marker pairs", path)
+    if expected is not None and expected != len(src):
+        raise InputError(f"the count line says {expected} markers but {len(src)} "
+                         "pairs follow", path)
+    return np.asarray(src, dtype=np.int64), np.asarray(tgt, dtype=np.int64)
+
+
+def _read_markers_yaml(path):
+    import yaml
+    try:
+        d = yaml.safe_load(_text(path))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise InputError(f"invalid YAML: {getattr(exc, 'problem', exc)}", path,
+                         None if mark is None else mark.line + 1) from None
+    items = d.get("markers") if isinstance(d, dict) else None
+    if not isinstance(items, list) or not items:
+        raise InputError("YAML has no 'markers' list", path)
+    src, tgt = [], []
+    for k, it in enumerate(items):
+        m = re.match(r"^\s*(\d+)\s*[:,\s]\s*(\d+)\s*$", str(it))
+        if not m:
+            raise InputError(f"marker {k} is not 'source:target': {it!r}", path)
+        src.append(int(m.group(1)))
+        tgt.append(int(m.group(2)))
+    return np.asarray(src, dtype=np.int64), np.asarray(tgt, dtype=np.int64)
+
+
+def write_markers(path, source, target) -> None:
+    """Write marker pairs as a count line and ``src tgt`` lines (``.cons`` style)."""
+    s = np.asarray(source, dtype=np.int64)
+    t = np.asarray(target, dtype=np.int64)
+    if s.shape != t.shape or s.ndim != 1:
+        raise ValueError("source and target must be 1-D arrays of the same length")
+    with atomic_write(path, "w") as fh:
+        fh.write(f"{len(s)}\n" + "".join(f"{a} {b}\n" for a, b in zip(s.tolist(),
+                                                                    t.tolist())))
