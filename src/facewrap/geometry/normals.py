@@ -50,9 +50,10 @@ def _edge_vectors(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def _cross_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of the columns of two (3, t) arrays, (3, t)."""
-    return np.stack([a[1] * b[2] - a[2] * b[1],
-                     a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+    out = np.empty(a.shape)
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(a[i] * b[j], a[j] * b[i], out=out[k])
+    return out
 
 
 def _column_norms(a: np.ndarray) -> np.ndarray:
@@ -115,7 +116,10 @@ def _vertex_normals(V: np.ndarray, T: np.ndarray, weighting: str = "angle") -> n
         summed = _sum_at_vertices(T, None, cross.T, n)
     else:
         double_area = _column_norms(cross)
-        unit = (cross * _safe_inverse(double_area)).T
+        inverse = _safe_inverse(double_area)
+        unit = np.empty((len(T), 3))
+        for k in range(3):
+            np.multiply(cross[k], inverse, out=unit[:, k])
         summed = _sum_at_vertices(T, _corner_angles(e01, e02, double_area), unit, n)
     return _normalize_rows(summed)[0]
 

@@ -22,25 +22,28 @@ def read_mesh(path) -> Mesh:
     InputError
         For a missing file, an unknown extension or malformed content.
     """
-    from .obj import read_obj
-    from .ply import read_ply
-    readers = {".obj": read_obj, ".ply": read_ply}
     ext = _ext(path)
-    if ext not in readers:
+    if ext not in (".obj", ".ply"):
         raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
                          "use .obj or .ply", path)
     if not os.path.isfile(path):
         raise InputError("no such file", path)
-    return readers[ext](path)
+    if ext == ".obj":
+        from .obj import read_obj
+        return read_obj(path)
+    from .ply import read_ply
+    return read_ply(path)
 
 
 def write_mesh(path, mesh: Mesh) -> None:
     """Write an OBJ or PLY mesh, chosen by extension (atomic)."""
-    from .obj import write_obj
-    from .ply import write_ply
-    writers = {".obj": write_obj, ".ply": write_ply}
     ext = _ext(path)
-    if ext not in writers:
+    if ext not in (".obj", ".ply"):
         raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
                          "use .obj or .ply", path)
-    writers[ext](path, mesh)
+    if ext == ".obj":
+        from .obj import write_obj
+        write_obj(path, mesh)
+    else:
+        from .ply import write_ply
+        write_ply(path, mesh)

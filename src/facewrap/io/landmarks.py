@@ -24,7 +24,8 @@ Formats read (and, where it makes sense, written):
   "pairs": [[src, tgt], ...]}``.
 
 :func:`read_landmarks` picks a reader from the extension and, for plain text,
-from the content: all-integer text is a vertex-index list, anything else points.
+from the content: integer text is a vertex-index list unless every line holds
+exactly three numbers (then, like anything else, it is read as points).
 Every reader raises one :class:`~facewrap.errors.InputError` naming the file and
 line for malformed content.
 """
@@ -292,8 +293,8 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
     ----------
     path : str or os.PathLike
     kind : {"auto", "vertices", "points"}
-        For plain text: ``"auto"`` reads all-integer text as vertex ids and
-        anything else as ``x y z`` points.
+        For plain text: ``"auto"`` reads integer text as vertex ids unless every
+        line has exactly three values; anything else is read as ``x y z`` points.
     """
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if not os.path.isfile(path):
@@ -308,8 +309,9 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
         return read_points(path)
     if kind != "auto":
         raise ValueError(f"kind must be 'auto', 'vertices' or 'points', got {kind!r}")
-    toks = [t for _, s in _content_lines(_text(path)) for t in s.replace(",", " ").split()]
-    if toks and all(_INT.match(t) for t in toks):
+    rows = [s.replace(",", " ").split() for _, s in _content_lines(_text(path))]
+    all_int = all(_INT.match(t) for r in rows for t in r)
+    if all_int and not all(len(r) == 3 for r in rows):
         return read_vertex_indices(path)
     return read_points(path)
 
