@@ -141,9 +141,19 @@ def test_vertex_index_range_checked(tmp_path):
 
 @needs_data
 def test_real_landmark_files():
+    raw = read_ljson(DATA / "scans/james/james.ljson", ibug68=False)
+    assert len(raw) == 68 and raw.names[0] == "chin_0"
+    assert raw.names[17] == "leye_0" and raw.names[48] == "mouth_0"
     james = read_ljson(DATA / "scans/james/james.ljson")
-    assert len(james) == 68 and james.names[0] == "chin_0"
-    assert james.names[17] == "leye_0" and james.names[48] == "mouth_0"
+    assert james.names == IBUG68_NAMES
+    # iBUG order: brows 17-26 come before the nose, eyes 36-47 after it
+    assert np.array_equal(james.points[17], raw.points[29])  # leyebrow_0
+    assert np.array_equal(james.points[36], raw.points[17])  # leye_0
+    assert np.array_equal(james.points[42], raw.points[23])  # reye_0
+    # both brows above both eyes; the first brow on the first eye's side
+    assert james.points[17:27, 1].min() > james.points[36:48, 1].max() - 5
+    assert np.sign(james.points[19, 0] - james.points[30, 0]) == \
+        np.sign(james.points[37, 0] - james.points[30, 0])
     horse = read_landmarks(DATA / "onizuka2019/landmarks/landmarks_Horse.txt")
     assert len(horse) == 51 and horse.vertex[0] == 1115
     src, tgt = read_markers(DATA / "sumner2004/horse-camel/horse_camel.cons")

@@ -72,6 +72,73 @@ def cmd_sample(args) -> int:
     return 0
 
 
+def _read_exclude(path, n):
+    """Template vertex ids to exclude: an index list file, or a landmark JSON."""
+    from .io.landmarks import read_vertex_indices
+    return read_vertex_indices(path, n_vertices=n).vertex
+
+
+def cmd_wrap(args) -> int:
+    """Fit the template to the scan and write the template-topology result."""
+    from .io import read_mesh, write_mesh
+    from .io.landmarks import read_landmarks
+    from .wrap import WrapSettings, wrap
+    template = read_mesh(args.template)
+    scan = read_mesh(args.scan)
+    tl = read_landmarks(args.template_landmarks, kind="auto")
+    try:
+        tl.check(template.n_vertices, len(template.triangles))
+    except ValueError as exc:
+        raise InputError(str(exc), args.template_landmarks) from None
+    sl = read_landmarks(args.scan_landmarks, kind="points")
+    try:
+        sl.check(scan.n_vertices, len(scan.triangles))
+    except ValueError as exc:
+        raise InputError(str(exc), args.scan_landmarks) from None
+    if tl.names is None or sl.names is None:
+        if len(tl) != len(sl):
+            raise InputError(f"has {len(sl)} landmarks but the template landmarks "
+                             f"({args.template_landmarks}) have {len(tl)}",
+                             args.scan_landmarks)
+    exclude = _read_exclude(args.exclude, template.n_vertices) if args.exclude else None
+    settings = WrapSettings(model=args.model, kernel=args.kernel,
+                            smoothing=args.smoothing, project=not args.no_project,
+                            max_distance=args.max_distance,
+                            rigid_refine=args.rigid_refine)
+    result = wrap(template, scan, tl, sl, settings, exclude=exclude)
+    write_mesh(args.output, result.mesh)
+    report = {"template": str(args.template), "scan": str(args.scan),
+              "output": str(args.output), "model": args.model,
+              "vertices": template.n_vertices, "timings": result.timings,
+              "metrics": result.metrics,
+              "transform": result.transform.matrix.tolist()}
+    if args.texture:
+        from .texture import bake_texture, load_image, save_png
+        image = load_image(args.texture)
+        if scan.uvs is None:
+            raise InputError("the scan has no texture coordinates to bake from",
+                             args.scan)
+        if template.uvs is None:
+            raise InputError("the template has no UV layout to bake into",
+                             args.template)
+        t = time.perf_counter()
+        baked = bake_texture(result.mesh, scan, image, size=args.texture_size)
+        png = Path(args.output).with_suffix(".png")
+        save_png(png, baked.image)
+        report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
+                             "seconds": time.perf_counter() - t}
+    if args.report:
+        from .io.atomic import atomic_write
+        with atomic_write(args.report, "w") as fh:
+            json.dump(report, fh, indent=1)
+    if not args.quiet:
+        m = result.metrics
+        print(f"wrote {args.output}: {template.n_vertices} vertices, "
+              f"fit mean {m['fit_mean']:.4g} p95 {m['fit_p95']:.4g}, landmarks mean "
+              f"{m['landmark_mean']:.4g}, {result.timings['total']:.2f} s")
+    return 0
+
+
 def cmd_demo(args) -> int:
     """Run the main job on the built-in sample and say where the outputs are."""
     from .demo import run_demo
@@ -100,6 +167,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("out", help="output folder")
     p.set_defaults(func=cmd_sample)
 
+    p = sub.add_parser("wrap", help="fit a template onto a scan (template topology kept)")
+    p.add_argument("template", help="template mesh (OBJ/PLY)")
+    p.add_argument("scan", help="scan mesh (OBJ/PLY)")
+    p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")
+    p.add_argument("--template-landmarks", required=True,
+                   help="template vertex ids (text) or facewrap landmark JSON")
+    p.add_argument("--scan-landmarks", required=True,
+                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
+    p.add_argument("--model", default="rbf", choices=["rigid", "rbf"],
+                   help="deformation after alignment (default rbf)")
+    p.add_argument("--exclude", help="template vertex ids not to fit (they follow)")
+    p.add_argument("--kernel", default="biharmonic",
+                   choices=["biharmonic", "thin_plate", "exponential", "gaussian"])
+    p.add_argument("--smoothing", type=float, default=0.0,
+                   help="RBF smoothing for noisy landmarks (default 0)")
+    p.add_argument("--max-distance", type=float, default=None,
+                   help="longest projection move (default 5%% of template size)")
+    p.add_argument("--no-project", action="store_true", help="skip the projection")
+    p.add_argument("--rigid-refine", action="store_true",
+                   help="refine the alignment with rigid ICP")
+    p.add_argument("--texture", help="scan texture image to bake into the template UVs")
+    p.add_argument("--texture-size", type=int, default=1024)
+    p.add_argument("--report", help="write metrics and timings as JSON")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_wrap)
+
     p = sub.add_parser("demo", help="run the main job on the built-in sample")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -118,6 +211,9 @@ def main(argv=None) -> int:
         return 2
     except FileNotFoundError as exc:
         print(f"facewrap: error: {exc.filename}: no such file", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # inconsistent inputs found past the readers
+        print(f"facewrap: error: {exc}", file=sys.stderr)
         return 2
 
 

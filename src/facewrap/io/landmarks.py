@@ -39,7 +39,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ..landmarks import Landmarks
+from ..landmarks import IBUG68_NAMES, Landmarks
 from .atomic import atomic_write
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
@@ -171,12 +171,16 @@ def _load_json(path):
         raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
 
 
-def read_ljson(path) -> Landmarks:
+def read_ljson(path, ibug68: bool = True) -> Landmarks:
     """Read menpo LJSON (v1, v2, v3) landmarks.
 
     Points are named ``<label>_<k>`` (k-th point of the label's mask) when the file
-    labels them, e.g. ``chin_0``; the file order is kept.  A point that menpo marks
-    missing (``null``) is an error: this reader never invents positions.
+    labels them, e.g. ``chin_0``.  When the labels are menpo's 68-point face groups
+    (chin, leye, reye, leyebrow, nose, reyebrow, mouth — ordered by group, not in
+    iBUG order) and ``ibug68`` is true, the points are reordered into the standard
+    iBUG-68 order and named :data:`~facewrap.landmarks.IBUG68_NAMES`, so they pair
+    with any iBUG-68 landmark set.  A point that menpo marks missing (``null``) is
+    an error: this reader never invents positions.
     """
     d = _load_json(path)
     if not isinstance(d, dict):
@@ -215,7 +219,30 @@ def read_ljson(path) -> Landmarks:
                 names[i] = f"{lab.get('label')}_{k}"
         if any(n is None for n in names) or len(set(names)) != len(names):
             names = None  # partial or overlapping labels: fall back to order only
-    return Landmarks.from_points(pts, names)
+    lm = Landmarks.from_points(pts, names)
+    return _menpo_face_to_ibug68(lm) if ibug68 else lm
+
+
+#: menpo's 68-point face groups (as in ``james.ljson``) in the order that gives the
+#: standard iBUG-68 order: the "l" groups are on the same side as chin_0, i.e. the
+#: subject's right, which iBUG numbers first (checked on james and ICT geometry).
+_MENPO_TO_IBUG = (("chin", 17), ("leyebrow", 5), ("reyebrow", 5), ("nose", 9),
+                  ("leye", 6), ("reye", 6), ("mouth", 20))
+
+
+def _menpo_face_to_ibug68(lm: Landmarks) -> Landmarks:
+    """Reorder menpo face-group landmarks into iBUG-68 order and names (or return
+    them unchanged when they are not menpo's 68-point face layout)."""
+    if lm.names is None or len(lm) != 68:
+        return lm
+    pos = {n: i for i, n in enumerate(lm.names)}
+    order = []
+    for group, count in _MENPO_TO_IBUG:
+        keys = [f"{group}_{k}" for k in range(count)]
+        if not all(k in pos for k in keys):
+            return lm
+        order += [pos[k] for k in keys]
+    return Landmarks.from_points(lm.points[order], IBUG68_NAMES)
 
 
 def read_landmarks_json(path) -> Landmarks:

@@ -1,0 +1,305 @@
+"""Projection of template vertices onto the scan surface (SPEC §1.3), without tears.
+
+For each template vertex ``V`` we look for the scan triangle ``ABC`` whose normal
+prism contains it (Cohen et al., Simplification Envelopes): barycentric ``β`` and
+offset ``s`` with ``Σ β_k (X_k + s N_k) = V``, so ``V`` lies on the line through the
+surface point ``P = Σ β_k X_k`` along the interpolated normal ``N_P``, and ``V*=P``.
+The three equations are bilinear in ``(β, s)``; a few vectorised Newton steps
+solve them for all vertices and candidate triangles at once.  Candidates are the
+closest triangle and its edge neighbours.
+
+Fallbacks, in order: the first hit of the line along the template vertex normal
+(both directions), then the closest point.  A vertex is left unprojected when its
+move is longer than ``max_distance``, when the scan normal there and the template
+normal differ by more than ``max_normal_angle``, when it lands on the scan's
+boundary (holes, borders), or when a user mask excludes it (eyes, mouth interior,
+back of head).  Unprojected vertices are not left behind: their displacement is
+the smooth (bi)harmonic extension of their neighbours' over the template, so there
+is no tear at the edge of the projected region.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .geometry import (ClosestPointTree, boundary_vertices, edges_of_polygons,
+                       triangle_adjacency, uniform_laplacian, vertex_normals)
+from .mesh import Mesh
+
+__all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
+           "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
+
+METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Projection:
+    """Result of :func:`project_to_surface`.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+        New template positions: on the scan where projected, smoothly blended
+        elsewhere.
+    projected : (n,) bool
+    triangles : (n,) int64
+        Scan triangle of each projected vertex, -1 otherwise.
+    barycentric : (n, 3) float64
+        Coordinates in that triangle (zeros where not projected).
+    method : (n,) int8
+        :data:`METHOD_PRISM`, :data:`METHOD_RAY`, :data:`METHOD_CLOSEST` or
+        :data:`METHOD_NONE`.
+    distances : (n,) float64
+        How far each vertex moved.
+    """
+    vertices: np.ndarray
+    projected: np.ndarray
+    triangles: np.ndarray
+    barycentric: np.ndarray
+    method: np.ndarray
+    distances: np.ndarray
+
+    def summary(self) -> dict:
+        """Counts per method and distance statistics (for reports)."""
+        names = {METHOD_NONE: "none", METHOD_PRISM: "prism", METHOD_RAY: "ray",
+                 METHOD_CLOSEST: "closest"}
+        d = self.distances[self.projected]
+        return {"vertices": int(len(self.projected)),
+                "projected": int(self.projected.sum()),
+                "by_method": {names[k]: int((self.method == k).sum()) for k in names},
+                "mean_move": float(d.mean()) if len(d) else 0.0,
+                "max_move": float(d.max()) if len(d) else 0.0}
+
+
+def prism_projection(points, tree: ClosestPointTree, candidates, iterations: int = 8,
+                     tol: float = 1e-10):
+    """Solve Cohen's point-to-surface mapping for given candidate triangles.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    tree : ClosestPointTree
+        The scan (vertices, triangles, vertex normals).
+    candidates : (n, c) int64
+        Candidate scan triangles per point (-1 = none).
+    iterations : int
+        Newton steps.
+    tol : float
+        Relative residual accepted as converged.
+
+    Returns
+    -------
+    found : (n,) bool
+    triangles : (n,) int64
+    barycentric : (n, 3)
+    offset : (n,) float
+        ``s`` of ``V = P + s N_P`` (N_P not normalised).
+    """
+    X = np.asarray(points, dtype=np.float64)
+    n, c = candidates.shape
+    V, T, N = tree.vertices, tree.triangles, tree.vertex_normals
+    valid = candidates >= 0
+    tri = np.where(valid, candidates, 0).reshape(-1)
+    Q = np.repeat(X, c, axis=0)
+    A, B, C = (V[T[tri, k]] for k in range(3))
+    NA, NB, NC = (N[T[tri, k]] for k in range(3))
+    e1, e2, n1, n2 = B - A, C - A, NB - NA, NC - NA
+    # start: projection onto the triangle plane
+    fn = np.cross(e1, e2)
+    area2 = np.einsum("ij,ij->i", fn, fn)
+    scale = np.sqrt(np.maximum(area2, 1e-300))
+    w = Q - A
+    b1 = np.einsum("ij,ij->i", np.cross(w, e2), fn) / np.maximum(area2, 1e-300)
+    b2 = np.einsum("ij,ij->i", np.cross(e1, w), fn) / np.maximum(area2, 1e-300)
+    s = np.zeros(len(Q))
+    for _ in range(iterations):
+        Np = NA + b1[:, None] * n1 + b2[:, None] * n2
+        r = A + b1[:, None] * e1 + b2[:, None] * e2 + s[:, None] * Np - Q
+        J = np.stack([e1 + s[:, None] * n1, e2 + s[:, None] * n2, Np], axis=2)
+        det = np.linalg.det(J)
+        ok = np.abs(det) > 1e-14 * scale ** 3
+        step = np.zeros_like(r)
+        step[ok] = np.linalg.solve(J[ok], r[ok][:, :, None])[:, :, 0]
+        b1, b2, s = b1 - step[:, 0], b2 - step[:, 1], s - step[:, 2]
+    Np = NA + b1[:, None] * n1 + b2[:, None] * n2
+    r = A + b1[:, None] * e1 + b2[:, None] * e2 + s[:, None] * Np - Q
+    b0 = 1.0 - b1 - b2
+    eps = 1e-9
+    inside = (b0 >= -eps) & (b1 >= -eps) & (b2 >= -eps)
+    conv = np.linalg.norm(r, axis=1) <= tol * np.maximum(1.0, np.sqrt(scale)) * 1e3
+    good = (inside & conv & valid.reshape(-1) & np.isfinite(s)).reshape(n, c)
+    # among valid candidates keep the smallest |s| (the nearest prism)
+    score = np.where(good, np.abs(s).reshape(n, c), np.inf)
+    best = np.argmin(score, axis=1)
+    found = np.isfinite(score[np.arange(n), best])
+    pick = np.arange(n) * c + best
+    bary = np.clip(np.stack([b0, b1, b2], axis=1)[pick], 0.0, 1.0)
+    bary /= bary.sum(axis=1, keepdims=True)
+    return (found, np.where(found, tri[pick], -1), np.where(found[:, None], bary, 0.0),
+            np.where(found, s[pick], np.nan))
+
+
+def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndarray:
+    """Extend displacements from ``known`` vertices smoothly over the mesh.
+
+    Solves ``Lᵒʳᵈᵉʳ d = 0`` on the unknown vertices with the known ones fixed
+    (``L`` the uniform Laplacian of the polygon edges, so quads are not biased by
+    their diagonals).  Order 1 is harmonic (continuous), order 2 biharmonic (also
+    smooth across the border of the known region).  Vertices in pieces with no
+    known vertex keep a zero displacement.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    displacement : (n, 3) float
+        Values at known vertices (others ignored).
+    known : (n,) bool
+    order : {1, 2}
+
+    Returns
+    -------
+    (n, 3) float64
+    """
+    d = np.array(displacement, dtype=np.float64)
+    known = np.asarray(known, dtype=bool)
+    unknown = ~known
+    if not unknown.any():
+        return d
+    d[unknown] = 0.0
+    if not known.any():
+        return d
+    E = edges_of_polygons(mesh.face_offsets, mesh.face_indices)
+    L = uniform_laplacian(E, mesh.n_vertices)
+    K = L if order == 1 else (L @ L)
+    K = K.tocsr()
+    u = np.flatnonzero(unknown)
+    k = np.flatnonzero(known)
+    Kuu = K[u][:, u]
+    rhs = -(K[u][:, k] @ d[k])
+    # a tiny ridge keeps pieces without known vertices well-posed (they stay at 0)
+    Kuu = (Kuu + sp.identity(len(u)) * 1e-10 * (abs(Kuu).max() or 1.0)).tocsc()
+    d[u] = splu(Kuu).solve(rhs)
+    return d
+
+
+def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
+                       normals=None, mask=None, max_distance: float | None = None,
+                       max_normal_angle: float = 60.0, methods=("prism", "ray", "closest"),
+                       reject_boundary: bool = True, blend_order: int = 2) -> Projection:
+    """Move template vertices onto the scan along normals, blending the rest.
+
+    Parameters
+    ----------
+    template : Mesh
+        Topology (for normals and the blending Laplacian); positions are
+        ``vertices`` when given, else ``template.vertices``.
+    tree : ClosestPointTree
+        The scan surface, built once.
+    vertices : (n, 3) float, optional
+        Current template positions (after alignment/warp).
+    normals : (n, 3) float, optional
+        Template vertex normals (default: computed).
+    mask : (n,) bool, optional
+        True where a vertex may be projected (default all).
+    max_distance : float, optional
+        Longest allowed move (default: 5 % of the template's bounding-box diagonal).
+    max_normal_angle : float
+        Degrees between template normal and scan normal at the landing point.
+    methods : sequence of {"prism", "ray", "closest"}
+        Which steps to try, in this order.
+    reject_boundary : bool
+        Do not land on triangles touching the scan's boundary (holes, borders).
+    blend_order : {1, 2}
+        Harmonic or biharmonic blending of unprojected vertices.
+
+    Returns
+    -------
+    Projection
+    """
+    Vt = np.asarray(template.vertices if vertices is None else vertices, dtype=np.float64)
+    n = template.n_vertices
+    if Vt.shape != (n, 3):
+        raise ValueError(f"vertices must have shape ({n}, 3), got {Vt.shape}")
+    unknown = set(methods) - {"prism", "ray", "closest"}
+    if unknown:
+        raise ValueError(f"unknown projection methods {sorted(unknown)}")
+    Nt = (vertex_normals(Vt, template.triangles) if normals is None
+          else np.asarray(normals, dtype=np.float64))
+    allowed = np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    if allowed.shape != (n,):
+        raise ValueError(f"mask must have shape ({n},), got {allowed.shape}")
+    if max_distance is None:
+        max_distance = 0.05 * float(np.linalg.norm(Vt.max(0) - Vt.min(0)))
+
+    method = np.zeros(n, dtype=np.int8)
+    tri = np.full(n, -1, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    todo = allowed.copy()
+    cp = tree.query(Vt)
+    if "prism" in methods and todo.any():
+        adj = _scan_adjacency(tree)
+        idx = np.flatnonzero(todo)
+        cand = np.concatenate([cp.triangles[idx, None], adj[cp.triangles[idx]]], axis=1)
+        found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
+        hit = idx[found]
+        method[hit], tri[hit], bary[hit] = METHOD_PRISM, t_[found], b_[found]
+        todo[hit] = False
+    if "ray" in methods and todo.any():
+        idx = np.flatnonzero(todo)
+        rh = tree.ray_hits(Vt[idx], Nt[idx], max_distance=max_distance)
+        hit = idx[rh.hit]
+        method[hit], tri[hit], bary[hit] = METHOD_RAY, rh.triangles[rh.hit], \
+            rh.barycentric[rh.hit]
+        todo[hit] = False
+    if "closest" in methods and todo.any():
+        idx = np.flatnonzero(todo)
+        method[idx], tri[idx], bary[idx] = METHOD_CLOSEST, cp.triangles[idx], \
+            cp.barycentric[idx]
+        todo[idx] = False
+
+    has = tri >= 0
+    P = np.zeros((n, 3))
+    P[has] = np.einsum("ij,ijk->ik", bary[has], tree.vertices[tree.triangles[tri[has]]])
+    # acceptance tests
+    move = np.linalg.norm(P - Vt, axis=1)
+    ok = has & (move <= max_distance)
+    if has.any():
+        Ns = np.zeros((n, 3))
+        Ns[has] = np.einsum("ij,ijk->ik", bary[has],
+                            tree.vertex_normals[tree.triangles[tri[has]]])
+        Ns /= np.maximum(np.linalg.norm(Ns, axis=1, keepdims=True), 1e-300)
+        cos = np.einsum("ij,ij->i", Ns, Nt)
+        ok &= cos >= np.cos(np.radians(max_normal_angle))
+    if reject_boundary:
+        on_border = _scan_boundary_triangles(tree)
+        ok &= ~np.where(has, on_border[np.maximum(tri, 0)], False)
+    method[~ok] = METHOD_NONE
+    tri[~ok] = -1
+    bary[~ok] = 0.0
+    disp = smooth_extension(template, P - Vt, ok, order=blend_order)
+    out = Vt + disp
+    out[ok] = P[ok]  # exact landing points (no round-off from the blend)
+    return Projection(out, ok, tri, bary, method, np.linalg.norm(out - Vt, axis=1))
+
+
+def _scan_adjacency(tree: ClosestPointTree) -> np.ndarray:
+    """Edge-neighbour triangles of the scan, cached on the tree object."""
+    adj = getattr(tree, "_facewrap_adjacency", None)
+    if adj is None:
+        adj = triangle_adjacency(tree.triangles)
+        object.__setattr__(tree, "_facewrap_adjacency", adj)
+    return adj
+
+
+def _scan_boundary_triangles(tree: ClosestPointTree) -> np.ndarray:
+    """(t,) bool: scan triangles with a vertex on the boundary (cached)."""
+    on = getattr(tree, "_facewrap_border", None)
+    if on is None:
+        bv = boundary_vertices(tree.triangles, len(tree.vertices))
+        on = bv[tree.triangles].any(axis=1)
+        object.__setattr__(tree, "_facewrap_border", on)
+    return on

@@ -1,0 +1,203 @@
+"""``wrap``: register a template onto a scan, keeping the template's topology.
+
+The pipeline (SPEC §1; the non-rigid ICP models of §2 plug in as further steps):
+
+    landmark pairs → similarity (Umeyama) → RBF warp of landmark displacements
+    → projection onto the scan along normals, smooth where not projected
+    → the template's mesh with new vertex positions (same count, order, faces, UVs)
+
+:func:`wrap` returns a :class:`WrapResult` with the fitted mesh, what happened at
+each stage, timings and fit metrics; nothing here reads or writes files.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .align import Similarity, rigid_icp, similarity_transform
+from .geometry import ClosestPointTree
+from .landmarks import Landmarks, pair_landmarks
+from .mesh import Mesh
+from .models.rbf import RBFWarp
+from .project import Projection, project_to_surface
+
+__all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
+
+MODELS = ("rigid", "rbf")
+
+
+@dataclass
+class WrapSettings:
+    """Settings of a wrap (no work is done here; see :func:`wrap`).
+
+    Attributes
+    ----------
+    model : {"rigid", "rbf"}
+        Deformation after the similarity: none, or the landmark RBF warp.
+    scale : bool
+        Let the similarity scale the template.
+    rigid_refine : bool
+        Refine the similarity with trimmed point-to-plane ICP (good when landmarks
+        are few or noisy; off by default because expressions bias it).
+    kernel, smoothing : see :class:`~facewrap.models.rbf.RBFWarp`.
+    project : bool
+        Move vertices onto the scan (SPEC §1.3).
+    max_distance : float, optional
+        Longest projection move; default 5 % of the template size.
+    max_normal_angle : float
+        Degrees; larger differences between template and scan normals are rejected.
+    blend_order : {1, 2}
+        Harmonic or biharmonic blending of unprojected vertices.
+    """
+    model: str = "rbf"
+    scale: bool = True
+    rigid_refine: bool = False
+    kernel: str = "biharmonic"
+    smoothing: float = 0.0
+    project: bool = True
+    max_distance: float | None = None
+    max_normal_angle: float = 60.0
+    blend_order: int = 2
+
+
+@dataclass
+class WrapResult:
+    """Outcome of :func:`wrap`.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The template's mesh with fitted vertex positions.
+    transform : Similarity
+        Template → scan similarity.
+    warped : (n, 3) float64
+        Positions after alignment and warp, before projection.
+    projection : Projection or None
+    timings : dict
+        Seconds per stage.
+    metrics : dict
+        Landmark errors and fit distances (see :func:`fit_metrics`).
+    """
+    mesh: Mesh
+    transform: Similarity
+    warped: np.ndarray
+    projection: Projection | None
+    timings: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def vertices(self) -> np.ndarray:
+        return self.mesh.vertices
+
+
+def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
+                scan_landmarks=None, mask=None) -> dict:
+    """Distances from fitted vertices to the scan and landmark errors.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    tree : ClosestPointTree
+        The scan.
+    landmark_positions, scan_landmarks : (k, 3) float, optional
+        Fitted and target landmark positions.
+    mask : (n,) bool, optional
+        Vertices to include in the fit statistics (e.g. not excluded ones).
+    """
+    V = np.asarray(vertices)
+    d = tree.query(V if mask is None else V[mask]).distances
+    out = {"fit_mean": float(d.mean()), "fit_p95": float(np.percentile(d, 95)),
+           "fit_max": float(d.max())}
+    if landmark_positions is not None:
+        e = np.linalg.norm(np.asarray(landmark_positions) - np.asarray(scan_landmarks),
+                           axis=1)
+        out.update(landmark_mean=float(e.mean()), landmark_max=float(e.max()))
+    return out
+
+
+def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
+         scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
+         exclude=None, scan_tree: ClosestPointTree | None = None) -> WrapResult:
+    """Fit ``template`` to ``scan``.
+
+    Parameters
+    ----------
+    template : Mesh
+    scan : Mesh
+    template_landmarks : Landmarks
+        On the template (vertex or surface landmarks).
+    scan_landmarks : Landmarks
+        On the scan (free points, or vertex/surface landmarks of the scan).
+    settings : WrapSettings, optional
+    exclude : (n,) bool or int array, optional
+        Template vertices that must not be pulled onto the scan (eyes, mouth
+        interior...): they follow smoothly.
+    scan_tree : ClosestPointTree, optional
+        Reuse a tree already built on the scan.
+
+    Returns
+    -------
+    WrapResult
+    """
+    s = settings or WrapSettings()
+    if s.model not in MODELS:
+        raise ValueError(f"model must be one of {MODELS}, got {s.model!r}")
+    timings = {}
+    t0 = time.perf_counter()
+    ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
+    if len(ia) < 3:
+        raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
+    src = template_landmarks.positions(template)[ia]
+    dst = scan_landmarks.positions(scan)[ib]
+    n = template.n_vertices
+    excluded = np.zeros(n, dtype=bool)
+    if exclude is not None:
+        ex = np.asarray(exclude)
+        if ex.dtype == bool:
+            if ex.shape != (n,):
+                raise ValueError(f"exclude mask must have shape ({n},)")
+            excluded = ex.copy()
+        else:
+            if len(ex) and (ex.min() < 0 or ex.max() >= n):
+                raise ValueError(f"exclude holds vertex ids outside [0, {n})")
+            excluded[ex.astype(np.int64)] = True
+
+    tree = scan_tree if scan_tree is not None else ClosestPointTree(scan.vertices,
+                                                                    scan.triangles)
+    timings["setup"] = time.perf_counter() - t0
+
+    t = time.perf_counter()
+    T = similarity_transform(src, dst, scale=s.scale)
+    if s.rigid_refine:
+        T = rigid_icp(template.vertices[~excluded], tree, init=T,
+                      max_distance=0.05 * scan.scale()).transform
+    V = T.apply(template.vertices)
+    timings["align"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    if s.model == "rbf":
+        lm_now = template_landmarks.positions(V, template.triangles)[ia]
+        warp = RBFWarp(kernel=s.kernel, smoothing=s.smoothing).fit(lm_now, dst - lm_now)
+        V = warp.transform(V)
+    timings["warp"] = time.perf_counter() - t
+
+    projection = None
+    out = V
+    t = time.perf_counter()
+    if s.project:
+        projection = project_to_surface(
+            template, tree, vertices=V, mask=~excluded, max_distance=s.max_distance,
+            max_normal_angle=s.max_normal_angle, blend_order=s.blend_order)
+        out = projection.vertices
+    timings["project"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+
+    metrics = fit_metrics(out, tree,
+                          template_landmarks.positions(out, template.triangles)[ia], dst,
+                          mask=~excluded)
+    if projection is not None:
+        metrics["projection"] = projection.summary()
+    return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics)

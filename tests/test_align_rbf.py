@@ -1,0 +1,110 @@
+import numpy as np
+import pytest
+
+from facewrap.align import Similarity, rigid_icp, similarity_transform
+from facewrap.models.rbf import RBFWarp
+
+
+def random_rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    return q
+
+
+def test_umeyama_recovers_similarity_and_never_reflects():
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(30, 3))
+    R = random_rotation(rng)
+    T = similarity_transform(P, 1.7 * P @ R.T + [3, -2, 5])
+    assert np.allclose(T.rotation, R) and np.isclose(T.scale, 1.7)
+    assert np.allclose(T.apply(P), 1.7 * P @ R.T + [3, -2, 5])
+    assert np.allclose(T.inverse().apply(T.apply(P)), P)
+    assert np.allclose(Similarity.from_matrix(T.matrix).rotation, R)
+    mirrored = P * [-1, 1, 1]
+    M = similarity_transform(P, mirrored)
+    assert np.isclose(np.linalg.det(M.rotation), 1.0)
+    rigid = similarity_transform(P, 2 * P, scale=False)
+    assert rigid.scale == 1.0
+
+
+def test_umeyama_rejects_bad_input():
+    with pytest.raises(ValueError, match="both be"):
+        similarity_transform(np.zeros((3, 3)), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="weights"):
+        similarity_transform(np.eye(3), np.eye(3), weights=[-1, 1, 1])
+
+
+def sphere(n=40):
+    u, v = np.meshgrid(np.linspace(0.2, np.pi - 0.2, n), np.linspace(0, 2 * np.pi, n,
+                                                                      endpoint=False))
+    V = np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v) * 0.8, np.cos(u) * 1.2],
+                 -1).reshape(-1, 3)
+    i = np.arange(n * n).reshape(n, n)
+    a, b = i, np.roll(i, -1, axis=0)
+    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
+    quads = np.stack([a, b, c, d], -1)[:, :-1].reshape(-1, 4)
+    return V, quads
+
+
+def test_rigid_icp_recovers_a_small_motion():
+    from facewrap.geometry import ClosestPointTree
+    from facewrap.mesh import Mesh
+    V, Q = sphere()
+    mesh = Mesh(V, Q)
+    tree = ClosestPointTree(V, mesh.triangles)
+    rng = np.random.default_rng(0)
+    small = Similarity(random_rotation(rng) * 0 + np.eye(3), np.zeros(3))
+    angle = np.radians(6)
+    R = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0],
+                  [0, 0, 1]])
+    moved = Similarity(R, np.array([0.05, -0.03, 0.02])).apply(V)
+    res = rigid_icp(moved, tree, init=small, trim=1.0, iterations=60)
+    assert np.sqrt(np.mean((res.transform.apply(moved) - V) ** 2)) < 1e-3
+    assert res.history[-1]["rms"] < res.history[0]["rms"]
+
+
+def test_rbf_recovers_smooth_field_from_landmarks():
+    """A template deformed by a known smooth field: 30 landmarks recover it."""
+    V, _ = sphere(30)
+    field = lambda p: np.stack([0.1 * np.sin(2 * p[:, 1]), 0.08 * p[:, 0] * p[:, 2],
+                                0.05 * np.cos(p[:, 0])], -1) + [0.3, 0, 0]
+    rng = np.random.default_rng(1)
+    idx = rng.choice(len(V), 30, replace=False)
+    warp = RBFWarp().fit(V[idx], field(V[idx]))
+    assert np.allclose(warp.transform(V[idx]), V[idx] + field(V[idx]), atol=1e-10)
+    err = np.linalg.norm(warp.displacement(V) - field(V), axis=1)
+    size = np.linalg.norm(V.max(0) - V.min(0))
+    assert err.max() < 0.02 * size and err.mean() < 0.004 * size
+    for kernel in ("thin_plate", "exponential", "gaussian"):
+        w = RBFWarp(kernel=kernel).fit(V[idx], field(V[idx]))
+        assert np.allclose(w.displacement(V[idx]), field(V[idx]), atol=1e-8)
+    # smoothing approximates instead of interpolating
+    noisy = field(V[idx]) + rng.normal(scale=0.02, size=(30, 3))
+    smooth = RBFWarp(smoothing=1.0).fit(V[idx], noisy)
+    assert not np.allclose(smooth.displacement(V[idx]), noisy, atol=1e-6)
+
+
+def test_rbf_with_few_landmarks_is_a_translation_and_chunks_agree():
+    C = np.array([[0, 0, 0], [1, 0, 0.]])
+    w = RBFWarp().fit(C, np.array([[1, 1, 1], [1, 1, 1.]]))
+    assert np.allclose(w.displacement(np.array([[5, 5, 5.]])), [[1, 1, 1]])
+    rng = np.random.default_rng(2)
+    C = rng.normal(size=(10, 3))
+    P = rng.normal(size=(1000, 3))
+    a = RBFWarp(chunk=7).fit(C, C ** 2).displacement(P)
+    b = RBFWarp().fit(C, C ** 2).displacement(P)
+    assert np.allclose(a, b)
+
+
+@pytest.mark.parametrize("kwargs, C, D, msg", [
+    (dict(kernel="cubic"), np.eye(3), np.eye(3), "unknown kernel"),
+    (dict(smoothing=-1), np.eye(3), np.eye(3), "smoothing"),
+    ({}, np.eye(3), np.eye(2), "both be"),
+    ({}, np.array([[0, 0, 0], [0, 0, 0.]]), np.zeros((2, 3)), "same position"),
+    ({}, np.array([[0, 0, np.nan]]), np.zeros((1, 3)), "finite"),
+])
+def test_rbf_rejects_bad_input(kwargs, C, D, msg):
+    with pytest.raises(ValueError, match=msg):
+        RBFWarp(**kwargs).fit(C, D)

@@ -1,0 +1,85 @@
+import numpy as np
+import pytest
+
+from facewrap.geometry import ClosestPointTree
+from facewrap.mesh import Mesh
+from facewrap.project import METHOD_PRISM, project_to_surface, smooth_extension
+
+
+def grid(n, size=1.0, z=lambda x, y: 0 * x, jitter=0.0, seed=0, quads=True):
+    x, y = np.meshgrid(np.linspace(-size, size, n), np.linspace(-size, size, n))
+    rng = np.random.default_rng(seed)
+    x = x + jitter * rng.uniform(-1, 1, x.shape) * 2 * size / n
+    y = y + jitter * rng.uniform(-1, 1, y.shape) * 2 * size / n
+    V = np.stack([x, y, z(x, y)], -1).reshape(-1, 3)
+    i = np.arange(n * n).reshape(n, n)
+    a, b, c, d = i[:-1, :-1], i[:-1, 1:], i[1:, 1:], i[1:, :-1]
+    if quads:
+        F = np.stack([a, b, c, d], -1).reshape(-1, 4)
+    else:
+        F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3),
+                            np.stack([a, c, d], -1).reshape(-1, 3)])
+    return Mesh(V, F)
+
+
+def bump(x, y):
+    return 0.3 * np.exp(-(x ** 2 + y ** 2) / 0.3)
+
+
+def test_projected_vertices_lie_on_scan_along_interpolated_normals():
+    template = grid(25, 0.8)  # flat, above the scan's bump
+    template = template.with_vertices(template.vertices + [0, 0, 0.1])
+    scan = grid(60, 1.0, bump, jitter=0.3, quads=False)
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    proj = project_to_surface(template, tree, max_distance=0.5, max_normal_angle=80)
+    assert proj.projected.mean() > 0.9
+    on = proj.projected & (proj.method == METHOD_PRISM)
+    assert on.sum() > 0.8 * template.n_vertices
+    scale = scan.scale()
+    d = tree.query(proj.vertices[proj.projected]).distances
+    assert d.max() <= 1e-6 * scale
+    # V - P is parallel to the interpolated (unnormalised) normal at P
+    T = scan.triangles[proj.triangles[on]]
+    N = np.einsum("ij,ijk->ik", proj.barycentric[on], tree.vertex_normals[T])
+    diff = template.vertices[on] - proj.vertices[on]
+    cross = np.linalg.norm(np.cross(diff, N), axis=1)
+    assert np.all(cross <= 1e-6 * scale + 1e-9 * np.linalg.norm(diff, axis=1))
+
+
+def test_masked_and_unreachable_vertices_follow_without_tearing():
+    template = grid(30, 1.4)  # wider than the scan: the rim has nothing below it
+    template = template.with_vertices(template.vertices + [0, 0, 0.05])
+    scan = grid(50, 1.0, bump, quads=False)
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    mask = np.linalg.norm(template.vertices[:, :2], axis=1) > 0.25  # hole in the mask
+    proj = project_to_surface(template, tree, mask=mask, max_distance=0.4)
+    assert not proj.projected[~mask].any()
+    assert not proj.projected[np.abs(template.vertices[:, :2]).max(1) > 1.0].any()
+    # no tear: neighbouring vertices move alike (edge length changes stay small)
+    E = np.array([[a, b] for f in template.polygons() for a, b in zip(f, np.roll(f, -1))])
+    before = np.linalg.norm(np.diff(template.vertices[E], axis=1)[:, 0], axis=1)
+    after = np.linalg.norm(np.diff(proj.vertices[E], axis=1)[:, 0], axis=1)
+    assert np.max(np.abs(after - before)) < 0.6 * before.mean()
+    # the masked centre rose with its neighbours toward the bump (not left at 0.05)
+    centre = np.argmin(np.linalg.norm(template.vertices[:, :2], axis=1))
+    assert proj.vertices[centre, 2] > 0.2
+
+
+def test_smooth_extension_reproduces_linear_fields_and_keeps_known_values():
+    m = grid(15)
+    V = m.vertices
+    known = np.abs(V[:, :2]).max(1) > 0.5
+    lin = V @ np.array([[0.1, 0, 0], [0, 0.2, 0], [0, 0, 0.]]) + 1.0
+    for order in (1, 2):
+        out = smooth_extension(m, lin, known, order=order)
+        assert np.allclose(out[known], lin[known])
+        assert np.allclose(out, lin, atol=1e-8)
+
+
+def test_bad_arguments():
+    m = grid(5)
+    tree = ClosestPointTree(m.vertices, m.triangles)
+    with pytest.raises(ValueError, match="mask"):
+        project_to_surface(m, tree, mask=np.ones(3, bool))
+    with pytest.raises(ValueError, match="methods"):
+        project_to_surface(m, tree, methods=("magic",))
