@@ -1,0 +1,46 @@
+"""Run every benchmark and write docs/benchmarks.md (``make bench``).
+
+Each ``benchmarks/bench_*.py`` module has ``run() -> dict`` and
+``markdown(result) -> str``.  Results are measured on this machine in one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import platform
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default=str(HERE.parent / "docs" / "benchmarks.md"))
+    ap.add_argument("names", nargs="*", help="bench_* modules to run (default all)")
+    args = ap.parse_args()
+    names = args.names or sorted(p.stem for p in HERE.glob("bench_*.py"))
+    import os
+    cpu = os.cpu_count()
+    parts = ["# Benchmarks", "",
+             f"Measured by `make bench` on {time.strftime('%Y-%m-%d')}: "
+             f"{platform.machine()}, {cpu} cores, Python {platform.python_version()}. "
+             "Times are wall-clock seconds, best of the repeats stated in each "
+             "benchmark's source.", ""]
+    for name in names:
+        mod = importlib.import_module(name)
+        t = time.perf_counter()
+        result = mod.run()
+        parts.append(mod.markdown(result))
+        parts.append(f"_{name}: {time.perf_counter() - t:.0f} s to run._\n")
+        print(mod.markdown(result), flush=True)
+    Path(args.out).write_text("\n".join(parts))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
