@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from . import __version__
 from .errors import InputError
 
@@ -22,7 +24,6 @@ __all__ = ["main", "build_parser"]
 
 def cmd_info(args) -> int:
     """Print a summary of a mesh (and its landmarks)."""
-    import numpy as np
     from .geometry import boundary_loops, connected_components
     from .io import read_mesh
     mesh = read_mesh(args.mesh)
@@ -139,6 +140,29 @@ def cmd_wrap(args) -> int:
     return 0
 
 
+def cmd_animate(args) -> int:
+    """Frames between two fitted meshes of one topology, as an OBJ sequence."""
+    from .animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+    from .io import read_mesh
+    start, end = read_mesh(args.start), read_mesh(args.end)
+    if (start.n_vertices != end.n_vertices
+            or not np.array_equal(start.face_indices, end.face_indices)):
+        raise InputError(f"is not in the topology of {args.start} (vertex count or "
+                         "faces differ)", args.end)
+    frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
+    textures = None
+    if args.textures:
+        from .texture import load_image
+        a, b = (load_image(p) for p in args.textures)
+        if a.shape != b.shape:
+            raise InputError(f"image size {b.shape[:2]} differs from "
+                             f"{args.textures[0]} {a.shape[:2]}", args.textures[1])
+        textures = interpolate_textures(a, b, args.frames)
+    paths = write_obj_sequence(args.out, start, frames, textures=textures)
+    print(f"wrote {len(paths)} frames to {args.out}")
+    return 0
+
+
 def cmd_demo(args) -> int:
     """Run the main job on the built-in sample and say where the outputs are."""
     from .demo import run_demo
@@ -192,6 +216,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", help="write metrics and timings as JSON")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_wrap)
+
+    p = sub.add_parser("animate", help="interpolate two fitted meshes into a sequence")
+    p.add_argument("start", help="first mesh (e.g. fitted neutral)")
+    p.add_argument("end", help="last mesh, same topology")
+    p.add_argument("--frames", type=int, default=10, help="frames including both ends")
+    p.add_argument("--textures", nargs=2, metavar=("START_PNG", "END_PNG"),
+                   help="textures to blend along")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_animate)
 
     p = sub.add_parser("demo", help="run the main job on the built-in sample")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")

@@ -9,17 +9,23 @@ from __future__ import annotations
 import numpy as np
 
 
-def as_vertices(V, name: str = "V") -> np.ndarray:
-    """(n, 3) float64 view or copy of ``V``; raise ValueError naming ``name``."""
+def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
+    """C-contiguous (k, columns) finite float64 array; raise ValueError naming ``name``."""
     try:
-        V = np.asarray(V, dtype=np.float64)
+        P = np.asarray(P, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a float array of shape (n, 3): {exc}") from None
-    if V.ndim != 2 or V.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (n, 3), got {V.shape}")
-    if not np.all(np.isfinite(V)):
+        raise ValueError(f"{name} must be a float array of shape (k, {columns}): "
+                         f"{exc}") from None
+    if P.ndim != 2 or P.shape[1] != columns:
+        raise ValueError(f"{name} must have shape (k, {columns}), got {P.shape}")
+    if not np.all(np.isfinite(P)):
         raise ValueError(f"{name} must be finite (found NaN or inf)")
-    return V
+    return np.ascontiguousarray(P)
+
+
+def as_vertices(V, name: str = "V") -> np.ndarray:
+    """(n, 3) finite float64 vertex positions; raise ValueError naming ``name``."""
+    return as_points(V, name)
 
 
 def as_index_array(T, columns: int, n: int | None, name: str) -> np.ndarray:
@@ -53,13 +59,20 @@ def as_count(n, name: str = "n") -> int:
     return int(n)
 
 
+def as_index_vector(x, name: str) -> np.ndarray:
+    """(m,) non-negative int64 indices."""
+    x = np.asarray(x)
+    if x.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional, got shape {x.shape}")
+    return as_index_array(x.reshape(-1, 1), 1, None, name)[:, 0]
+
+
 def as_triangles_or_edges(T_or_edges, n: int, name: str = "T_or_edges"
                           ) -> tuple[np.ndarray, int]:
-    """Indices of shape (t, 3) or (e, 2), and that column count."""
+    """Indices of shape (t, 3) or (e, 2) in ``[0, n)``, and that column count."""
     arr = np.asarray(T_or_edges)
-    columns = arr.shape[1] if arr.ndim == 2 and arr.shape[1] in (2, 3) else 3
+    if arr.size == 0 and arr.ndim < 2:
+        return np.zeros((0, 2), dtype=np.int64), 2
     if arr.ndim != 2 or arr.shape[1] not in (2, 3):
-        if arr.size == 0:
-            return np.zeros((0, 2), dtype=np.int64), 2
         raise ValueError(f"{name} must have shape (t, 3) or (e, 2), got {arr.shape}")
-    return as_index_array(arr, columns, n, name), columns
+    return as_index_array(arr, arr.shape[1], n, name), arr.shape[1]

@@ -75,7 +75,7 @@ def _corner_angles(e01: np.ndarray, e02: np.ndarray, double_area: np.ndarray
 
     Uses ``angle = 2 atan(|a x b| / (|a| |b| + a . b))`` (accurate for all angles and
     faster than ``arctan2``) at corners 0 and 1, and ``pi`` minus both at corner 2.
-    Degenerate corners get finite values (their triangles have zero normals).
+    Always finite; meaningless only for degenerate triangles, whose normals are 0.
     """
     l01_sq = np.einsum("ij,ij->j", e01, e01)
     l02_sq = np.einsum("ij,ij->j", e02, e02)
@@ -85,7 +85,8 @@ def _corner_angles(e01: np.ndarray, e02: np.ndarray, double_area: np.ndarray
     l12 = np.sqrt(np.maximum(l01_sq + l02_sq - 2.0 * d0, 0.0))
     angles = []
     for den in (l01 * l02 + d0, l01 * l12 + d1):
-        half = np.arctan(np.divide(double_area, den, out=np.zeros_like(den),
+        # den <= 0 only for a straight corner (angle pi): atan(inf) = pi / 2
+        half = np.arctan(np.divide(double_area, den, out=np.full_like(den, np.inf),
                                    where=den > 0))
         angles.append(2.0 * half)
     angles.append(np.pi - angles[0] - angles[1])

@@ -1,0 +1,45 @@
+"""Geometry of triangle meshes: pure functions on arrays.
+
+Everything here takes plain arrays, ``V : (n, 3) float64`` vertex positions and
+``T : (t, 3) int64`` triangles (for a :class:`~facewrap.mesh.Mesh`, pass
+``mesh.vertices`` and ``mesh.triangles``), never mutates them, and raises
+``ValueError`` naming the argument for bad input.
+
+Closest points and rays (:mod:`.closest`)
+    :class:`ClosestPointTree` (build once, query many times), :func:`closest_points`,
+    :class:`ClosestPoints`, :class:`RayHits`
+Normals and areas (:mod:`.normals`)
+    :func:`face_normals`, :func:`face_areas`, :func:`vertex_normals`
+Connectivity (:mod:`.adjacency`)
+    :func:`edges`, :func:`edges_of_polygons`, :func:`vertex_adjacency`,
+    :func:`triangle_adjacency`, :func:`boundary_edges`, :func:`boundary_vertices`,
+    :func:`boundary_loops`, :func:`connected_components`
+Laplacians (:mod:`.laplacian`), positive semi-definite
+    :func:`cotangent_laplacian`, :func:`uniform_laplacian`, :func:`mass_matrix`
+Sampling (:mod:`.sampling`)
+    :func:`sample_surface`, :func:`farthest_point_sampling`,
+    :func:`poisson_disk_vertices`
+"""
+
+from .closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
+from .normals import face_areas, face_normals, vertex_normals
+from .adjacency import (
+    boundary_edges, boundary_loops, boundary_vertices, connected_components, edges,
+    edges_of_polygons, triangle_adjacency, vertex_adjacency,
+)
+from .laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
+from .sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
+
+__all__ = [
+    # closest points and rays
+    "ClosestPointTree", "ClosestPoints", "RayHits", "closest_points",
+    # normals and areas
+    "face_normals", "face_areas", "vertex_normals",
+    # connectivity
+    "edges", "edges_of_polygons", "vertex_adjacency", "triangle_adjacency",
+    "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
+    # Laplacians
+    "cotangent_laplacian", "uniform_laplacian", "mass_matrix",
+    # sampling
+    "sample_surface", "farthest_point_sampling", "poisson_disk_vertices",
+]

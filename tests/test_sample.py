@@ -1,0 +1,528 @@
+"""The built-in synthetic sample: determinism, structure, expressions, scan damage
+and the truth that relates a scan to the template."""
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from facewrap import sample
+from facewrap.landmarks import IBUG68_NAMES
+from facewrap.sample import (EXPRESSIONS, LANDMARK_NAMES, make_scan, make_sequence,
+                             make_template, write_sample)
+
+
+# -- helpers (independent of the code under test) -------------------------------------
+def boundary_loops(T):
+    """Number of boundary loops: components of the graph of edges used once."""
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    edges, count = np.unique(e, axis=0, return_counts=True)
+    assert count.max() <= 2, "non-manifold edge"
+    b = edges[count == 1]
+    if len(b) == 0:
+        return 0
+    verts, idx = np.unique(b, return_inverse=True)
+    idx = idx.reshape(-1, 2)
+    A = coo_matrix((np.ones(len(b)), (idx[:, 0], idx[:, 1])), shape=(len(verts),) * 2)
+    return connected_components(A, directed=False)[0]
+
+
+def closest_point_distances(P, V, T, candidates=24):
+    """Exact distance from each point to the nearest of its ``candidates`` triangles
+    (by centroid); an upper bound of the distance to the whole mesh."""
+    _, cand = cKDTree(V[T].mean(axis=1)).query(P, k=candidates)
+    a, b, c = (V[T[cand, k]] for k in range(3))             # (n, k, 3)
+    p = P[:, None, :]
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(-1), (ac * ap).sum(-1)
+    bp, cp = p - b, p - c
+    d3, d4 = (ab * bp).sum(-1), (ac * bp).sum(-1)
+    d5, d6 = (ab * cp).sum(-1), (ac * cp).sum(-1)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    den = np.where(va + vb + vc == 0, 1e-300, va + vb + vc)
+    q = a + ab * (vb / den)[..., None] + ac * (vc / den)[..., None]
+
+    def put(mask, value):
+        q[mask] = value[mask]
+
+    def safe(x):
+        return np.where(x == 0, 1e-300, x)
+    put((vc <= 0) & (d1 >= 0) & (d3 <= 0), a + ab * (d1 / safe(d1 - d3))[..., None])
+    put((vb <= 0) & (d2 >= 0) & (d6 <= 0), a + ac * (d2 / safe(d2 - d6))[..., None])
+    w = (d4 - d3) / safe((d4 - d3) + (d5 - d6))
+    put((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), b + (c - b) * w[..., None])
+    put((d1 <= 0) & (d2 <= 0), a)
+    put((d3 >= 0) & (d4 <= d3), b)
+    put((d6 >= 0) & (d5 <= d6), c)
+    return np.linalg.norm(q - p, axis=-1).min(axis=1)
+
+
+def to_canonical(scan, X):
+    M = np.linalg.inv(scan.transform)
+    return X @ M[:3, :3].T + M[:3, 3]
+
+
+@pytest.fixture(scope="module")
+def tpl():
+    return make_template()
+
+
+@pytest.fixture(scope="module")
+def scan(tpl):
+    return make_scan(tpl)
+
+
+# -- helpers are right --------------------------------------------------------------------
+def test_closest_point_oracle_on_a_square():
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+    T = np.array([[0, 1, 2], [0, 2, 3]])
+    P = np.array([[0.2, 0.7, 0.5], [2.0, 0.5, 0.0], [-1.0, -1.0, 0.0], [0.5, 0.5, -2.0]])
+    d = closest_point_distances(P, V, T, candidates=2)
+    np.testing.assert_allclose(d, [0.5, 1.0, np.sqrt(2.0), 2.0])
+
+
+def test_boundary_loops_of_a_square_with_a_hole():
+    # 4x4 grid of quads split into triangles, centre quad removed
+    i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    ids = np.arange(25).reshape(5, 5)
+    quads = [(ids[a, b], ids[a + 1, b], ids[a + 1, b + 1], ids[a, b + 1])
+             for a, b in zip(i.ravel(), j.ravel()) if (a, b) != (1, 1)]
+    T = np.array([t for q in quads for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))])
+    assert boundary_loops(T) == 2
+
+
+# -- determinism and purity -----------------------------------------------------------------
+def test_template_is_deterministic():
+    a, b = make_template(32), make_template(32)
+    assert np.array_equal(a.mesh.vertices, b.mesh.vertices)
+    assert np.array_equal(a.mesh.face_indices, b.mesh.face_indices)
+    assert np.array_equal(a.mesh.uvs, b.mesh.uvs)
+    assert np.array_equal(a.params, b.params, equal_nan=True)
+    assert np.array_equal(a.landmarks.vertex, b.landmarks.vertex)
+    for k in EXPRESSIONS:
+        assert np.array_equal(a.blendshapes[k], b.blendshapes[k])
+
+
+def test_scan_is_deterministic_and_seeded(tpl):
+    kw = dict(resolution=40, texture_size=32, landmark_noise=0.5)
+    a, b = make_scan(tpl, seed=5, **kw), make_scan(tpl, seed=5, **kw)
+    for x, y in [(a.mesh.vertices, b.mesh.vertices), (a.mesh.face_indices, b.mesh.face_indices),
+                 (a.mesh.uvs, b.mesh.uvs), (a.texture, b.texture),
+                 (a.landmarks.points, b.landmarks.points), (a.transform, b.transform)]:
+        assert np.array_equal(x, y)
+    assert np.array_equal(a.ground_truth, b.ground_truth, equal_nan=True)
+    c = make_scan(tpl, seed=6, **kw)
+    assert c.mesh.n_vertices != a.mesh.n_vertices or not np.array_equal(
+        c.mesh.vertices, a.mesh.vertices)
+
+
+def test_make_scan_does_not_mutate_its_arguments(tpl):
+    weights = {"smile": 0.5}
+    M = np.eye(4)
+    M[:3, 3] = [1.0, 2.0, 3.0]
+    M0 = M.copy()
+    before = tpl.mesh.vertices.copy()
+    s = make_scan(tpl, weights=weights, transform=M, resolution=30, texture_size=8)
+    assert weights == {"smile": 0.5}
+    assert np.array_equal(M, M0)
+    assert np.array_equal(tpl.mesh.vertices, before)
+    assert s.weights == {"smile": 0.5} and s.weights is not weights
+
+
+# -- template ----------------------------------------------------------------------------------
+def test_template_structure(tpl):
+    m = tpl.mesh
+    assert 4000 <= m.n_vertices <= 8000
+    assert m.groups == ("face", "eyeball_left", "eyeball_right")
+    sizes = m.face_sizes
+    face = m.face_groups == 0
+    assert np.all(sizes[face] == 4)                   # the face is all quads
+    # eyeballs: quads except the triangle fans around their two poles
+    for g in (1, 2):
+        eye = m.face_groups == g
+        tri = np.flatnonzero(eye & (sizes == 3))
+        poles = {int(v) for f in tri for v in m.polygons()[f]}
+        n_lon = len(tri) // 2
+        assert np.all(sizes[eye] >= 3) and len(poles) == 2 * n_lon + 2
+    assert m.uvs.min() >= 0.0 and m.uvs.max() <= 1.0
+    assert m.face_uvs is not None and len(m.face_uvs) == len(m.face_indices)
+    # params: finite in [0, 1] on the face, NaN on the eyeballs
+    f = tpl.parts["face"]
+    assert np.all((tpl.params[f] >= 0) & (tpl.params[f] <= 1))
+    for name in ("eyeball_left", "eyeball_right"):
+        assert np.isnan(tpl.params[tpl.parts[name]]).all()
+    assert np.array_equal(np.sort(np.concatenate([tpl.parts[k] for k in
+                          ("face", "eyeball_left", "eyeball_right")])),
+                          np.arange(m.n_vertices))
+    # the face's uvs are its parameters
+    np.testing.assert_array_equal(m.uvs[m.face_uvs[np.repeat(face, sizes)]],
+                                  tpl.params[m.face_indices[np.repeat(face, sizes)]])
+
+
+def test_eyeballs_are_closed_separate_and_inside_the_head(tpl):
+    m = tpl.mesh
+    T, tf = m.triangles, m.triangle_faces
+    V = m.vertices
+    for g, name in ((1, "eyeball_left"), (2, "eyeball_right")):
+        Te = T[m.face_groups[tf] == g]
+        assert boundary_loops(Te) == 0                              # closed
+        assert set(np.unique(Te).tolist()) == set(tpl.parts[name].tolist())
+        centre = V[tpl.parts[name]].mean(axis=0)
+        assert np.sign(centre[0]) == (1 if name == "eyeball_left" else -1)
+        # behind the eye opening: every eyeball vertex is inside the face surface
+        face_T = T[m.face_groups[tf] == 0]
+        P = V[tpl.parts[name]]
+        front = V[tpl.parts["face"]]
+        tree = cKDTree(front)
+        _, near = tree.query(P)
+        normal_dir = front[near] / np.linalg.norm(front[near], axis=1, keepdims=True)
+        assert np.all(((front[near] - P) * normal_dir).sum(axis=1) > 0)
+        assert len(face_T)
+
+
+def test_template_landmarks(tpl):
+    lm = tpl.landmarks
+    assert lm.names == LANDMARK_NAMES == IBUG68_NAMES and len(lm) == 68
+    assert lm.on_mesh and len(np.unique(lm.vertex)) == 68
+    assert np.isin(lm.vertex, tpl.parts["face"]).all()
+    P = lm.positions(tpl.mesh)
+    # iBUG numbering: 17-21 and 36-41 on the subject's right (-x), the others mirrored
+    assert P[17:22, 0].max() < 0 < P[22:27, 0].min()
+    assert P[36:42, 0].max() < 0 < P[42:48, 0].min()
+    assert P[0, 0] < 0 < P[16, 0] and abs(P[8, 0]) < 1e-6
+    # plausible layout: brows above eyes above nose tip above mouth above chin
+    assert P[19, 1] > P[37, 1] > P[30, 1] > P[62, 1] > P[8, 1]
+    assert P[30, 2] == P[:, 2].max()                      # the nose tip sticks out most
+    # inner lips are on the two edges of the mouth slit
+    assert np.isin(lm.vertex[60:68], tpl.parts["mouth_lips"]).all()
+    # head size: about 150 mm wide and 200 mm from chin to top
+    face = tpl.mesh.vertices[tpl.parts["face"]]
+    assert 140 < np.ptp(face[:, 0]) < 190 and 190 < face[:, 1].max() - P[8, 1] < 230
+
+
+def test_blendshapes_shape_and_eyeballs_still(tpl):
+    assert tuple(tpl.blendshapes) == EXPRESSIONS
+    eyes = np.concatenate([tpl.parts["eyeball_left"], tpl.parts["eyeball_right"]])
+    for name, B in tpl.blendshapes.items():
+        assert B.shape == tpl.mesh.vertices.shape and B.dtype == np.float64
+        assert np.array_equal(B[eyes], tpl.mesh.vertices[eyes])
+        assert np.linalg.norm(B - tpl.mesh.vertices, axis=1).max() > 3.0, name
+
+
+def test_jaw_open_drops_the_chin_and_parts_the_lips(tpl):
+    V, B, lm = tpl.mesh.vertices, tpl.blendshapes["jaw_open"], tpl.landmarks.vertex
+    assert V[lm[8], 1] - B[lm[8], 1] > 15.0                       # chin down
+    assert np.linalg.norm(B[lm[8]] - V[lm[8]]) < 30.0
+    gap0 = np.linalg.norm(V[lm[62]] - V[lm[66]])
+    gap1 = np.linalg.norm(B[lm[62]] - B[lm[66]])
+    assert gap0 < 1.0 and gap1 > 15.0                             # lips closed, then apart
+    # the upper lip and the nose stay put
+    assert np.linalg.norm(B[lm[[30, 33, 51, 62]]] - V[lm[[30, 33, 51, 62]]], axis=1).max() < 0.5
+
+
+def test_blink_shuts_both_eyes(tpl):
+    V, B, lm = tpl.mesh.vertices, tpl.blendshapes["blink"], tpl.landmarks.vertex
+    for up, lo in ((37, 41), (38, 40), (43, 47), (44, 46)):
+        d0 = np.linalg.norm(V[lm[up]] - V[lm[lo]])
+        d1 = np.linalg.norm(B[lm[up]] - B[lm[lo]])
+        assert d0 > 6.0 and d1 < 0.2 * d0
+    moved = np.linalg.norm(B - V, axis=1) > 1e-9
+    assert np.array_equal(np.flatnonzero(moved), tpl.parts["eyelids"])
+
+
+def test_other_expressions_do_what_they_say(tpl):
+    V, lm = tpl.mesh.vertices, tpl.landmarks.vertex
+    S = tpl.blendshapes["smile"]
+    assert np.all(S[lm[[48, 54]], 1] - V[lm[[48, 54]], 1] > 4.0)            # corners up
+    B = tpl.blendshapes["brow_raise"]
+    assert np.all(B[lm[17:27], 1] - V[lm[17:27], 1] > 5.0)                  # brows up
+    P = tpl.blendshapes["pucker"]
+    assert np.all(P[lm[[51, 57, 62, 66]], 2] - V[lm[[51, 57, 62, 66]], 2] > 4.0)
+    w0 = np.linalg.norm(V[lm[48]] - V[lm[54]])
+    assert np.linalg.norm(P[lm[48]] - P[lm[54]]) < w0 - 8.0                 # narrower
+
+
+def test_every_combination_of_expressions_stays_a_valid_surface(tpl):
+    import itertools
+
+    m = tpl.mesh
+    T = m.triangles[m.face_groups[m.triangle_faces] == 0]
+    V = m.vertices
+
+    def normals(X):
+        return np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+    n0 = normals(V)
+    for on in itertools.product([0.0, 1.0], repeat=len(EXPRESSIONS)):
+        X = V + sum(w * (tpl.blendshapes[k] - V) for w, k in zip(on, EXPRESSIONS))
+        n = normals(X)
+        assert np.all((n * n0).sum(axis=1) > 0), dict(zip(EXPRESSIONS, on))
+
+
+def test_template_faces_point_outward(tpl):
+    m = tpl.mesh
+    T = m.triangles[m.face_groups[m.triangle_faces] == 0]
+    V = m.vertices
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    assert np.all((n * V[T].mean(axis=1)).sum(axis=1) > 0)
+
+
+def test_template_resolution_is_checked():
+    for bad in (4, 64.0, True, "64"):
+        with pytest.raises(ValueError, match="resolution"):
+            make_template(bad)
+
+
+# -- scan -------------------------------------------------------------------------------------
+def test_default_scan(tpl, scan):
+    m = scan.mesh
+    assert m.is_triangle_mesh and m.n_vertices != tpl.mesh.n_vertices
+    assert 15000 <= m.n_faces <= 30000
+    assert m.texture is None and m.uvs.shape == (m.n_vertices, 2)
+    assert m.uvs.min() >= 0 and m.uvs.max() <= 1
+    assert scan.texture.shape == (512, 512, 3) and scan.texture.dtype == np.uint8
+    assert scan.weights == {"jaw_open": 0.8, "blink": 1.0, "smile": 0.3}
+    assert scan.ground_truth.shape == tpl.mesh.vertices.shape
+    eyes = np.concatenate([tpl.parts["eyeball_left"], tpl.parts["eyeball_right"]])
+    assert np.isnan(scan.ground_truth[eyes]).all()
+    assert np.isfinite(scan.ground_truth[tpl.parts["face"]]).all()
+    # default: mouth open, eyes shut (lid gap small, lips far apart)
+    G, lm = scan.ground_truth, tpl.landmarks.vertex
+    assert np.linalg.norm(G[lm[62]] - G[lm[66]]) > 15.0
+    assert np.linalg.norm(G[lm[37]] - G[lm[41]]) < 2.0
+
+
+def test_transform_is_a_similarity(scan):
+    M = scan.transform
+    R = M[:3, :3]
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.isclose(np.linalg.det(R), 1.0)
+    angle = np.degrees(np.arccos((np.trace(R) - 1) / 2))
+    assert 10.0 <= angle <= 20.0 and 10.0 < np.linalg.norm(M[:3, 3]) < 100.0
+    np.testing.assert_array_equal(M[3], [0, 0, 0, 1])
+
+
+def test_given_transform_is_applied(tpl):
+    kw = dict(resolution=30, texture_size=8, seed=2)
+    plain = make_scan(tpl, transform=False, **kw)
+    assert np.array_equal(plain.transform, np.eye(4))
+    M = np.eye(4)
+    M[:3, :3] = sample._rotation([0.0, 1.0, 0.0], 0.5)
+    M[:3, 3] = [10.0, -5.0, 3.0]
+    moved = make_scan(tpl, transform=M, **kw)
+    np.testing.assert_allclose(moved.mesh.vertices, plain.mesh.vertices @ M[:3, :3].T
+                               + M[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(to_canonical(moved, moved.ground_truth),
+                               plain.ground_truth, atol=1e-9)
+    with pytest.raises(ValueError, match="transform"):
+        make_scan(tpl, transform=np.eye(3), **kw)
+
+
+def test_no_triangle_spans_the_open_mouth(tpl):
+    sc = make_scan(tpl, weights={"jaw_open": 1.0}, transform=False, noise=0.0, holes=0)
+    s, t = sample._st_from_uv(sc.mesh.uvs)
+    T = sc.mesh.triangles
+    above, below = t > sample._MOUTH_T, t < sample._MOUTH_T
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        pa, pb = T[:, a], T[:, b]
+        cross = (above[pa] & below[pb]) | (below[pa] & above[pb])
+        dt = t[pb] - t[pa]
+        sc_ = s[pa] + (sample._MOUTH_T - t[pa]) / np.where(dt == 0, 1, dt) * (s[pb] - s[pa])
+        assert not np.any(cross & (np.abs(sc_) < sample._MOUTH_HW))
+    # in 3-D: the lips are far apart and no triangle edge comes close to that gap
+    lm = tpl.landmarks.vertex
+    gap = np.linalg.norm(sc.ground_truth[lm[62]] - sc.ground_truth[lm[66]])
+    V = sc.mesh.vertices
+    longest = max(np.linalg.norm(V[T[:, a]] - V[T[:, b]], axis=1).max()
+                  for a, b in ((0, 1), (1, 2), (2, 0)))
+    assert gap > 20.0 and longest < 0.6 * gap
+    # the slit is a hole of the mesh even at rest: outer boundary + mouth
+    assert boundary_loops(T) == 2
+
+
+def test_holes_add_boundary_loops(tpl):
+    kw = dict(resolution=50, texture_size=8, seed=1)
+    base = boundary_loops(make_scan(tpl, holes=0, **kw).mesh.triangles)
+    assert base == 2                                  # outer boundary and the mouth
+    for k in (1, 3):
+        assert boundary_loops(make_scan(tpl, holes=k, **kw).mesh.triangles) == base + k
+    with pytest.raises(ValueError, match="holes"):
+        make_scan(tpl, holes=40, **kw)
+
+
+def test_holes_are_discs_away_from_landmarks(tpl):
+    kw = dict(resolution=50, texture_size=8, seed=4, noise=0.0, transform=False)
+    full = make_scan(tpl, holes=0, **kw)
+    holed = make_scan(tpl, holes=2, hole_radius=8.0, **kw)
+    assert holed.mesh.n_vertices < full.mesh.n_vertices
+    # vertices that disappeared lie within two discs of radius 8 mm
+    kept = cKDTree(holed.mesh.vertices).query(full.mesh.vertices)[0] < 1e-9
+    gone = full.mesh.vertices[~kept]
+    assert 2 < len(gone)
+    far = np.linalg.norm(gone[:, None] - gone[None], axis=2).max()
+    assert far > 30.0                                   # two separate places
+    # landmarks are not in holes: their nearest scan vertices all survive
+    d_full = cKDTree(full.mesh.vertices).query(full.landmarks.points)[0]
+    d_holed = cKDTree(holed.mesh.vertices).query(holed.landmarks.points)[0]
+    np.testing.assert_array_equal(d_holed, d_full)
+
+
+def test_crop_keeps_the_face_only(tpl):
+    kw = dict(resolution=40, texture_size=8, holes=0, transform=False)
+    full, cropped = make_scan(tpl, crop=False, **kw), make_scan(tpl, crop=True, **kw)
+    assert cropped.mesh.n_vertices < 0.8 * full.mesh.n_vertices
+    s, t = sample._st_from_uv(cropped.mesh.uvs)
+    assert np.abs(s).max() < 150 and t.max() < 90 and t.min() > -112
+    # the whole face is there: each landmark's nearest scan vertex survives the crop
+    d_full = cKDTree(full.mesh.vertices).query(full.landmarks.points)[0]
+    d_crop = cKDTree(cropped.mesh.vertices).query(cropped.landmarks.points)[0]
+    np.testing.assert_array_equal(d_crop, d_full)
+
+
+def test_ground_truth_lies_on_the_noise_free_scan(tpl):
+    kw = dict(weights=None, identity_seed=3, resolution=150, holes=0, crop=False,
+              texture_size=8, seed=7)
+    noisy = make_scan(tpl, noise=0.3, **kw)
+    clean = make_scan(tpl, noise=0.0, **kw)
+    # same sampling, truth and pose; the noise only moves vertices along normals
+    assert np.array_equal(noisy.mesh.face_indices, clean.mesh.face_indices)
+    assert np.array_equal(noisy.ground_truth, clean.ground_truth, equal_nan=True)
+    dev = np.linalg.norm(noisy.mesh.vertices - clean.mesh.vertices, axis=1)
+    assert 0.15 < np.sqrt(np.mean(dev ** 2)) < 0.45
+    face = tpl.parts["face"]
+    d = closest_point_distances(clean.ground_truth[face], clean.mesh.vertices,
+                                clean.mesh.triangles)
+    assert d.max() < 0.5
+
+
+def test_ground_truth_on_the_default_scan_mostly_on_its_surface(tpl):
+    clean = make_scan(tpl, noise=0.0, holes=0, crop=False, texture_size=8)
+    d = closest_point_distances(clean.ground_truth[tpl.parts["face"]],
+                                clean.mesh.vertices, clean.mesh.triangles)
+    assert np.median(d) < 0.1 and np.percentile(d, 99) < 0.5
+
+
+def test_landmarks_are_the_truth_at_landmark_vertices(tpl, scan):
+    assert scan.landmarks.names == LANDMARK_NAMES
+    assert np.all(scan.landmarks.kinds == "point")
+    truth = scan.ground_truth[tpl.landmarks.vertex]
+    np.testing.assert_array_equal(scan.landmarks.points, truth)
+    noisy = make_scan(tpl, landmark_noise=1.0, resolution=30, texture_size=8)
+    clean = make_scan(tpl, landmark_noise=0.0, resolution=30, texture_size=8)
+    err = np.linalg.norm(noisy.landmarks.points - clean.landmarks.points, axis=1)
+    assert 0.5 < err.mean() < 3.0
+
+
+def test_truth_is_the_template_and_its_blendshapes_for_identity_zero(tpl):
+    face = tpl.parts["face"]
+    kw = dict(identity_seed=0, transform=False, resolution=30, texture_size=8)
+    rest = make_scan(tpl, weights={}, **kw)
+    np.testing.assert_allclose(rest.ground_truth[face], tpl.mesh.vertices[face], atol=1e-9)
+    for name in EXPRESSIONS:
+        posed = make_scan(tpl, weights={name: 1.0}, **kw)
+        np.testing.assert_allclose(posed.ground_truth[face], tpl.blendshapes[name][face],
+                                   atol=1e-9)
+    # weights combine linearly, like blendshapes
+    mix = make_scan(tpl, weights={"smile": 0.5, "jaw_open": 0.25}, **kw)
+    V = tpl.mesh.vertices
+    expect = (V + 0.5 * (tpl.blendshapes["smile"] - V)
+              + 0.25 * (tpl.blendshapes["jaw_open"] - V))
+    np.testing.assert_allclose(mix.ground_truth[face], expect[face], atol=1e-9)
+
+
+def test_identities_differ_but_stay_heads(tpl):
+    kw = dict(weights={}, transform=False, resolution=30, texture_size=8)
+    faces = [make_scan(tpl, identity_seed=k, **kw).ground_truth[tpl.parts["face"]]
+             for k in (1, 2, 3)]
+    for a, b in zip(faces, faces[1:]):
+        assert np.abs(a - b).max() > 2.0
+    for F in faces:
+        assert 130 < np.ptp(F[:, 0]) < 200 and 180 < np.ptp(F[:, 1]) < 260
+
+
+def test_scan_triangles_point_outward(tpl, scan):
+    V = to_canonical(scan, scan.mesh.vertices)
+    T = scan.mesh.triangles
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    assert np.mean((n * V[T].mean(axis=1)).sum(axis=1) > 0) > 0.99
+
+
+def test_texture_looks_like_a_face(tpl):
+    open_eyes = make_scan(tpl, weights={}, resolution=30, texture_size=256)
+    shut = make_scan(tpl, weights={"blink": 1.0}, resolution=30, texture_size=256)
+    tex = open_eyes.texture.astype(float)
+
+    def at(s, t):
+        u, v = sample._uv_from_st(np.array(s), np.array(t))
+        return tex[int((1 - v) * 256), int(u * 256)]
+    skin, lip = at(60.0, -20.0), at(0.0, sample._MOUTH_T + 4.0)
+    brow, white = at(-33.0, 19.5), at(sample._EYE_S + 8.0, sample._EYE_T + 1.5)
+    assert lip[0] - lip[1] > skin[0] - skin[1] + 20            # lips redder than skin
+    assert brow.sum() < 0.7 * skin.sum()                         # brows darker
+    assert white.min() > 200                                     # eye white
+    a = np.array(open_eyes.texture, float)
+    b = np.array(shut.texture, float)
+    assert np.abs(a - b).max() > 50 and np.median(np.abs(a - b)) == 0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(weights={"frown": 1.0}), "unknown expression"),
+    (dict(weights={"smile": 1.5}), r"\[0, 1\]"),
+    (dict(noise=-1.0), "noise"),
+    (dict(hole_radius=float("nan")), "hole_radius"),
+    (dict(resolution=3), "resolution"),
+    (dict(texture_size=0), "texture_size"),
+    (dict(holes=-1), "holes"),
+])
+def test_scan_arguments_are_checked(tpl, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        make_scan(tpl, **kwargs)
+
+
+# -- sequences and files ------------------------------------------------------------------------
+def test_sequence_ramps_the_expression(tpl):
+    seq = make_sequence(tpl, frames=4, peak={"jaw_open": 1.0, "blink": 0.6},
+                        resolution=30, texture_size=8, seed=3)
+    assert len(seq) == 4
+    np.testing.assert_allclose([s.weights["jaw_open"] for s in seq], [0, 1 / 3, 2 / 3, 1])
+    np.testing.assert_allclose(seq[-1].weights["blink"], 0.6)
+    assert len({s.mesh.n_vertices for s in seq}) > 1            # own topology per frame
+    assert all(np.array_equal(s.transform, seq[0].transform) for s in seq)
+    lm = tpl.landmarks.vertex
+    gaps = [np.linalg.norm(s.ground_truth[lm[62]] - s.ground_truth[lm[66]]) for s in seq]
+    assert np.all(np.diff(gaps) > 0)
+    with pytest.raises(ValueError, match="peak"):
+        make_sequence(tpl, frames=3, weights={"smile": 1.0})
+    with pytest.raises(ValueError, match="frames"):
+        make_sequence(tpl, frames=1)
+
+
+def test_write_sample_round_trips(tmp_path):
+    from PIL import Image
+
+    from facewrap.io.landmarks import read_landmarks
+    from facewrap.io.obj import read_obj
+
+    tpl = make_template(32)
+    sc = make_scan(tpl, resolution=40, texture_size=64)
+    paths = write_sample(tmp_path / "out", tpl, sc)
+    expected = {"template", "template_landmarks", "scan", "scan_mtl", "scan_texture",
+                "scan_landmarks", "ground_truth"} | {f"blendshapes/{k}" for k in EXPRESSIONS}
+    assert set(paths) == expected and all(p.is_file() for p in paths.values())
+    t = read_obj(paths["template"])
+    assert np.array_equal(t.vertices, tpl.mesh.vertices)
+    assert np.array_equal(t.face_offsets, tpl.mesh.face_offsets)
+    assert t.groups == tpl.mesh.groups
+    b = read_obj(paths["blendshapes/jaw_open"])
+    assert np.array_equal(b.vertices, tpl.blendshapes["jaw_open"])
+    s = read_obj(paths["scan"])
+    assert s.mtllib == ("scan.mtl",) and s.materials == ("skin",)
+    assert np.array_equal(s.vertices, sc.mesh.vertices)
+    assert np.array_equal(s.uvs[s.face_uvs], sc.mesh.uvs[sc.mesh.face_indices])
+    assert "map_Kd scan_texture.png" in paths["scan_mtl"].read_text()
+    assert np.array_equal(np.asarray(Image.open(paths["scan_texture"])), sc.texture)
+    lines = paths["template_landmarks"].read_text().split()
+    assert [int(x) for x in lines] == tpl.landmarks.vertex.tolist()
+    pts = read_landmarks(paths["scan_landmarks"])
+    np.testing.assert_array_equal(pts.points, sc.landmarks.points)
+    np.testing.assert_array_equal(np.load(paths["ground_truth"]), sc.ground_truth)

@@ -1,0 +1,110 @@
+"""End-to-end wrap: built-in sample (ground truth known) and ICT -> james (real)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from facewrap.cli import main
+from facewrap.wrap import WrapSettings, wrap
+
+from conftest import needs_data, DATA
+
+
+@pytest.fixture(scope="module")
+def sample():
+    from facewrap.sample import make_scan, make_template
+    template = make_template()
+    return template, make_scan(template)
+
+
+def gt_error(result, template, scan):
+    face = template.parts["face"]
+    return np.linalg.norm(result.vertices[face] - scan.ground_truth[face], axis=1)
+
+
+def test_wrap_keeps_template_topology_and_lands_on_scan(sample):
+    template, scan = sample
+    res = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks)
+    m = res.mesh
+    assert m.n_vertices == template.mesh.n_vertices
+    assert np.array_equal(m.face_indices, template.mesh.face_indices)
+    assert np.array_equal(m.face_uvs, template.mesh.face_uvs)
+    assert np.array_equal(m.uvs, template.mesh.uvs)
+    assert res.projection.projected.mean() > 0.5
+    assert res.metrics["fit_mean"] < 1.0  # mm
+    # rbf + projection is much closer to the truth than the similarity alone
+    rigid = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
+                 WrapSettings(model="rigid", project=False))
+    e_rbf, e_rigid = gt_error(res, template, scan), gt_error(rigid, template, scan)
+    assert e_rbf.mean() < 0.5 * e_rigid.mean()
+    assert res.metrics["landmark_mean"] < rigid.metrics["landmark_mean"]
+
+
+def test_excluded_vertices_are_not_projected(sample):
+    template, scan = sample
+    eyes = np.concatenate([template.parts["eyeball_left"], template.parts["eyeball_right"]])
+    res = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks, exclude=eyes)
+    assert not res.projection.projected[eyes].any()
+    assert np.isfinite(res.vertices).all()
+
+
+def test_cli_wrap_writes_outputs_and_report(sample, tmp_path):
+    from facewrap.io import read_mesh
+    from facewrap.sample import write_sample
+    template, scan = sample
+    paths = write_sample(tmp_path / "in", template, scan)
+    out = tmp_path / "fit.obj"
+    rc = main(["wrap", str(paths["template"]), str(paths["scan"]), "-o", str(out),
+               "--template-landmarks", str(paths["template_landmarks"]),
+               "--scan-landmarks", str(paths["scan_landmarks"]),
+               "--texture", str(paths["scan_texture"]), "--texture-size", "256",
+               "--report", str(tmp_path / "r.json"), "-q"])
+    assert rc == 0
+    fitted = read_mesh(out)
+    assert np.array_equal(fitted.face_indices, template.mesh.face_indices)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert {"align", "warp", "project", "total"} <= set(rep["timings"])
+    assert rep["metrics"]["fit_mean"] < 1.0
+    assert rep["texture"]["coverage"] > 0.2
+    assert out.with_suffix(".png").is_file()
+
+
+def test_cli_wrap_rejects_mismatched_landmarks(sample, tmp_path, capsys):
+    from facewrap.sample import write_sample
+    template, scan = sample
+    paths = write_sample(tmp_path / "in", template, scan)
+    few = tmp_path / "few.txt"
+    few.write_text("1.0 2.0 3.0\n4.0 5.0 6.0\n")
+    out = tmp_path / "fit.obj"
+    rc = main(["wrap", str(paths["template"]), str(paths["scan"]), "-o", str(out),
+               "--template-landmarks", str(paths["template_landmarks"]),
+               "--scan-landmarks", str(few)])
+    assert rc == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert "few.txt" in err and "has 2 landmarks" in err and err.count("\n") == 1
+
+
+@needs_data
+def test_ict_face_onto_james(tmp_path):
+    """SPEC §1 on real data: ICT neutral face region onto menpo's james scan."""
+    from facewrap.datasets import ICTFaceKit
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_ljson
+    from facewrap.texture import bake_texture, load_image
+    kit = ICTFaceKit(DATA / "ict-facekit" / "FaceXModel")
+    face = kit.part_mesh("face")
+    scan = read_mesh(DATA / "scans/james/james.obj")
+    james = read_ljson(DATA / "scans/james/james.ljson")
+    res = wrap(face, scan, kit.landmarks, james)
+    m = res.metrics
+    assert res.mesh.n_vertices == 9409
+    assert m["landmark_mean"] < 6.0, m  # mm; james's landmarks are hand-placed
+    assert m["fit_mean"] < 2.0, m
+    image = load_image(DATA / "scans/james/james.jpg")
+    baked = bake_texture(res.mesh, scan, image, size=512)
+    assert baked.filled_fraction > 0.3
+    covered = baked.image[baked.coverage].astype(float)
+    r, g, b = covered.mean(axis=0)
+    assert r > g > b  # skin tones
+    assert covered.std(axis=0).mean() > 10  # a face, not a flat fill
