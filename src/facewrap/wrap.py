@@ -22,7 +22,7 @@ from .geometry import ClosestPointTree
 from .landmarks import Landmarks, pair_landmarks
 from .mesh import Mesh
 from .models.rbf import RBFWarp
-from .project import Projection, project_to_surface
+from .project import Projection, _scan_boundary_triangles, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
 
@@ -106,11 +106,21 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
         Fitted and target landmark positions.
     mask : (n,) bool, optional
         Vertices to include in the fit statistics (e.g. not excluded ones).
+
+    Fit distances are taken over the vertices whose closest scan point is not on
+    the scan's border (``fit_coverage`` is their fraction): a template usually
+    covers more than the scanner saw.
     """
     V = np.asarray(vertices)
-    d = tree.query(V if mask is None else V[mask]).distances
+    cp = tree.query(V)
+    # Only vertices the scan covers count: where the closest point is on the scan's
+    # border (holes, cropped regions) the template has nothing to fit to.
+    covered = ~_scan_boundary_triangles(tree)[cp.triangles]
+    if mask is not None:
+        covered &= mask
+    d = cp.distances[covered] if covered.any() else cp.distances
     out = {"fit_mean": float(d.mean()), "fit_p95": float(np.percentile(d, 95)),
-           "fit_max": float(d.max())}
+           "fit_max": float(d.max()), "fit_coverage": float(covered.mean())}
     if landmark_positions is not None:
         e = np.linalg.norm(np.asarray(landmark_positions) - np.asarray(scan_landmarks),
                            axis=1)
