@@ -166,7 +166,7 @@ def run(n_queries: int = 20_000, n_check: int = 2_000, n_brute: int = 20,
 def markdown(results: dict) -> str:
     r = results
     lines = [
-        f"Closest points: {r['queries']} queries on a {r['triangles']}-triangle mesh "
+        f"### Closest points: {r['queries']} queries on a {r['triangles']}-triangle mesh "
         f"(best of {REPEATS})",
         "",
         "| | build (s) | query (s) | total (s) |",

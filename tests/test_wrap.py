@@ -110,3 +110,29 @@ def test_ict_face_onto_james(tmp_path):
     r, g, b = covered.mean(axis=0)
     assert r > g > b  # skin tones
     assert covered.std(axis=0).mean() > 10  # a face, not a flat fill
+
+
+@needs_data
+def test_cli_ict_face_onto_james_report(tmp_path):
+    """The same case through the command line: the report holds landmark error and
+    fit distance, the output keeps ICT's face topology and UVs."""
+    from facewrap.datasets import ICTFaceKit
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import write_vertex_indices
+    from facewrap.io.obj import write_obj
+    kit = ICTFaceKit(DATA / "ict-facekit" / "FaceXModel")
+    face = kit.part_mesh("face")
+    write_obj(tmp_path / "ict_face.obj", face)
+    write_vertex_indices(tmp_path / "ict_landmarks.txt", kit.landmarks)
+    out = tmp_path / "james_ict.obj"
+    rc = main(["wrap", str(tmp_path / "ict_face.obj"), str(DATA / "scans/james/james.obj"),
+               "-o", str(out), "--template-landmarks", str(tmp_path / "ict_landmarks.txt"),
+               "--scan-landmarks", str(DATA / "scans/james/james.ljson"),
+               "--report", str(tmp_path / "r.json"), "-q"])
+    assert rc == 0
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["metrics"]["landmark_mean"] < 6.0 and rep["metrics"]["fit_mean"] < 2.0
+    fitted = read_mesh(out)
+    assert np.array_equal(fitted.face_uvs, face.face_uvs)
+    assert np.array_equal(fitted.uvs, face.uvs)
+    assert fitted.face_sizes.tolist() == face.face_sizes.tolist()
