@@ -48,10 +48,8 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     # "seen": vertices whose true position is on the scan away from its borders
     # (the template head is larger than the cropped, holed scan)
     gt_tree = ClosestPointTree(scan.mesh.vertices, scan.mesh.triangles)
-    from .project import _scan_boundary_triangles
-    seen = ~_scan_boundary_triangles(gt_tree)[gt_tree.query(
-        scan.ground_truth[face]).triangles]
-    seen &= gt_tree.query(scan.ground_truth[face]).distances < 1.0
+    on_scan = gt_tree.query(scan.ground_truth[face])
+    seen = ~gt_tree.boundary_triangles[on_scan.triangles] & (on_scan.distances < 1.0)
     data = json.loads(report.read_text())
     stats = {}
     for name, e in (("face_seen_by_scan", err[seen]), ("whole_head", err)):

@@ -26,8 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .geometry import (ClosestPointTree, boundary_vertices, edges_of_polygons,
-                       triangle_adjacency, uniform_laplacian, vertex_normals)
+from .geometry import (ClosestPointTree, edges_of_polygons, uniform_laplacian,
+                       vertex_normals)
 from .mesh import Mesh
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
@@ -241,7 +241,7 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     todo = allowed.copy()
     cp = tree.query(Vt)
     if "prism" in methods and todo.any():
-        adj = _scan_adjacency(tree)
+        adj = tree.triangle_neighbours
         idx = np.flatnonzero(todo)
         cand = np.concatenate([cp.triangles[idx, None], adj[cp.triangles[idx]]], axis=1)
         found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
@@ -275,7 +275,7 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
         cos = np.einsum("ij,ij->i", Ns, Nt)
         ok &= cos >= np.cos(np.radians(max_normal_angle))
     if reject_boundary:
-        on_border = _scan_boundary_triangles(tree)
+        on_border = tree.boundary_triangles
         ok &= ~np.where(has, on_border[np.maximum(tri, 0)], False)
     method[~ok] = METHOD_NONE
     tri[~ok] = -1
@@ -284,22 +284,3 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     out = Vt + disp
     out[ok] = P[ok]  # exact landing points (no round-off from the blend)
     return Projection(out, ok, tri, bary, method, np.linalg.norm(out - Vt, axis=1))
-
-
-def _scan_adjacency(tree: ClosestPointTree) -> np.ndarray:
-    """Edge-neighbour triangles of the scan, cached on the tree object."""
-    adj = getattr(tree, "_facewrap_adjacency", None)
-    if adj is None:
-        adj = triangle_adjacency(tree.triangles)
-        object.__setattr__(tree, "_facewrap_adjacency", adj)
-    return adj
-
-
-def _scan_boundary_triangles(tree: ClosestPointTree) -> np.ndarray:
-    """(t,) bool: scan triangles with a vertex on the boundary (cached)."""
-    on = getattr(tree, "_facewrap_border", None)
-    if on is None:
-        bv = boundary_vertices(tree.triangles, len(tree.vertices))
-        on = bv[tree.triangles].any(axis=1)
-        object.__setattr__(tree, "_facewrap_border", on)
-    return on

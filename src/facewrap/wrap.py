@@ -22,7 +22,7 @@ from .geometry import ClosestPointTree
 from .landmarks import Landmarks, pair_landmarks
 from .mesh import Mesh
 from .models.rbf import RBFWarp
-from .project import Projection, _scan_boundary_triangles, project_to_surface
+from .project import Projection, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
 
@@ -115,7 +115,7 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
     cp = tree.query(V)
     # Only vertices the scan covers count: where the closest point is on the scan's
     # border (holes, cropped regions) the template has nothing to fit to.
-    covered = ~_scan_boundary_triangles(tree)[cp.triangles]
+    covered = ~tree.boundary_triangles[cp.triangles]
     if mask is not None:
         covered &= mask
     d = cp.distances[covered] if covered.any() else cp.distances

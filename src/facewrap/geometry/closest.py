@@ -22,12 +22,14 @@ barycentric coordinates in float64.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import igl
 import numpy as np
 
 from ._checks import as_points, as_triangles, as_vertices
+from .adjacency import boundary_vertices, triangle_adjacency
 from .normals import _cross_rows, _normalize_rows, _vertex_normals
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
@@ -205,6 +207,17 @@ class ClosestPointTree:
         self.vertex_normals = _readonly(normals)
         self._tree = igl.AABB()
         self._tree.init(self.vertices, self.triangles)
+
+    @cached_property
+    def triangle_neighbours(self) -> np.ndarray:
+        """(t, 3) int64 edge-neighbour triangles (-1 on the border), computed once."""
+        return _readonly(triangle_adjacency(self.triangles))
+
+    @cached_property
+    def boundary_triangles(self) -> np.ndarray:
+        """(t,) bool: triangles with a vertex on the mesh boundary (holes, borders)."""
+        on = boundary_vertices(self.triangles, len(self.vertices))
+        return _readonly(on[self.triangles].any(axis=1))
 
     def __repr__(self) -> str:
         return (f"<ClosestPointTree {len(self.vertices)} vertices, "

@@ -41,6 +41,7 @@ import numpy as np
 from ..errors import InputError
 from ..landmarks import IBUG68_NAMES, Landmarks
 from .atomic import atomic_write
+from .files import read_file_bytes
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
@@ -50,17 +51,7 @@ _INT = re.compile(r"^[+-]?\d+$")
 
 
 def _text(path) -> str:
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise InputError(f"cannot read file: {exc.strerror}", path) from None
-    if b"\0" in data:
-        raise InputError("binary data, not a text file", path)
-    text = data.decode("utf-8", errors="replace")
-    if not text.strip():
-        raise InputError("empty file", path)
-    return text
+    return read_file_bytes(path, text=True).decode("utf-8", errors="replace")
 
 
 def _content_lines(text: str):

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh import Mesh
 from .atomic import atomic_write
+from .files import read_file_bytes
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 
@@ -39,14 +40,7 @@ class _Lazy:
 
 
 def _read_bytes(path) -> bytes:
-    try:
-        data = open(path, "rb").read()
-    except OSError as exc:
-        raise InputError(f"cannot read file: {exc.strerror}", path) from None
-    if not data.strip():
-        raise InputError("empty file", path)
-    if b"\0" in data:
-        raise InputError("binary data, not a text OBJ file", path)
+    data = read_file_bytes(path, text=True)
     if b"\\\n" in data:  # line continuation (rare): join, keeping byte offsets
         data = data.replace(b"\\\n", b"  ")
     if b"\n " in data or b"\n\t" in data or data[:1] in (b" ", b"\t"):

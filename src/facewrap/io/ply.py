@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .files import read_file_bytes
 from ..mesh import Mesh
 from .atomic import atomic_write
 
@@ -96,14 +97,7 @@ class _Header:
 
 
 def _read_bytes(path) -> bytes:
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise InputError(f"cannot read file: {exc.strerror}", path) from None
-    if not data.strip():
-        raise InputError("empty file", path)
-    return data
+    return read_file_bytes(path)
 
 
 def _ply_type(name: str, path, line: int) -> np.dtype:
