@@ -7,6 +7,8 @@ The public API, grouped (see ``docs/architecture.md`` for how data flows):
 * landmarks: :class:`Landmarks`, :func:`read_landmarks`, :func:`pair_landmarks`
 * built-in sample: :mod:`facewrap.sample`; real data sets: :mod:`facewrap.datasets`
 * geometry queries: :mod:`facewrap.geometry`
+* wrapping a template onto a scan: :func:`wrap`, :class:`WrapSettings`
+* textures and sequences: :mod:`facewrap.texture`, :mod:`facewrap.animation`
 """
 
 __version__ = "0.1.0"
@@ -16,9 +18,11 @@ from .mesh import Mesh
 from .landmarks import IBUG68_NAMES, Landmarks, pair_landmarks
 from .io import read_mesh, write_mesh
 from .io.landmarks import read_landmarks, read_markers
+from .wrap import WrapResult, WrapSettings, wrap
 
 __all__ = [
     "__version__", "InputError",
     "Mesh", "read_mesh", "write_mesh",
     "Landmarks", "IBUG68_NAMES", "pair_landmarks", "read_landmarks", "read_markers",
+    "wrap", "WrapSettings", "WrapResult",
 ]
