@@ -16,6 +16,7 @@ import numpy as np
 
 from .io.atomic import atomic_write
 from .io.obj import write_obj
+from .geometry._checks import as_points
 from .mesh import Mesh
 from .texture import interpolate_images, save_png
 
@@ -32,18 +33,6 @@ def _frame_count(frames) -> int:
         raise ValueError(f"frames must be an int >= 2 (both ends are included), "
                          f"got {frames!r}")
     return int(frames)
-
-
-def _shape(S, name: str) -> np.ndarray:
-    try:
-        S = np.asarray(S, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a float array of shape (n, 3): {exc}") from None
-    if S.ndim != 2 or S.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (n, 3), got {S.shape}")
-    if not np.all(np.isfinite(S)):
-        raise ValueError(f"{name} must be finite (found NaN or inf)")
-    return S
 
 
 def interpolate_vertices(start, end, frames: int) -> np.ndarray:
@@ -70,7 +59,7 @@ def interpolate_vertices(start, end, frames: int) -> np.ndarray:
     >>> S.shape, S[:, 0, 2].tolist()
     ((5, 1, 3), [0.0, 1.0, 2.0, 3.0, 4.0])
     """
-    start, end = _shape(start, "start"), _shape(end, "end")
+    start, end = as_points(start, "start"), as_points(end, "end")
     if start.shape != end.shape:
         raise ValueError(f"start and end must have the same shape, got {start.shape} "
                          f"and {end.shape}")

@@ -31,6 +31,7 @@ from scipy import ndimage
 
 from .errors import InputError
 from .io.atomic import atomic_write
+from .geometry._checks import as_points
 from .mesh import Mesh
 
 __all__ = [
@@ -58,18 +59,6 @@ def _uv_mesh(mesh, name: str) -> Mesh:
     if not np.all(np.isfinite(mesh.uvs)):
         raise ValueError(f"{name} has NaN or infinite texture coordinates")
     return mesh
-
-
-def _points(P, name: str) -> np.ndarray:
-    try:
-        P = np.asarray(P, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a float array of shape (k, 3): {exc}") from None
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (k, 3), got {P.shape}")
-    if not np.all(np.isfinite(P)):
-        raise ValueError(f"{name} must be finite (found NaN or inf)")
-    return P
 
 
 def _image(image, name: str) -> np.ndarray:
@@ -192,7 +181,7 @@ def cylindrical_uvs(points, axis=(0.0, 1.0, 0.0), center=None) -> np.ndarray:
     ...                 ).round(3).tolist()
     [[0.5, 0.0], [0.75, 0.5], [1.0, 1.0]]
     """
-    P = _points(points, "points")
+    P = as_points(points, "points")
     a = np.asarray(axis, dtype=np.float64)
     if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
         raise ValueError(f"axis must be a finite non-zero 3-vector, got {axis!r}")
@@ -271,7 +260,7 @@ def transfer_uvs(scan: Mesh, points_or_closest, mask=None, *, vertices=None,
         valid = tri >= 0
         if hasattr(proj, "hit"):
             valid &= np.asarray(proj.hit, dtype=bool)
-        P = _points(vertices if vertices is not None else proj.points,
+        P = as_points(vertices if vertices is not None else proj.points,
                     "vertices" if vertices is not None
                     else "projection points (pass vertices=)")
         bary = np.asarray(proj.barycentric, dtype=np.float64)
@@ -280,7 +269,7 @@ def transfer_uvs(scan: Mesh, points_or_closest, mask=None, *, vertices=None,
                              f"got {bary.shape}")
     else:
         from .geometry import ClosestPointTree  # geometry imports igl: load on use
-        P = _points(points_or_closest, "points_or_closest")
+        P = as_points(points_or_closest, "points_or_closest")
         if tree is None:
             tree = ClosestPointTree(scan.vertices, scan.triangles)
         elif tree.triangles.shape != scan.triangles.shape:
