@@ -13,12 +13,13 @@ each stage, timings and fit metrics; nothing here reads or writes files.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .align import Similarity, rigid_icp, similarity_transform
 from .geometry import ClosestPointTree
+from .icp import Stage
 from .landmarks import Landmarks, pair_landmarks
 from .mesh import Mesh
 from .models.rbf import RBFWarp
@@ -26,17 +27,22 @@ from .project import Projection, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
 
-MODELS = ("rigid", "rbf")
+MODELS = ("auto", "rigid", "rbf", "affine", "graph", "blendshape", "hybrid")
 
 
 @dataclass
 class WrapSettings:
     """Settings of a wrap (no work is done here; see :func:`wrap`).
 
+    Every field is also a key of the ``[wrap]`` table of a job file and (for the
+    common ones) a ``facewrap wrap`` option.
+
     Attributes
     ----------
-    model : {"rigid", "rbf"}
-        Deformation after the similarity: none, or the landmark RBF warp.
+    model : {"auto", "rigid", "rbf", "affine", "graph", "blendshape", "hybrid"}
+        Deformation after the similarity.  "rigid": none; "rbf": landmark RBF warp
+        only; the others run non-rigid ICP (SPEC §2) with that deformation model.
+        "auto" is "hybrid" when blendshapes are given, else "graph".
     scale : bool
         Let the similarity scale the template.
     rigid_refine : bool
@@ -44,15 +50,31 @@ class WrapSettings:
         are few or noisy; off by default because expressions bias it).
     kernel, smoothing : see :class:`~facewrap.models.rbf.RBFWarp`.
     project : bool
-        Move vertices onto the scan (SPEC §1.3).
+        Move vertices onto the scan at the end (SPEC §1.3).
     max_distance : float, optional
-        Longest projection move; default 5 % of the template size.
+        Longest projection move / correspondence distance at the end; default 5 %
+        of the template size.
     max_normal_angle : float
         Degrees; larger differences between template and scan normals are rejected.
     blend_order : {1, 2}
         Harmonic or biharmonic blending of unprojected vertices.
+    stages : list of Stage, optional
+        The non-rigid ICP schedule (stiff to loose); None = the model's default
+        (see :func:`facewrap.icp.default_schedule`).
+    node_spacing : float, optional
+        Deformation-graph node spacing as a fraction of the template's bounding
+        box diagonal (default 0.03: ~400 nodes on a face).
+    point_weight : float
+        Weight of point-to-point against point-to-plane (weight 1) in the data term.
+    robust : {"welsch", "huber", "geman_mcclure", "none"}
+        IRLS norm of the data term; its scale comes from the residuals and is
+        annealed.
+    pca_components : int, optional
+        Fit this many PCA components of the blendshapes instead of the raw shapes.
+    reject_boundary : bool
+        Ignore correspondences on the scan's border (holes, crop).
     """
-    model: str = "rbf"
+    model: str = "auto"
     scale: bool = True
     rigid_refine: bool = False
     kernel: str = "biharmonic"
@@ -61,6 +83,12 @@ class WrapSettings:
     max_distance: float | None = None
     max_normal_angle: float = 60.0
     blend_order: int = 2
+    stages: list[Stage] | None = None
+    node_spacing: float = 0.03
+    point_weight: float = 0.1
+    robust: str = "welsch"
+    pca_components: int | None = None
+    reject_boundary: bool = True
 
 
 @dataclass
@@ -80,6 +108,14 @@ class WrapResult:
         Seconds per stage.
     metrics : dict
         Landmark errors and fit distances (see :func:`fit_metrics`).
+    settings : WrapSettings
+        The settings used (``model`` resolved from "auto").
+    history : list of dict
+        One entry per ICP iteration (stage, energy, fit, landmark error, seconds).
+    weights : (k,) float or None
+        Fitted blend weights (blendshape and hybrid models).
+    shape_names : list of str
+        Names of the blendshapes, in the order of ``weights``.
     """
     mesh: Mesh
     transform: Similarity
@@ -87,6 +123,10 @@ class WrapResult:
     projection: Projection | None
     timings: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
+    settings: WrapSettings | None = None
+    history: list = field(default_factory=list)
+    weights: np.ndarray | None = None
+    shape_names: list = field(default_factory=list)
 
     @property
     def vertices(self) -> np.ndarray:
@@ -130,7 +170,8 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
 
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
-         exclude=None, scan_tree: ClosestPointTree | None = None) -> WrapResult:
+         exclude=None, blendshapes=None,
+         scan_tree: ClosestPointTree | None = None) -> WrapResult:
     """Fit ``template`` to ``scan``.
 
     Parameters
@@ -152,9 +193,13 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     -------
     WrapResult
     """
-    s = settings or WrapSettings()
+    s = replace(settings or WrapSettings())
     if s.model not in MODELS:
         raise ValueError(f"model must be one of {MODELS}, got {s.model!r}")
+    if s.model == "auto":
+        s.model = "hybrid" if blendshapes else "graph"
+    if s.model in ("blendshape", "hybrid") and not blendshapes:
+        raise ValueError(f"model {s.model!r} needs blendshapes")
     timings = {}
     t0 = time.perf_counter()
     ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
@@ -210,4 +255,5 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                           mask=~excluded)
     if projection is not None:
         metrics["projection"] = projection.summary()
-    return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics)
+    return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics,
+                      settings=s)

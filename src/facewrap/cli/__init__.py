@@ -16,16 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .errors import InputError
+from .. import __version__
+from ..errors import InputError
+from ..wrap import MODELS, WrapSettings
 
 __all__ = ["main", "build_parser"]
 
 
 def cmd_info(args) -> int:
     """Print a summary of a mesh (and its landmarks)."""
-    from .geometry import boundary_loops, connected_components
-    from .io import read_mesh
+    from ..geometry import boundary_loops, connected_components
+    from ..io import read_mesh
     mesh = read_mesh(args.mesh)
     sizes, counts = np.unique(mesh.face_sizes, return_counts=True)
     lo, hi = mesh.bounding_box()
@@ -54,7 +55,7 @@ def cmd_info(args) -> int:
 
 def cmd_convert(args) -> int:
     """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
-    from .io import read_mesh, write_mesh
+    from ..io import read_mesh, write_mesh
     write_mesh(args.output, read_mesh(args.input))
     print(args.output)
     return 0
@@ -62,7 +63,7 @@ def cmd_convert(args) -> int:
 
 def cmd_sample(args) -> int:
     """Write the built-in synthetic template and scan to a folder."""
-    from .sample import make_scan, make_template, write_sample
+    from ..sample import make_scan, make_template, write_sample
     template = make_template()
     scan = make_scan(template)
     out = Path(args.out)
@@ -73,77 +74,37 @@ def cmd_sample(args) -> int:
     return 0
 
 
-def _read_exclude(path, n):
-    """Template vertex ids to exclude: an index list file, or a landmark JSON."""
-    from .io.landmarks import read_vertex_indices
-    return read_vertex_indices(path, n_vertices=n).vertex
+def wrap_settings_from_args(args) -> WrapSettings:
+    """The :class:`WrapSettings` of ``facewrap wrap``'s options."""
+    return WrapSettings(model=args.model, kernel=args.kernel, smoothing=args.smoothing,
+                        project=not args.no_project, max_distance=args.max_distance,
+                        rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
+                        robust=args.robust, pca_components=args.pca_components)
 
 
 def cmd_wrap(args) -> int:
     """Fit the template to the scan and write the template-topology result."""
-    from .io import read_mesh, write_mesh
-    from .io.landmarks import read_landmarks
-    from .wrap import WrapSettings, wrap
-    template = read_mesh(args.template)
-    scan = read_mesh(args.scan)
-    tl = read_landmarks(args.template_landmarks, kind="auto")
-    try:
-        tl.check(template.n_vertices, len(template.triangles))
-    except ValueError as exc:
-        raise InputError(str(exc), args.template_landmarks) from None
-    sl = read_landmarks(args.scan_landmarks, kind="points")
-    try:
-        sl.check(scan.n_vertices, len(scan.triangles))
-    except ValueError as exc:
-        raise InputError(str(exc), args.scan_landmarks) from None
-    if tl.names is None or sl.names is None:
-        if len(tl) != len(sl):
-            raise InputError(f"has {len(sl)} landmarks but the template landmarks "
-                             f"({args.template_landmarks}) have {len(tl)}",
-                             args.scan_landmarks)
-    exclude = _read_exclude(args.exclude, template.n_vertices) if args.exclude else None
-    settings = WrapSettings(model=args.model, kernel=args.kernel,
-                            smoothing=args.smoothing, project=not args.no_project,
-                            max_distance=args.max_distance,
-                            rigid_refine=args.rigid_refine)
-    result = wrap(template, scan, tl, sl, settings, exclude=exclude)
-    write_mesh(args.output, result.mesh)
-    report = {"template": str(args.template), "scan": str(args.scan),
-              "output": str(args.output), "model": args.model,
-              "vertices": template.n_vertices, "timings": result.timings,
-              "metrics": result.metrics,
-              "transform": result.transform.matrix.tolist()}
-    if args.texture:
-        from .texture import bake_texture, load_image, save_png
-        image = load_image(args.texture)
-        if scan.uvs is None:
-            raise InputError("the scan has no texture coordinates to bake from",
-                             args.scan)
-        if template.uvs is None:
-            raise InputError("the template has no UV layout to bake into",
-                             args.template)
-        t = time.perf_counter()
-        baked = bake_texture(result.mesh, scan, image, size=args.texture_size)
-        png = Path(args.output).with_suffix(".png")
-        save_png(png, baked.image)
-        report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
-                             "seconds": time.perf_counter() - t}
-    if args.report:
-        from .io.atomic import atomic_write
-        with atomic_write(args.report, "w") as fh:
-            json.dump(report, fh, indent=1)
+    from ..jobs import WrapJob, run_wrap_job
+    job = WrapJob(template=args.template, scan=args.scan,
+                  template_landmarks=args.template_landmarks,
+                  scan_landmarks=args.scan_landmarks, output=args.output,
+                  blendshapes=args.blendshapes, exclude=args.exclude,
+                  texture=args.texture, texture_size=args.texture_size,
+                  report=args.report)
+    report = run_wrap_job(job, wrap_settings_from_args(args))
     if not args.quiet:
-        m = result.metrics
-        print(f"wrote {args.output}: {template.n_vertices} vertices, "
-              f"fit mean {m['fit_mean']:.4g} p95 {m['fit_p95']:.4g}, landmarks mean "
-              f"{m['landmark_mean']:.4g}, {result.timings['total']:.2f} s")
+        m, t = report["metrics"], report["timings"]
+        print(f"wrote {args.output}: {report['vertices']} vertices, model "
+              f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
+              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
+              f"{t['total']:.2f} s")
     return 0
 
 
 def cmd_animate(args) -> int:
     """Frames between two fitted meshes of one topology, as an OBJ sequence."""
-    from .animation import interpolate_textures, interpolate_vertices, write_obj_sequence
-    from .io import read_mesh
+    from ..animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+    from ..io import read_mesh
     start, end = read_mesh(args.start), read_mesh(args.end)
     if (start.n_vertices != end.n_vertices
             or not np.array_equal(start.face_indices, end.face_indices)):
@@ -152,7 +113,7 @@ def cmd_animate(args) -> int:
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     textures = None
     if args.textures:
-        from .texture import load_image
+        from ..texture import load_image
         a, b = (load_image(p) for p in args.textures)
         if a.shape != b.shape:
             raise InputError(f"image size {b.shape[:2]} differs from "
@@ -165,7 +126,7 @@ def cmd_animate(args) -> int:
 
 def cmd_demo(args) -> int:
     """Run the main job on the built-in sample and say where the outputs are."""
-    from .demo import run_demo
+    from ..demo import run_demo
     return run_demo(Path(args.out), verbose=not args.quiet)
 
 
@@ -199,11 +160,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="template vertex ids (text) or facewrap landmark JSON")
     p.add_argument("--scan-landmarks", required=True,
                    help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
-    p.add_argument("--model", default="rbf", choices=["rigid", "rbf"],
-                   help="deformation after alignment (default rbf)")
+    p.add_argument("--blendshapes", metavar="DIR",
+                   help="folder of meshes in the template's topology (shape = file - "
+                        "template)")
+    p.add_argument("--model", default="auto", choices=list(MODELS),
+                   help="deformation model (default: hybrid with --blendshapes, "
+                        "else graph)")
     p.add_argument("--exclude", help="template vertex ids not to fit (they follow)")
+    p.add_argument("--node-spacing", type=float, default=WrapSettings.node_spacing,
+                   help="graph node spacing, fraction of template size (default "
+                        "%(default)s)")
+    p.add_argument("--robust", default=WrapSettings.robust,
+                   choices=["welsch", "huber", "geman_mcclure", "none"],
+                   help="robust norm of the data term (default %(default)s)")
+    p.add_argument("--pca-components", type=int, default=None,
+                   help="fit this many PCA components of the blendshapes")
     p.add_argument("--kernel", default="biharmonic",
-                   choices=["biharmonic", "thin_plate", "exponential", "gaussian"])
+                   choices=["biharmonic", "thin_plate", "exponential", "gaussian"],
+                   help="RBF kernel of the landmark warp")
     p.add_argument("--smoothing", type=float, default=0.0,
                    help="RBF smoothing for noisy landmarks (default 0)")
     p.add_argument("--max-distance", type=float, default=None,
