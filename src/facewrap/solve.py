@@ -122,3 +122,60 @@ def _accurate(A, factor: Factor) -> bool:
 def solve_spd(A, b) -> np.ndarray:
     """One-shot :func:`factorize` then :meth:`Factor.solve`."""
     return factorize(A).solve(b)
+
+
+def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
+                      method: str = "cg", x0=None):
+    """One damped Gauss–Newton (Levenberg–Marquardt) step for weighted terms.
+
+    Minimises ``Σ_t Σ_r w_r (r_r + J_r δ)²`` plus ``damping · δᵀ diag(H) δ``.
+
+    Parameters
+    ----------
+    terms : iterable of (weight, r, J, row_weights)
+        ``weight`` a float, ``r`` (k,), ``J`` (k, P) sparse, ``row_weights`` (k,)
+        or None (IRLS weights).
+    damping : float
+        Levenberg–Marquardt factor on the diagonal of ``JᵀWJ``.
+    method : {"cg", "direct"}
+        "cg": conjugate gradients preconditioned by the diagonal, falling back to
+        a direct factorisation if they do not converge — a Gauss–Newton step
+        does not need a solve to machine precision, and on deformation-graph
+        systems CG is ~5× faster than a fresh sparse Cholesky (whose symbolic
+        analysis cannot be reused through cholespy).  "direct": always factor.
+    x0 : (P,) float, optional
+        Starting guess for CG (e.g. the previous step).
+
+    Returns
+    -------
+    delta : (P,) float64
+    """
+    H = None
+    g = None
+    for weight, r, J, rw in terms:
+        if weight == 0 or J.shape[0] == 0:
+            continue
+        w = weight if rw is None else weight * np.asarray(rw)
+        Jw = sp.csr_matrix(J)
+        if np.ndim(w):
+            Jw = sp.diags(w) @ Jw
+        else:
+            Jw = Jw * w
+        h = (Jw.T @ J).tocsr()
+        H = h if H is None else H + h
+        gi = Jw.T @ r
+        g = gi if g is None else g + gi
+    if H is None:
+        return np.zeros(n_params or 0)
+    d = H.diagonal()
+    # damping keeps the system definite where a parameter sees no data (a node in
+    # a hole): its diagonal floor is relative to the largest diagonal entry
+    floor = 1e-9 * max(float(d.max(initial=0.0)), 1e-300)
+    H = (H + sp.diags(damping * d + floor)).tocsr()
+    g = np.asarray(g, dtype=np.float64)
+    if method == "cg":
+        x, info = spla.cg(H, -g, x0=x0, rtol=1e-8, maxiter=max(200, H.shape[0] // 4),
+                          M=sp.diags(1.0 / H.diagonal()))
+        if info == 0 and np.all(np.isfinite(x)):
+            return x
+    return -factorize(H, check=False).solve(g)

@@ -19,15 +19,23 @@ import numpy as np
 
 from .align import Similarity, rigid_icp, similarity_transform
 from .geometry import ClosestPointTree
-from .icp import Stage
+from .icp import NonRigidICP, Stage, default_schedule
 from .landmarks import Landmarks, pair_landmarks
 from .mesh import Mesh
+from .models.affine import AffineModel
+from .models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
+                                blendshape_basis)
+from .models.graph import GraphModel, build_graph
+from .models.hybrid import HybridModel, HybridParams
 from .models.rbf import RBFWarp
+from .terms import landmark_rows
 from .project import Projection, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
 
 MODELS = ("auto", "rigid", "rbf", "affine", "graph", "blendshape", "hybrid")
+#: the models fitted by non-rigid ICP (the others are closed-form)
+NONRIGID_MODELS = ("affine", "graph", "blendshape", "hybrid")
 
 
 @dataclass
@@ -186,6 +194,9 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     exclude : (n,) bool or int array, optional
         Template vertices that must not be pulled onto the scan (eyes, mouth
         interior...): they follow smoothly.
+    blendshapes : dict name -> (n, 3) float, optional
+        Shapes in the template's topology (positions, not deltas), for the
+        "blendshape" and "hybrid" models.
     scan_tree : ClosestPointTree, optional
         Reuse a tree already built on the scan.
 
@@ -225,7 +236,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     timings["setup"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    T = similarity_transform(src, dst, scale=s.scale)
+    T = similarity_transform(src, dst, weights=_alignment_weights(template_landmarks, ia),
+                             scale=s.scale)
     if s.rigid_refine:
         T = rigid_icp(template.vertices[~excluded], tree, init=T,
                       max_distance=0.05 * scan.scale()).transform
@@ -233,11 +245,16 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     timings["align"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    history, weights, names = [], None, []
     if s.model == "rbf":
         lm_now = template_landmarks.positions(V, template.triangles)[ia]
         warp = RBFWarp(kernel=s.kernel, smoothing=s.smoothing).fit(lm_now, dst - lm_now)
         V = warp.transform(V)
-    timings["warp"] = time.perf_counter() - t
+    elif s.model in NONRIGID_MODELS:
+        fitted = _nonrigid_icp(template, V, T, tree, template_landmarks.subset(ia), dst,
+                               s, excluded, blendshapes)
+        V, history, weights, names, timings["model_setup"] = fitted
+    timings["warp" if s.model == "rbf" else "icp"] = time.perf_counter() - t
 
     projection = None
     out = V
@@ -256,4 +273,90 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if projection is not None:
         metrics["projection"] = projection.summary()
     return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics,
-                      settings=s)
+                      settings=s, history=history, weights=weights, shape_names=names)
+
+
+def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
+    """Weights of landmark pairs in the similarity: the jaw line and the mouth
+    move with expressions (a scan with the jaw open would bias the scale and
+    tilt), so when landmarks are named, those get a small weight."""
+    if landmarks.names is None:
+        return np.ones(len(index))
+    names = [landmarks.names[i] for i in index]
+    moving = np.array([n.startswith(("jaw", "mouth", "chin", "lip")) for n in names])
+    if (~moving).sum() < 4:
+        return np.ones(len(index))
+    return np.where(moving, 0.05, 1.0)
+
+
+def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes):
+    """Non-rigid ICP from the similarity-aligned template ``V``.
+
+    Returns (vertices, history, blend weights or None, shape names, setup seconds).
+    """
+    t0 = time.perf_counter()
+    # the engine's normalised frame: centred, unit bounding-box diagonal
+    center = V.mean(axis=0)
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    base = (V - center) / size
+    deltas, names = np.zeros((3 * len(V), 0)), []
+    if s.model in ("blendshape", "hybrid"):
+        neutral = template.vertices
+        D, names = blendshape_basis(neutral, blendshapes, s.pca_components)
+        # deltas live in the template's frame: rotate and scale them like the template
+        D = D.reshape(len(V), 3, -1)
+        deltas = (T.scale * np.einsum("ab,nbk->nak", T.rotation, D) / size
+                  ).reshape(3 * len(V), -1)
+    L = landmark_rows(landmarks, len(V), template.triangles)
+    lm_targets = (targets - center) / size
+    max_distance = (s.max_distance / size if s.max_distance else 0.05)
+
+    def engine(model_name):
+        return NonRigidICP(default_schedule(model_name) if model_name == "rigid"
+                           or not s.stages else s.stages,
+                           point_weight=s.point_weight, robust=s.robust,
+                           max_distance=max_distance, max_normal_angle=s.max_normal_angle,
+                           reject_boundary=s.reject_boundary)
+
+    def fit(model, model_name, params=None):
+        return engine(model_name).fit(model, template.triangles, tree, center=center,
+                                      size=size, fit_mask=~excluded, landmark_matrix=L,
+                                      landmark_targets=lm_targets, params=params)
+
+    history = []
+    w0 = None
+    if s.model in ("affine", "graph", "hybrid"):
+        # coarse first: the whole template's pose and scale (with blend weights for
+        # the hybrid) before local deformation, which resists global scaling
+        if s.model == "hybrid":
+            pre = BlendshapeModel(base, deltas, scale=s.scale)
+        else:
+            pre = RigidModel(base, scale=s.scale)
+        coarse = fit(pre, "blendshape" if s.model == "hybrid" else "rigid")
+        history += [dict(h, model="pre-" + ("blendshape" if s.model == "hybrid"
+                                            else "rigid")) for h in coarse.history_]
+        p0 = coarse.params_
+        base = (coarse.vertices_ - center) / size if s.model != "hybrid" else \
+            pre.vertices(BlendshapeParams(p0.R, p0.t, p0.s, np.zeros_like(p0.w)))
+        if s.model == "hybrid":
+            D = deltas.reshape(len(V), 3, -1)
+            deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * len(V), -1)
+            w0 = p0.w
+    if s.model in ("graph", "hybrid"):
+        graph = build_graph(base, template.triangles, spacing=s.node_spacing)
+    if s.model == "affine":
+        model = AffineModel(base, template.triangles)
+    elif s.model == "graph":
+        model = GraphModel(base, graph)
+    elif s.model == "blendshape":
+        model = BlendshapeModel(base, deltas, scale=s.scale)
+    else:
+        model = HybridModel(base, deltas, graph)
+    setup = time.perf_counter() - t0
+    params = None
+    if w0 is not None:
+        params = HybridParams(model.initial_params().graph, w0)
+    icp = fit(model, s.model, params)
+    history += [dict(h, model=s.model) for h in icp.history_]
+    w = getattr(icp.params_, "w", None)
+    return icp.vertices_, history, w, names, setup

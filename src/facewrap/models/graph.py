@@ -1,0 +1,274 @@
+"""Embedded deformation graph (Sumner, Schmid, Pauly 2007; SPEC §2.3).
+
+:class:`DeformationGraph` is the structure built once on the template: nodes (a
+Poisson-disk subset of vertices, so they are spread evenly), each vertex's ``k``
+nearest nodes and skinning weights, and the node edges of the smoothness term.
+:class:`GraphModel` is the deformation model on it: per-node rotation ``R_j`` and
+translation ``t_j``,
+
+    v_i = Σ_j w_ij ( R_j (b_i − x_j) + x_j + t_j )                       [6]
+    E_smooth = Σ_(j,k) ‖ R_j (x_k − x_j) + x_j + t_j − x_k − t_k ‖²        [7]
+
+with ``b`` the undeformed positions and ``x_j = b[node_j]``.
+
+Nearest nodes are found **along the surface** (Dijkstra on the mesh edges, not
+Euclidean distance): a neutral template's upper and lower lips, or upper and
+lower eyelids, touch in space but are far apart on the surface, and Euclidean
+neighbours would glue them so the mouth could not open.  Parts with no path to
+the face (eyeballs, teeth as separate components) are tied to the nearest face
+nodes so they follow smoothly.
+
+The functions :func:`graph_vertices`, :func:`graph_jacobian` and
+:func:`graph_smoothness` take the undeformed positions as an argument so the
+hybrid model (:mod:`facewrap.models.hybrid`) reuses them on blended positions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _components
+from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
+
+from ..geometry import edges as mesh_edges
+from ..geometry import poisson_disk_vertices
+from .base import DeformationModel, cross_matrix_blocks, rotation_exp
+
+__all__ = ["DeformationGraph", "GraphParams", "GraphModel", "build_graph",
+           "graph_vertices", "graph_jacobian", "graph_smoothness"]
+
+
+@dataclass(frozen=True)
+class DeformationGraph:
+    """Nodes, skinning weights and edges of an embedded deformation graph.
+
+    Attributes
+    ----------
+    nodes : (m,) int64
+        Template vertex ids of the nodes.
+    vertex_nodes : (n, k) int64
+        For each vertex, its ``k`` nearest nodes (indices into ``nodes``).
+    vertex_weights : (n, k) float64
+        Skinning weights, rows sum to 1.
+    edges : (e, 2) int64
+        Directed node pairs (j, k) of the smoothness term; both directions present.
+    """
+    nodes: np.ndarray
+    vertex_nodes: np.ndarray
+    vertex_weights: np.ndarray
+    edges: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes)
+
+
+def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationGraph:
+    """Build a deformation graph on a triangle mesh.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int
+    spacing : float
+        Node spacing (Poisson-disk radius) in the mesh's units.
+    k : int
+        Nodes per vertex.
+    seed : int
+        Sampling seed (the result is deterministic for a given seed).
+
+    Returns
+    -------
+    DeformationGraph
+    """
+    V = np.asarray(V, dtype=np.float64)
+    T = np.asarray(T, dtype=np.int64)
+    n = len(V)
+    if spacing <= 0:
+        raise ValueError("spacing must be positive")
+    nodes = np.sort(poisson_disk_vertices(V, spacing, seed=seed)).astype(np.int64)
+    k = int(min(k, len(nodes)))
+    E = mesh_edges(T)
+    length = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    G = sp.coo_matrix((np.r_[length, length], (np.r_[E[:, 0], E[:, 1]],
+                                                np.r_[E[:, 1], E[:, 0]])),
+                      shape=(n, n)).tocsr()
+    nearest, dist = _nearest_nodes_on_surface(G, nodes, k + 1, limit=4.0 * spacing)
+    # vertices with fewer than k nodes in reach (small separate parts): fill in
+    # with Euclidean nearest nodes so every vertex is skinned
+    missing = ~np.isfinite(dist[:, k - 1])
+    if missing.any():
+        d_e, j_e = cKDTree(V[nodes]).query(V[missing], k=k + 1)
+        d_e, j_e = d_e.reshape(-1, k + 1), j_e.reshape(-1, k + 1)
+        nearest[missing], dist[missing] = j_e, d_e
+    d_max = dist[:, k]
+    d_max = np.where(np.isfinite(d_max), d_max, 1.5 * dist[:, k - 1])
+    d_max = np.maximum(d_max, 1e-12)
+    w = (1.0 - dist[:, :k] / d_max[:, None]) ** 2  # Sumner's weights
+    w = np.maximum(w, 1e-12)
+    w /= w.sum(axis=1, keepdims=True)
+    vertex_nodes = nearest[:, :k]
+    # edges: nodes that share a vertex (the graph of the surface) ...
+    a = np.repeat(vertex_nodes, k, axis=1).ravel()
+    b = np.tile(vertex_nodes, (1, k)).ravel()
+    pairs = np.unique(np.stack([a, b], 1)[a != b], axis=0)
+    pairs = _tie_components(pairs, V[nodes])
+    return DeformationGraph(nodes, vertex_nodes, w, pairs)
+
+
+def _nearest_nodes_on_surface(G, nodes, count, limit):
+    """The ``count`` nearest nodes of every vertex by graph distance (≤ limit)."""
+    n = G.shape[0]
+    best_d = np.full((n, count), np.inf)
+    best_j = np.zeros((n, count), dtype=np.int64)
+    chunk = 64
+    for start in range(0, len(nodes), chunk):  # chunks of sources bound memory
+        ids = np.arange(start, min(start + chunk, len(nodes)))
+        D = dijkstra(G, directed=False, indices=nodes[ids], limit=limit).T  # (n, c)
+        cand_d = np.concatenate([best_d, D], axis=1)
+        cand_j = np.concatenate([best_j, np.broadcast_to(ids, D.shape)], axis=1)
+        order = np.argsort(cand_d, axis=1, kind="stable")[:, :count]
+        best_d = np.take_along_axis(cand_d, order, 1)
+        best_j = np.take_along_axis(cand_j, order, 1)
+    return best_j, best_d
+
+
+def _tie_components(pairs, X, ties: int = 3):
+    """Connect node-graph components to the largest one (eyes follow the face)."""
+    m = len(X)
+    A = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    count, label = _components(A, directed=False)
+    if count <= 1:
+        return pairs
+    main = np.bincount(label).argmax()
+    inside = np.flatnonzero(label == main)
+    other = np.flatnonzero(label != main)
+    _, j = cKDTree(X[inside]).query(X[other], k=min(ties, len(inside)))
+    j = inside[np.asarray(j).reshape(len(other), -1)]
+    extra = np.stack([np.repeat(other, j.shape[1]), j.ravel()], 1)
+    extra = np.concatenate([extra, extra[:, ::-1]])
+    return np.unique(np.concatenate([pairs, extra]), axis=0)
+
+
+@dataclass(frozen=True)
+class GraphParams:
+    """Per-node rotations ``R`` (m, 3, 3) and translations ``t`` (m, 3)."""
+    R: np.ndarray
+    t: np.ndarray
+
+    @classmethod
+    def identity(cls, m: int) -> "GraphParams":
+        return cls(np.broadcast_to(np.eye(3), (m, 3, 3)).copy(), np.zeros((m, 3)))
+
+    def updated(self, delta) -> "GraphParams":
+        """Apply an increment ``delta`` (6m,) ordered [δθ_j, δt_j] per node."""
+        d = np.asarray(delta).reshape(-1, 6)
+        return GraphParams(rotation_exp(d[:, :3]) @ self.R, self.t + d[:, 3:])
+
+
+def graph_vertices(B, graph: DeformationGraph, p: GraphParams) -> np.ndarray:
+    """Eq. 6 on undeformed positions ``B`` (n, 3); returns (n, 3)."""
+    X = B[graph.nodes]
+    J, W = graph.vertex_nodes, graph.vertex_weights
+    local = B[:, None, :] - X[J]                                 # (n, k, 3)
+    moved = np.einsum("nkab,nkb->nka", p.R[J], local) + X[J] + p.t[J]
+    return np.einsum("nk,nka->na", W, moved)
+
+
+def graph_jacobian(B, graph: DeformationGraph, p: GraphParams) -> sp.csr_matrix:
+    """Derivative of eq. 6 (flattened, (3n, 6m)) w.r.t. node increments."""
+    X = B[graph.nodes]
+    J, W = graph.vertex_nodes, graph.vertex_weights
+    n, k = J.shape
+    rotated = np.einsum("nkab,nkb->nka", p.R[J], B[:, None, :] - X[J])
+    # values laid out row by row (vertex i, coordinate a), then slot, then column
+    blocks = np.empty((n, 3, k, 6))
+    blocks[..., :3] = (cross_matrix_blocks(rotated) * W[..., None, None]).transpose(0, 2, 1, 3)
+    blocks[..., 3:] = np.eye(3)[None, :, None, :] * W[:, None, :, None]
+    indices, indptr = _vertex_jacobian_pattern(J)
+    return sp.csr_matrix((blocks.ravel(), indices, indptr),
+                         shape=(3 * n, 6 * graph.n_nodes))
+
+
+def _vertex_jacobian_pattern(J):
+    """CSR column indices and row pointers of the (3n, 6m) vertex Jacobian: the
+    pattern is fixed by the skinning, so it is built without sorting."""
+    n, k = J.shape
+    cols = (6 * J)[:, None, :, None] + np.arange(6)                  # (n, 1, k, 6)
+    indices = np.broadcast_to(cols, (n, 3, k, 6)).ravel()
+    indptr = np.arange(0, 3 * n * 6 * k + 1, 6 * k)
+    return indices, indptr
+
+
+def graph_smoothness(B, graph: DeformationGraph, p: GraphParams, jacobian=True):
+    """Eq. 7 residuals (3e,) and their Jacobian (3e, 6m) on positions ``B``
+    (only the residuals when ``jacobian`` is False)."""
+    X = B[graph.nodes]
+    j, k = graph.edges[:, 0], graph.edges[:, 1]
+    d = X[k] - X[j]
+    rotated = np.einsum("eab,eb->ea", p.R[j], d)
+    r = rotated + X[j] + p.t[j] - X[k] - p.t[k]
+    if not jacobian:
+        return r.ravel()
+    e = len(j)
+    blocks = np.zeros((e, 3, 3, 3))  # per edge: [θ_j block, t_j block, t_k block]
+    blocks[:, 0] = cross_matrix_blocks(rotated)
+    blocks[:, 1] = np.eye(3)
+    blocks[:, 2] = -np.eye(3)
+    col0 = np.stack([6 * j, 6 * j + 3, 6 * k + 3], 1)               # (e, 3)
+    rows = np.broadcast_to((3 * np.arange(e))[:, None, None, None]
+                           + np.arange(3)[None, None, :, None], blocks.shape)
+    cols = np.broadcast_to(col0[:, :, None, None] + np.arange(3), blocks.shape)
+    Jm = sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
+                       shape=(3 * e, 6 * graph.n_nodes))
+    return r.ravel(), Jm
+
+
+class GraphModel(DeformationModel):
+    """Embedded deformation graph model.
+
+    Parameters
+    ----------
+    base : (n, 3) float64
+        Undeformed vertex positions (the aligned template).
+    graph : DeformationGraph
+        Built with :func:`build_graph` on the template.
+
+    Regularisers: ``"smooth"`` (eq. 7, normalised by the number of edges).
+    Rotations are updated on the rotation group, so they stay orthonormal.
+    """
+
+    regularizer_names = ("smooth",)
+
+    def __init__(self, base, graph: DeformationGraph):
+        self.base = np.asarray(base, dtype=np.float64)
+        self.graph = graph
+        self.n_vertices = len(self.base)
+        self.n_params = 6 * graph.n_nodes
+
+    def initial_params(self) -> GraphParams:
+        return GraphParams.identity(self.graph.n_nodes)
+
+    def vertices(self, params: GraphParams) -> np.ndarray:
+        return graph_vertices(self.base, self.graph, params)
+
+    def jacobian(self, params: GraphParams):
+        return graph_jacobian(self.base, self.graph, params)
+
+    def regularizers(self, params: GraphParams) -> dict:
+        r, J = graph_smoothness(self.base, self.graph, params)
+        scale = 1.0 / np.sqrt(max(len(self.graph.edges), 1))
+        return {"smooth": (r * scale, J * scale)}
+
+    def regularizer_residuals(self, params: GraphParams) -> dict:
+        r = graph_smoothness(self.base, self.graph, params, jacobian=False)
+        return {"smooth": r / np.sqrt(max(len(self.graph.edges), 1))}
+
+    def update(self, params: GraphParams, delta) -> GraphParams:
+        return params.updated(delta)
+
+    def summary(self, params: GraphParams) -> dict:
+        return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges))}

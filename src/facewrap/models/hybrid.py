@@ -1,0 +1,132 @@
+"""The hybrid model: a deformation graph acting on blended positions (SPEC §2.4).
+
+    b_i(w) = n_i + Σ_k w_k d_ik                                          [4]
+    v_i    = Σ_j a_ij ( R_j (b_i(w) − x_j(w)) + x_j(w) + t_j )           [8]
+    E      = Σ_k w_k² (blend)  +  eq. 7 on x(w) (smooth)                 [9]
+
+**Graph nodes follow the blend**: ``x_j(w) = b_{node_j}(w)``.  Why:
+
+- with ``R = I, t = 0`` the model is exactly the blendshape model for every
+  ``w`` and the graph's smoothness energy is exactly zero, so the graph only
+  pays for what the blendshapes cannot explain (detail, identity) and never
+  fights a large expression (a jaw opened by 3 cm is free for the graph);
+- rotations pivot about where the node *is* in the current expression, so a
+  node on an opened jaw rotates its own neighbourhood, not a point 3 cm away;
+- with fixed nodes, ``R_j`` and ``w`` would be coupled through the lever arm
+  ``b_i(w) − x_j`` and the Gauss–Newton system would be worse conditioned.
+
+The test suite checks the first property and the Jacobians (including the
+``w``-columns of both the vertices and the smoothness term) against finite
+differences.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .base import DeformationModel
+from .graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
+                    graph_vertices)
+
+__all__ = ["HybridParams", "HybridModel"]
+
+
+@dataclass(frozen=True)
+class HybridParams:
+    """Graph parameters (``graph``) and blend weights ``w`` (K,)."""
+    graph: GraphParams
+    w: np.ndarray
+
+
+class HybridModel(DeformationModel):
+    """Deformation graph on top of blendshapes.
+
+    Parameters
+    ----------
+    base : (n, 3) float64
+        Neutral positions (the aligned template).
+    deltas : (3n, K) float64
+        Blendshape deltas in ``base``'s frame
+        (:func:`~facewrap.models.blendshape.blendshape_basis`).
+    graph : DeformationGraph
+
+    Increment order: [graph (6m), δw (K)].  Regularisers ``"smooth"`` (eq. 7
+    per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
+    """
+
+    regularizer_names = ("smooth", "blend")
+
+    def __init__(self, base, deltas, graph: DeformationGraph):
+        self.base = np.asarray(base, dtype=np.float64)
+        self.deltas = np.asarray(deltas, dtype=np.float64)
+        self.graph = graph
+        self.n_vertices = len(self.base)
+        self.n_shapes = self.deltas.shape[1]
+        self.n_graph = 6 * graph.n_nodes
+        self.n_params = self.n_graph + self.n_shapes
+        # deltas at the nodes, (m, 3, K), and per vertex, (n, 3, K)
+        self._D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
+
+    def initial_params(self) -> HybridParams:
+        return HybridParams(GraphParams.identity(self.graph.n_nodes),
+                            np.zeros(self.n_shapes))
+
+    def blended(self, w) -> np.ndarray:
+        return self.base + (self.deltas @ w).reshape(-1, 3)
+
+    def vertices(self, p: HybridParams) -> np.ndarray:
+        return graph_vertices(self.blended(p.w), self.graph, p.graph)
+
+    def jacobian(self, p: HybridParams):
+        B = self.blended(p.w)
+        Jg = graph_jacobian(B, self.graph, p.graph)
+        if not self.n_shapes:
+            return Jg
+        # dv_i/dw = Σ_j a_ij ( R_j (D_i − D_xj) + D_xj )
+        #         = (Σ_j a_ij R_j) D_i + Σ_j a_ij (I − R_j) D_xj
+        J, W = self.graph.vertex_nodes, self.graph.vertex_weights
+        R = p.graph.R
+        M = np.einsum("nk,nkab->nab", W, R[J])
+        Dn = self._D[self.graph.nodes]                              # (m, 3, K)
+        IminusR = np.eye(3) - R                                     # (m, 3, 3)
+        node_term = np.einsum("mab,mbk->mak", IminusR, Dn)          # (m, 3, K)
+        Jw = np.einsum("nab,nbk->nak", M, self._D) \
+            + np.einsum("nj,njak->nak", W, node_term[J])
+        return sp.hstack([Jg, sp.csr_matrix(Jw.reshape(-1, self.n_shapes))]).tocsr()
+
+    def regularizers(self, p: HybridParams) -> dict:
+        B = self.blended(p.w)
+        r, Jg = graph_smoothness(B, self.graph, p.graph)
+        scale = 1.0 / np.sqrt(max(len(self.graph.edges), 1))
+        out = {}
+        if self.n_shapes:
+            # d e_jk / dw = (R_j − I)(D_xk − D_xj)
+            j, k = self.graph.edges[:, 0], self.graph.edges[:, 1]
+            Dn = self._D[self.graph.nodes]
+            Jw = np.einsum("eab,ebk->eak", p.graph.R[j] - np.eye(3), Dn[k] - Dn[j])
+            Js = sp.hstack([Jg, sp.csr_matrix(Jw.reshape(-1, self.n_shapes))]).tocsr()
+            out["smooth"] = (r * scale, Js * scale)
+            Jb = sp.hstack([sp.csr_matrix((self.n_shapes, self.n_graph)),
+                            sp.identity(self.n_shapes, format="csr")]).tocsr()
+            out["blend"] = (np.asarray(p.w, dtype=np.float64), Jb)
+        else:
+            out["smooth"] = (r * scale, Jg * scale)
+        return out
+
+    def regularizer_residuals(self, p: HybridParams) -> dict:
+        r = graph_smoothness(self.blended(p.w), self.graph, p.graph, jacobian=False)
+        out = {"smooth": r / np.sqrt(max(len(self.graph.edges), 1))}
+        if self.n_shapes:
+            out["blend"] = np.asarray(p.w, dtype=np.float64)
+        return out
+
+    def update(self, p: HybridParams, delta) -> HybridParams:
+        d = np.asarray(delta, dtype=np.float64)
+        return HybridParams(p.graph.updated(d[:self.n_graph]), p.w + d[self.n_graph:])
+
+    def summary(self, p: HybridParams) -> dict:
+        return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges)),
+                "shapes": self.n_shapes}
