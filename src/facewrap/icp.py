@@ -200,7 +200,7 @@ class NonRigidICP:
                  robust: str = "welsch", robust_factor: float = 3.0,
                  min_scale: float = 5e-4, max_distance: float = 0.05,
                  max_normal_angle: float = 60.0, reject_boundary: bool = True,
-                 tolerance: float = 1e-5, damping: float = 1e-4):
+                 tolerance: float = 2e-4, damping: float = 1e-4):
         self.stages = stages
         self.point_weight = point_weight
         self.robust = robust

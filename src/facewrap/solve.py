@@ -150,23 +150,32 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
     -------
     delta : (P,) float64
     """
-    H = None
-    g = None
+    from .terms import BlockJacobian
+    S_rows, D_rows, b_rows = [], [], []
     for weight, r, J, rw in terms:
+        J = BlockJacobian.of(J)
         if weight == 0 or J.shape[0] == 0:
             continue
-        w = weight if rw is None else weight * np.asarray(rw)
-        Jw = sp.csr_matrix(J)
-        if np.ndim(w):
-            Jw = sp.diags(w) @ Jw
-        else:
-            Jw = Jw * w
-        h = (Jw.T @ J).tocsr()
-        H = h if H is None else H + h
-        gi = Jw.T @ r
-        g = gi if g is None else g + gi
-    if H is None:
+        w = np.full(len(r), float(weight)) if rw is None else weight * np.asarray(rw)
+        sw = np.sqrt(w)
+        Jw = J.scale_rows(sw)
+        S_rows.append(Jw.sparse)
+        D_rows.append(Jw.dense)
+        b_rows.append(sw * np.asarray(r, dtype=np.float64))
+    if not S_rows:
         return np.zeros(n_params or 0)
+    # one stacked least-squares system: a single sparse product for the sparse
+    # block, BLAS for the dense (blend) block
+    S = sp.vstack(S_rows, format="csr")
+    D = np.vstack(D_rows)
+    b = np.concatenate(b_rows)
+    St = S.T.tocsr()
+    H = (St @ S).tocsr()
+    g = St @ b
+    if D.shape[1]:
+        Hsd = sp.csr_matrix(St @ D)
+        H = sp.bmat([[H, Hsd], [Hsd.T, sp.csr_matrix(D.T @ D)]], format="csr")
+        g = np.concatenate([g, D.T @ b])
     d = H.diagonal()
     # damping keeps the system definite where a parameter sees no data (a node in
     # a hole): its diagonal floor is relative to the largest diagonal entry
@@ -174,7 +183,7 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
     H = (H + sp.diags(damping * d + floor)).tocsr()
     g = np.asarray(g, dtype=np.float64)
     if method == "cg":
-        x, info = spla.cg(H, -g, x0=x0, rtol=1e-8, maxiter=max(200, H.shape[0] // 4),
+        x, info = spla.cg(H, -g, x0=x0, rtol=1e-6, maxiter=max(200, H.shape[0] // 4),
                           M=sp.diags(1.0 / H.diagonal()))
         if info == 0 and np.all(np.isfinite(x)):
             return x

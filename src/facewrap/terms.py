@@ -12,15 +12,80 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["point_to_point", "point_to_plane", "landmark_term", "robust_weights",
-           "select_rows"]
+__all__ = ["BlockJacobian", "point_to_point", "point_to_plane", "landmark_term",
+           "robust_weights", "landmark_rows"]
 
 
-def select_rows(Jv, vertices) -> sp.csr_matrix:
-    """Rows of a (3n, P) vertex Jacobian for the given vertices, (3k, P)."""
+class BlockJacobian:
+    """A Jacobian ``[S | D]``: sparse columns first, then a few dense columns.
+
+    Deformation-graph parameters touch a handful of vertices each (sparse), blend
+    weights touch every vertex (dense).  Keeping the dense columns as a numpy
+    block lets the normal equations use BLAS for them instead of sparse products
+    over fully populated columns.
+
+    Parameters
+    ----------
+    sparse : (r, Ps) scipy.sparse matrix, optional
+    dense : (r, Pd) float64, optional
+    """
+
+    def __init__(self, sparse=None, dense=None):
+        if sparse is None and dense is None:
+            raise ValueError("a BlockJacobian needs a sparse or a dense block")
+        rows = sparse.shape[0] if sparse is not None else dense.shape[0]
+        self.sparse = (sp.csr_matrix((rows, 0)) if sparse is None
+                       else sp.csr_matrix(sparse))
+        self.dense = (np.zeros((rows, 0)) if dense is None
+                      else np.asarray(dense, dtype=np.float64))
+        if self.dense.shape[0] != rows:
+            raise ValueError("sparse and dense blocks have different row counts")
+
+    @property
+    def shape(self):
+        return (self.sparse.shape[0], self.sparse.shape[1] + self.dense.shape[1])
+
+    def rows(self, index) -> "BlockJacobian":
+        index = np.asarray(index, dtype=np.int64)
+        return BlockJacobian(self.sparse[index], self.dense[index])
+
+    def left(self, M) -> "BlockJacobian":
+        """``M @ self`` for a sparse (or dense) matrix ``M``."""
+        return BlockJacobian(sp.csr_matrix(M @ self.sparse), np.asarray(M @ self.dense))
+
+    def scale_rows(self, w) -> "BlockJacobian":
+        """``diag(w) @ self`` without a sparse product."""
+        w = np.asarray(w, dtype=np.float64)
+        S = self.sparse.copy()
+        S.data *= np.repeat(w, np.diff(S.indptr))
+        return BlockJacobian(S, self.dense * w[:, None])
+
+    def __mul__(self, scalar: float) -> "BlockJacobian":
+        return BlockJacobian(self.sparse * scalar, self.dense * scalar)
+
+    __rmul__ = __mul__
+
+    def __matmul__(self, x):
+        x = np.asarray(x)
+        k = self.sparse.shape[1]
+        return self.sparse @ x[:k] + self.dense @ x[k:]
+
+    def toarray(self) -> np.ndarray:
+        return np.hstack([self.sparse.toarray(), self.dense])
+
+    @staticmethod
+    def of(J) -> "BlockJacobian":
+        """Wrap a sparse matrix, dense array or BlockJacobian."""
+        if isinstance(J, BlockJacobian):
+            return J
+        if sp.issparse(J):
+            return BlockJacobian(J, None)
+        return BlockJacobian(None, J)
+
+
+def _rows_of(vertices) -> np.ndarray:
     v = np.asarray(vertices, dtype=np.int64)
-    rows = (3 * v[:, None] + np.arange(3)).ravel()
-    return sp.csr_matrix(Jv)[rows]
+    return (3 * v[:, None] + np.arange(3)).ravel()
 
 
 def point_to_point(V, Jv, vertices, targets):
@@ -30,7 +95,7 @@ def point_to_point(V, Jv, vertices, targets):
     ----------
     V : (n, 3) float64
         Current vertices.
-    Jv : (3n, P) sparse
+    Jv : (3n, P) sparse or BlockJacobian
     vertices : (k,) int
         Vertex ids with a correspondence.
     targets : (k, 3) float64
@@ -39,10 +104,10 @@ def point_to_point(V, Jv, vertices, targets):
     Returns
     -------
     r : (3k,) float64
-    J : (3k, P) sparse
+    J : (3k, P) BlockJacobian
     """
     r = (V[vertices] - targets).ravel()
-    return r, select_rows(Jv, vertices)
+    return r, BlockJacobian.of(Jv).rows(_rows_of(vertices))
 
 
 def point_to_plane(V, Jv, vertices, targets, normals):
@@ -51,13 +116,13 @@ def point_to_plane(V, Jv, vertices, targets, normals):
     Returns
     -------
     r : (k,) float64
-    J : (k, P) sparse
+    J : (k, P) BlockJacobian
     """
     k = len(vertices)
     r = np.einsum("ka,ka->k", V[vertices] - targets, normals)
     N = sp.csr_matrix((np.asarray(normals, dtype=np.float64).ravel(),
                        (np.repeat(np.arange(k), 3), np.arange(3 * k))), shape=(k, 3 * k))
-    return r, N @ select_rows(Jv, vertices)
+    return r, BlockJacobian.of(Jv).rows(_rows_of(vertices)).left(N)
 
 
 def landmark_term(V, Jv, landmark_matrix, targets):
@@ -72,12 +137,12 @@ def landmark_term(V, Jv, landmark_matrix, targets):
     Returns
     -------
     r : (3l,) float64
-    J : (3l, P) sparse
+    J : (3l, P) BlockJacobian
     """
     L = sp.csr_matrix(landmark_matrix)
     r = (L @ V - targets).ravel()
     L3 = sp.kron(L, sp.identity(3), format="csr")
-    return r, L3 @ Jv
+    return r, BlockJacobian.of(Jv).left(L3)
 
 
 def robust_weights(distances, scale: float, kind: str = "welsch") -> np.ndarray:

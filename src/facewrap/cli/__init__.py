@@ -9,6 +9,7 @@ exit with status 2; nothing is written in that case.
 from __future__ import annotations
 
 import argparse
+from importlib import import_module
 import json
 import sys
 import time
@@ -21,6 +22,9 @@ from ..errors import InputError
 from ..wrap import MODELS, WrapSettings
 
 __all__ = ["main", "build_parser"]
+
+#: subcommands that live in their own module here, each with ``register(subparsers)``
+_COMMAND_MODULES = ("transfer", "evaluate", "report")
 
 
 def cmd_info(args) -> int:
@@ -199,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="textures to blend along")
     p.add_argument("-o", "--out", required=True, help="output folder")
     p.set_defaults(func=cmd_animate)
+
+    for name in _COMMAND_MODULES:
+        import_module(f"{__name__}.{name}").register(sub)
 
     p = sub.add_parser("demo", help="run the main job on the built-in sample")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")

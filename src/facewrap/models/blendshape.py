@@ -18,8 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
+from ..terms import BlockJacobian
 from .base import DeformationModel, cross_matrix_blocks, rotation_exp
 
 __all__ = ["BlendshapeParams", "BlendshapeModel", "RigidModel", "blendshape_basis"]
@@ -120,12 +120,11 @@ class BlendshapeModel(DeformationModel):
         if self.n_shapes:
             Dw = self.deltas.reshape(n, 3, self.n_shapes)
             J[:, :, 7:] = p.s * np.einsum("ab,nbk->nak", p.R, Dw)
-        return sp.csr_matrix(J.reshape(3 * n, self.n_params))
+        return BlockJacobian(None, J.reshape(3 * n, self.n_params))
 
     def regularizers(self, p: BlendshapeParams) -> dict:
-        J = sp.hstack([sp.csr_matrix((self.n_shapes, 7)),
-                       sp.identity(self.n_shapes, format="csr")]).tocsr()
-        return {"blend": (np.asarray(p.w, dtype=np.float64), J)}
+        J = np.hstack([np.zeros((self.n_shapes, 7)), np.eye(self.n_shapes)])
+        return {"blend": (np.asarray(p.w, dtype=np.float64), BlockJacobian(None, J))}
 
     def regularizer_residuals(self, p: BlendshapeParams) -> dict:
         return {"blend": np.asarray(p.w, dtype=np.float64)}

@@ -89,13 +89,13 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
     n = len(V)
     if spacing <= 0:
         raise ValueError("spacing must be positive")
-    nodes = np.sort(poisson_disk_vertices(V, spacing, seed=seed)).astype(np.int64)
-    k = int(min(k, len(nodes)))
     E = mesh_edges(T)
     length = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
     G = sp.coo_matrix((np.r_[length, length], (np.r_[E[:, 0], E[:, 1]],
                                                 np.r_[E[:, 1], E[:, 0]])),
                       shape=(n, n)).tocsr()
+    nodes = _surface_poisson_nodes(V, G, spacing, seed)
+    k = int(min(k, len(nodes)))
     nearest, dist = _nearest_nodes_on_surface(G, nodes, k + 1, limit=4.0 * spacing)
     # vertices with fewer than k nodes in reach (small separate parts): fill in
     # with Euclidean nearest nodes so every vertex is skinned
@@ -117,6 +117,25 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
     pairs = np.unique(np.stack([a, b], 1)[a != b], axis=0)
     pairs = _tie_components(pairs, V[nodes])
     return DeformationGraph(nodes, vertex_nodes, w, pairs)
+
+
+def _surface_poisson_nodes(V, G, spacing, seed, rounds: int = 4):
+    """Poisson-disk nodes that cover the surface *along* the surface.
+
+    A Euclidean Poisson-disk sample puts one node between two sheets that touch
+    (closed lips, closed lids), leaving the other sheet without nodes of its own.
+    So: sample, find the vertices farther than ``spacing`` from every node along
+    the surface, sample those again, and repeat until the surface is covered.
+    """
+    nodes = poisson_disk_vertices(V, spacing, seed=seed)
+    for _ in range(rounds):
+        d = dijkstra(G, directed=False, indices=nodes, min_only=True, limit=1.5 * spacing)
+        uncovered = np.flatnonzero(d > spacing)
+        if len(uncovered) == 0:
+            break
+        extra = uncovered[poisson_disk_vertices(V[uncovered], spacing, seed=seed)]
+        nodes = np.union1d(nodes, extra)
+    return np.sort(nodes).astype(np.int64)
 
 
 def _nearest_nodes_on_surface(G, nodes, count, limit):

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..terms import BlockJacobian
 from .base import DeformationModel
 from .graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
                     graph_vertices)
@@ -53,7 +54,8 @@ class HybridModel(DeformationModel):
         (:func:`~facewrap.models.blendshape.blendshape_basis`).
     graph : DeformationGraph
 
-    Increment order: [graph (6m), δw (K)].  Regularisers ``"smooth"`` (eq. 7
+    Increment order: [graph (6m), δw (K)]; Jacobians are
+    :class:`~facewrap.terms.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
     per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
     """
 
@@ -95,7 +97,7 @@ class HybridModel(DeformationModel):
         node_term = np.einsum("mab,mbk->mak", IminusR, Dn)          # (m, 3, K)
         Jw = np.einsum("nab,nbk->nak", M, self._D) \
             + np.einsum("nj,njak->nak", W, node_term[J])
-        return sp.hstack([Jg, sp.csr_matrix(Jw.reshape(-1, self.n_shapes))]).tocsr()
+        return BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
 
     def regularizers(self, p: HybridParams) -> dict:
         B = self.blended(p.w)
@@ -107,10 +109,10 @@ class HybridModel(DeformationModel):
             j, k = self.graph.edges[:, 0], self.graph.edges[:, 1]
             Dn = self._D[self.graph.nodes]
             Jw = np.einsum("eab,ebk->eak", p.graph.R[j] - np.eye(3), Dn[k] - Dn[j])
-            Js = sp.hstack([Jg, sp.csr_matrix(Jw.reshape(-1, self.n_shapes))]).tocsr()
-            out["smooth"] = (r * scale, Js * scale)
-            Jb = sp.hstack([sp.csr_matrix((self.n_shapes, self.n_graph)),
-                            sp.identity(self.n_shapes, format="csr")]).tocsr()
+            out["smooth"] = (r * scale, BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
+                             * scale)
+            Jb = BlockJacobian(sp.csr_matrix((self.n_shapes, self.n_graph)),
+                               np.eye(self.n_shapes))
             out["blend"] = (np.asarray(p.w, dtype=np.float64), Jb)
         else:
             out["smooth"] = (r * scale, Jg * scale)

@@ -1,0 +1,214 @@
+"""``facewrap evaluate RESULT SCAN``: the numbers (and a heatmap) of a fitted mesh.
+
+Parses arguments, reads files, calls :func:`facewrap.evaluate.evaluate` and, when
+asked, :func:`facewrap.report.heatmap_figure`; prints a short summary, writes the
+full summary as JSON.  Input problems raise :class:`~facewrap.errors.InputError`
+(one line, exit status 2, nothing written).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["register", "cmd_evaluate"]
+
+# --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
+_HEATMAPS = {
+    "fit": ("fit", "distance", "Result to scan distance"),
+    "fit_signed": ("fit_signed", "signed distance", "Result to scan signed distance"),
+    "correspondence": ("correspondence", "error", "Correspondence error (vs ground truth)"),
+    "area_ratio": ("area_ratio", "area ratio", "Triangle area change (vs reference)"),
+    "stretch": ("stretch", "anisotropy", "Triangle stretch (vs reference)"),
+}
+
+
+def _same_topology(mesh, other, path, what):
+    if other.n_vertices != mesh.n_vertices or not np.array_equal(other.face_indices,
+                                                                 mesh.face_indices):
+        raise InputError(f"{what} is not in the result's topology (vertex count or "
+                         "faces differ)", path)
+
+
+def _read_ground_truth(path, result):
+    """(n, 3) positions from a mesh in the result's topology or an .npy array."""
+    if str(path).lower().endswith(".npy"):
+        try:
+            G = np.load(path, allow_pickle=False)
+        except FileNotFoundError:
+            raise InputError("no such file", path) from None
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot read a NumPy array ({exc})", path) from None
+        if G.shape != (result.n_vertices, 3) or not np.issubdtype(G.dtype, np.number):
+            raise InputError(f"ground truth must be a ({result.n_vertices}, 3) array "
+                             f"(NaN rows for vertices without truth), got {G.shape}",
+                             path)
+        return G.astype(np.float64)
+    from ..io import read_mesh
+    gt = read_mesh(path)
+    _same_topology(result, gt, path, "the ground truth")
+    return gt.vertices
+
+
+def _read_mask(path, n):
+    from ..io.landmarks import read_vertex_indices
+    ids = read_vertex_indices(path, n_vertices=n).vertex
+    return ids
+
+
+def _frame(args, result, reference):
+    """Rotation that turns the result to face +z with +y up, for pictures."""
+    from ..align import similarity_transform
+    from ..report import frame_from_axes
+    try:
+        F = frame_from_axes(args.up, args.front)
+    except ValueError as exc:
+        raise InputError(f"--up/--front: {exc}") from None
+    if reference is not None:
+        # the result sits in scan coordinates: undo the template -> scan rotation
+        R = similarity_transform(reference.vertices, result.vertices).rotation
+        return F @ R.T
+    return F
+
+
+def _num(v) -> str:
+    """Three significant digits; rounding noise (below 1e-4) prints as 0."""
+    return "n/a" if v is None else f"{round(v, 4):.3g}"
+
+
+def _format_line(s: dict, units: str) -> str:
+    def f(key):
+        return _num(s.get(key))
+    parts = [f"fit mean {f('fit_mean')} p95 {f('fit_p95')} max {f('fit_max')} {units}, "
+             f"coverage {100 * s['fit_coverage']:.1f} %",
+             f"scan->result mean {f('scan_to_result_mean')} p95 "
+             f"{f('scan_to_result_p95')} {units}"]
+    if "landmark_mean" in s:
+        parts.append(f"landmarks mean {f('landmark_mean')} max {f('landmark_max')} "
+                     f"{units} (worst {s.get('landmark_worst')})")
+    if "correspondence_mean" in s:
+        parts.append(f"correspondence mean {f('correspondence_mean')} p95 "
+                     f"{f('correspondence_p95')} {units}")
+    tri = f"triangles: min angle {f('triangles_min_angle_min')} deg"
+    if "triangles_flipped" in s:
+        tri += (f", {s['triangles_flipped']} flipped, area ratio p5-p95 "
+                f"{f('triangles_area_ratio_p5')}-{f('triangles_area_ratio_p95')}, "
+                f"stretch p95 {f('triangles_stretch_p95')}")
+    parts.append(tri)
+    return "\n".join(parts)
+
+
+def cmd_evaluate(args) -> int:
+    """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
+    from ..evaluate import evaluate
+    from ..io import read_mesh
+    from ..io.atomic import atomic_write
+    from ..io.landmarks import read_landmarks
+
+    if (args.result_landmarks is None) != (args.scan_landmarks is None):
+        raise InputError("--result-landmarks and --scan-landmarks go together")
+    if args.heatmap_of in ("correspondence",) and args.ground_truth is None:
+        raise InputError("--heatmap-of correspondence needs --ground-truth")
+    if args.heatmap_of in ("area_ratio", "stretch") and args.reference is None:
+        raise InputError(f"--heatmap-of {args.heatmap_of} needs --reference")
+    result = read_mesh(args.result)
+    scan = read_mesh(args.scan)
+    gt = ref = None
+    if args.ground_truth:
+        gt = _read_ground_truth(args.ground_truth, result)
+    if args.reference:
+        ref = read_mesh(args.reference)
+        _same_topology(result, ref, args.reference, "the reference")
+    lm_r = lm_s = None
+    if args.result_landmarks:
+        lm_r = read_landmarks(args.result_landmarks)
+        lm_s = read_landmarks(args.scan_landmarks)
+    mask = _read_mask(args.mask, result.n_vertices) if args.mask else None
+
+    ev = evaluate(result, scan, ground_truth=gt, result_landmarks=lm_r,
+                  scan_landmarks=lm_s, reference=ref, mask=mask,
+                  exclude_border=not args.keep_border)
+    summary = {"result": str(args.result), "scan": str(args.scan), "units": args.units,
+               **ev.summary()}
+
+    image = None
+    if args.heatmap:
+        from ..report import heatmap_figure
+        key, label, title = _HEATMAPS[args.heatmap_of]
+        values = ev.vertex_values()[key]
+        s = summary
+        caption = None
+        if key in ("fit", "fit_signed"):
+            caption = (f"mean {_num(s['fit_mean'])} {args.units} · p95 "
+                       f"{_num(s['fit_p95'])} {args.units} · coverage "
+                       f"{100 * s['fit_coverage']:.0f} % (grey: not covered by the scan)")
+        elif key == "correspondence":
+            caption = (f"mean {_num(s['correspondence_mean'])} {args.units} · p95 "
+                       f"{_num(s['correspondence_p95'])} {args.units} over "
+                       f"{s['correspondence_count']} vertices")
+        units = args.units if key in ("fit", "fit_signed", "correspondence") else ""
+        image = heatmap_figure(result, values, units=units, label=label, title=title,
+                               caption=caption, frame=_frame(args, result, ref))
+
+    if args.json:
+        with atomic_write(args.json, "w") as fh:
+            json.dump(summary, fh, indent=1)
+    if image is not None:
+        from ..report import save_png
+        save_png(args.heatmap, image)
+    if not args.quiet:
+        print(_format_line(summary, args.units))
+        for p in (args.json, args.heatmap):
+            if p:
+                print(f"wrote {p}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``facewrap evaluate`` to an ``argparse`` sub-parser collection.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        From ``parser.add_subparsers()``.
+    """
+    p = subparsers.add_parser(
+        "evaluate", help="distances, landmark / correspondence errors and triangle "
+                         "quality of a fitted mesh",
+        description="Measure a fitted mesh against its scan: distances both ways "
+                    "(statistics over points the other mesh covers), landmark errors, "
+                    "correspondence error against a ground truth in the same "
+                    "topology, and triangle quality against the template.")
+    p.add_argument("result", help="fitted mesh (OBJ/PLY)")
+    p.add_argument("scan", help="scan mesh (OBJ/PLY)")
+    p.add_argument("--ground-truth", metavar="MESH|NPY",
+                   help="true positions of the result's vertices: a mesh in the same "
+                        "topology, or an (n, 3) .npy array with NaN rows to skip")
+    p.add_argument("--result-landmarks", metavar="FILE",
+                   help="landmarks on the result: vertex ids or facewrap JSON")
+    p.add_argument("--scan-landmarks", metavar="FILE",
+                   help="landmarks on the scan: 'x y z' text, .ljson or facewrap JSON")
+    p.add_argument("--reference", metavar="TEMPLATE",
+                   help="the template before fitting (same topology): flipped "
+                        "triangles, area change, stretch")
+    p.add_argument("--mask", metavar="FILE",
+                   help="result vertex ids to evaluate (text, one per line)")
+    p.add_argument("--keep-border", action="store_true",
+                   help="count points whose closest point is on the other mesh's border")
+    p.add_argument("--json", metavar="OUT", help="write every number as JSON")
+    p.add_argument("--heatmap", metavar="OUT.png", help="write a heatmap picture")
+    p.add_argument("--heatmap-of", default="fit", choices=list(_HEATMAPS),
+                   help="what the heatmap shows (default %(default)s)")
+    p.add_argument("--units", default="mm", help="units of the meshes (default mm)")
+    p.add_argument("--up", type=float, nargs=3, default=(0.0, 1.0, 0.0),
+                   metavar=("X", "Y", "Z"),
+                   help="up axis of the template for pictures (default 0 1 0)")
+    p.add_argument("--front", type=float, nargs=3, default=(0.0, 0.0, 1.0),
+                   metavar=("X", "Y", "Z"),
+                   help="facing direction of the template for pictures (default 0 0 1)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_evaluate)
+

@@ -1,0 +1,508 @@
+"""One self-contained HTML page per run: numbers, pictures and a 3D viewer.
+
+:func:`write_html_report` writes ``index.html`` into a folder.  Everything the page
+needs is inside it, so it opens offline from ``file://`` and can be mailed or
+archived as one file:
+
+- pictures (PNG or JPEG, from paths or bytes) as base64 ``data:`` URIs;
+- meshes as base64 little-endian ``float32`` positions and ``uint32`` triangles,
+  per-vertex heatmap values as ``float32`` (NaN = no value), blendshapes as sparse
+  ``(vertex ids, offsets)`` pairs, all in one JSON block;
+- the viewer: three.js (vendored in ``static/three-viewer.min.js``, see its
+  README for version and source) and facewrap's ``static/viewer.js`` inlined as
+  classic scripts, so no module loading and no network.
+
+The viewer orbits and zooms (OrbitControls), toggles each mesh and its opacity,
+colours a mesh by one of the ``scalars`` with a viridis colour bar (editable range,
+value under the pointer), and deforms a mesh with one slider per blendshape.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import json
+import math
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["write_html_report"]
+
+STATIC = Path(__file__).resolve().parent / "static"
+"""Folder of the vendored three.js bundle, the viewer script and the page style."""
+
+_PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0"}
+_CYCLE = ["#d9a98c", "#b9c3cf", "#8fb3a0", "#b7a3cf", "#cfc08f", "#8fb0cf"]
+THREE_VERSION = "0.187.0"
+"""Version of the vendored three.js (npm package ``three``)."""
+
+_IMAGE_TYPES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
+
+
+# ---------------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------------
+def _triangles_of(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(V, T)`` of a :class:`~facewrap.mesh.Mesh` or a ``(V, T)`` pair, checked."""
+    if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
+        V, T = mesh.vertices, mesh.triangles
+    else:
+        try:
+            V, T = mesh
+        except (TypeError, ValueError):
+            raise ValueError(f"meshes[{name!r}] must be a Mesh or a (V, T) pair, "
+                             f"not {type(mesh).__name__}") from None
+    V = np.asarray(V, dtype=np.float64)
+    T = np.asarray(T)
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
+        raise ValueError(f"meshes[{name!r}] vertices must be (n, 3) with n > 0, "
+                         f"got {V.shape}")
+    if not np.isfinite(V).all():
+        raise ValueError(f"meshes[{name!r}] has non-finite vertex coordinates")
+    if T.ndim != 2 or T.shape[1] != 3 or not np.issubdtype(T.dtype, np.integer):
+        raise ValueError(f"meshes[{name!r}] triangles must be (m, 3) int, got "
+                         f"{T.shape} {T.dtype}")
+    if T.size and (T.min() < 0 or T.max() >= len(V)):
+        raise ValueError(f"meshes[{name!r}] triangles index outside 0..{len(V) - 1}")
+    return V, T
+
+
+def _b64(a: np.ndarray, dtype) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, dtype=np.dtype(dtype).newbyteorder("<"))
+                            .tobytes()).decode("ascii")
+
+
+def _image_uri(item, k: int) -> tuple[str, str]:
+    """``(caption, data URI)`` of one ``(caption, path or bytes)`` pair."""
+    try:
+        caption, src = item
+    except (TypeError, ValueError):
+        raise ValueError(f"images[{k}] must be a (caption, path or bytes) pair") from None
+    if isinstance(src, (bytes, bytearray, memoryview)):
+        data, where = bytes(src), f"images[{k}]"
+    else:
+        data, where = Path(os.fspath(src)).read_bytes(), os.fspath(src)
+    for magic, mime in _IMAGE_TYPES.items():
+        if data.startswith(magic):
+            return str(caption), f"data:{mime};base64," + base64.b64encode(data).decode()
+    raise ValueError(f"{where} is not a PNG or JPEG image")
+
+
+def _scalar_entry(name: str, spec, sizes: Mapping[str, int]) -> dict:
+    try:
+        mesh_name, values, units = spec
+    except (TypeError, ValueError):
+        raise ValueError(f"scalars[{name!r}] must be (mesh name, values, units)") from None
+    if mesh_name not in sizes:
+        raise ValueError(f"scalars[{name!r}] names mesh {mesh_name!r}, not one of "
+                         f"{sorted(sizes)}")
+    v = np.asarray(values, dtype=np.float64)
+    if v.shape != (sizes[mesh_name],):
+        raise ValueError(f"scalars[{name!r}] must have one value per vertex of "
+                         f"{mesh_name!r}: shape ({sizes[mesh_name]},), got {v.shape}")
+    v = np.where(np.isfinite(v), v, np.nan)
+    ok = v[~np.isnan(v)]
+    if len(ok):
+        stats = {"min": float(ok.min()), "mean": float(ok.mean()),
+                 "p95": float(np.percentile(ok, 95)), "max": float(ok.max())}
+        # non-negative values (distances) start at 0; the top is the 99th percentile
+        # so a few outliers do not wash out the map
+        lo = 0.0 if stats["min"] >= 0 else float(np.percentile(ok, 1))
+        hi = float(np.percentile(ok, 99))
+        if not hi > lo:
+            hi = lo + (abs(lo) or 1.0)
+    else:
+        stats = {"min": None, "mean": None, "p95": None, "max": None}
+        lo, hi = 0.0, 1.0
+    stats["missing"] = int(np.isnan(v).sum())
+    return {"name": str(name), "mesh": mesh_name, "units": str(units or ""),
+            "values": _b64(v, np.float32), "range": [lo, hi], "stats": stats}
+
+
+def _blendshape_entry(blendshapes, meshes_out: list, positions: dict) -> dict:
+    """Sparse shape offsets; adds the neutral as a layer unless it names one."""
+    try:
+        neutral, shapes = blendshapes
+    except (TypeError, ValueError):
+        raise ValueError("blendshapes must be (neutral mesh or mesh name, "
+                         "dict name -> (n, 3) positions)") from None
+    if isinstance(neutral, str):
+        if neutral not in positions:
+            raise ValueError(f"blendshapes names mesh {neutral!r}, not one of "
+                             f"{sorted(positions)}")
+        name, base = neutral, positions[neutral]
+    else:
+        name = "blendshapes"
+        while name in positions:
+            name += "_"
+        base, T = _triangles_of(neutral, "blendshapes neutral")
+        meshes_out.append(_mesh_entry(name, base, T, len(meshes_out), True))
+        positions[name] = base
+    out = []
+    tol = 1e-7 * max(float(np.ptp(base)), 1e-12)
+    for shape_name, P in dict(shapes).items():
+        P = np.asarray(P, dtype=np.float64)
+        if P.shape != base.shape or not np.isfinite(P).all():
+            raise ValueError(f"blendshapes[{shape_name!r}] must be {base.shape} finite "
+                             f"positions, got {P.shape}")
+        D = P - base
+        moved = np.flatnonzero(np.abs(D).max(axis=1) > tol)
+        out.append({"name": str(shape_name), "indices": _b64(moved, np.uint32),
+                    "deltas": _b64(D[moved], np.float32)})
+    return {"mesh": name, "shapes": out}
+
+
+def _mesh_entry(name, V, T, k, visible) -> dict:
+    return {"name": str(name), "positions": _b64(V, np.float32),
+            "indices": _b64(T, np.uint32), "n_vertices": int(len(V)),
+            "n_triangles": int(len(T)), "visible": bool(visible),
+            "color": _color(str(name), k)}
+
+
+def _color(name: str, k: int) -> str:
+    """Colour of a layer: by its first word (scan, result, template), else cycled."""
+    words = name.lower().replace("_", " ").split()
+    return _PALETTE.get(words[0] if words else "", _CYCLE[k % len(_CYCLE)])
+
+
+def _unit(v, name) -> list:
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    if a.shape != (3,) or not np.isfinite(a).all() or np.linalg.norm(a) == 0:
+        raise ValueError(f"{name} must be a non-zero 3-vector, got {v!r}")
+    return (a / np.linalg.norm(a)).tolist()
+
+
+# ---------------------------------------------------------------------------------
+# Tables
+# ---------------------------------------------------------------------------------
+def _label(key) -> str:
+    return str(key).replace("_", " ")
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _fmt(v) -> tuple[str, str]:
+    """``(text, css class)`` of one table value."""
+    if v is None:
+        return "–", "num"
+    if isinstance(v, (bool, np.bool_)):
+        return ("yes" if v else "no"), "num"
+    if isinstance(v, (int, np.integer)):
+        return f"{int(v):,}", "num"
+    if _is_number(v):
+        x = float(v)
+        if not math.isfinite(x):
+            return str(x), "num"
+        if x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e6):
+            return f"{x:.3e}", "num"
+        return f"{x:.4g}" if abs(x) < 1e4 else f"{x:,.1f}", "num"
+    if isinstance(v, (list, tuple)) and all(_is_number(x) for x in v) and len(v) <= 6:
+        return ", ".join(_fmt(x)[0] for x in v), "num"
+    return str(v), "txt"
+
+
+def _flatten(d: Mapping, prefix: str = "") -> list[tuple[str, object]]:
+    rows = []
+    for k, v in d.items():
+        key = f"{prefix}{_label(k)}"
+        if isinstance(v, Mapping):
+            rows += _flatten(v, key + " › ")
+        else:
+            rows.append((key, v))
+    return rows
+
+
+def _is_matrix(v) -> bool:
+    return (isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0
+            and all(isinstance(r, (list, tuple, np.ndarray)) and len(r) == len(v[0])
+                    and all(_is_number(x) for x in r) for r in v))
+
+
+def _is_records(v) -> bool:
+    return (isinstance(v, (list, tuple)) and len(v) > 0
+            and all(isinstance(r, Mapping) for r in v))
+
+
+def _key_value_table(rows) -> str:
+    body = []
+    for k, v in rows:
+        if _is_matrix(v):
+            cell = _matrix_table(v)
+            cls = ""
+        else:
+            text, cls = _fmt(v)
+            cell = html.escape(text)
+        body.append(f'<tr><td class="k">{html.escape(k)}</td>'
+                    f'<td class="{cls}">{cell}</td></tr>')
+    return '<table class="kv">' + "".join(body) + "</table>"
+
+
+def _matrix_table(m) -> str:
+    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(x)[0])}</td>" for x in r)
+                   + "</tr>" for r in m)
+    return f'<table class="matrix">{rows}</table>'
+
+
+def _records_table(records) -> str:
+    cols: list = []
+    flat = [dict(_flatten(r)) for r in records]
+    for r in flat:
+        cols += [c for c in r if c not in cols]
+    numeric = {c: all(_is_number(r.get(c)) or r.get(c) is None for r in flat) for c in cols}
+    head = "".join(f'<th class="{"num" if numeric[c] else ""}">{html.escape(c)}</th>'
+                   for c in cols)
+    body = []
+    for r in flat:
+        cells = []
+        for c in cols:
+            text, cls = _fmt(r.get(c))
+            cells.append(f'<td class="{cls}">{html.escape(text)}</td>')
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
+            f'<tbody>{"".join(body)}</tbody></table></div>')
+
+
+def _summary_html(summary: Mapping) -> str:
+    """Cards of tables: top-level values in one, each dict or record list in its own."""
+    loose, cards = [], []
+    for key, value in summary.items():
+        if isinstance(value, Mapping):
+            if value:
+                rows = _flatten(value)
+                long_text = any(isinstance(v, str) and len(v) > 40 for _, v in rows)
+                cards.append((" wide" if long_text else "", key, _key_value_table(rows)))
+        elif isinstance(value, (list, tuple)) and value and all(
+                isinstance(x, str) for x in value):
+            items = "".join(f"<li>{html.escape(x)}</li>" for x in value)
+            cards.append((" wide", key, f'<ul class="notes">{items}</ul>'))
+        elif _is_records(value):
+            cards.append((" wide", key, _records_table(value)))
+        elif _is_matrix(value):
+            cards.append(("", key, _matrix_table(value)))
+        else:
+            loose.append((_label(key), value))
+    if loose:
+        cards.insert(0, ("", "overview", _key_value_table(loose)))
+    return "".join(f'<section class="card{wide}"><h4>{html.escape(_label(t)).capitalize()}'
+                   f'</h4>{table}</section>' for wide, t, table in cards)
+
+
+# ---------------------------------------------------------------------------------
+# Page
+# ---------------------------------------------------------------------------------
+def _static_text(name: str) -> str:
+    text = (STATIC / name).read_text(encoding="utf-8")
+    if "</script" in text.lower():  # would end the inline <script> early
+        raise RuntimeError(f"{STATIC / name} contains '</script' and cannot be inlined")
+    return text
+
+
+def _json_for_script(obj) -> str:
+    # inside <script type="application/json"> only "</" (and "<!--") need care
+    return (json.dumps(obj, separators=(",", ":"), allow_nan=False)
+            .replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026"))
+
+
+def _viewer_html(data: dict) -> str:
+    e = html.escape
+    layers = "".join(
+        f'<div class="layer"><label><input type="checkbox" data-fw-layer="{e(m["name"])}"'
+        f'{" checked" if m["visible"] else ""}><span class="swatch" style="background:'
+        f'{e(m["color"])}"></span><span class="name" title="{e(m["name"])}">'
+        f'{e(m["name"])}</span></label>'
+        f'<input type="range" min="0.1" max="1" step="0.05" value="1" '
+        f'title="opacity" aria-label="{e(m["name"])} opacity" '
+        f'data-fw-opacity="{e(m["name"])}"></div>' for m in data["meshes"])
+    heat = ""
+    if data["scalars"]:
+        options = "".join(f'<option value="{k}"{" selected" if k == 0 else ""}>'
+                          f'{e(s["name"])} — {e(s["mesh"])}</option>'
+                          for k, s in enumerate(data["scalars"]))
+        heat = (f'<h3>Heatmap</h3><select id="fw-heatmap" aria-label="heatmap">'
+                f'<option value="-1">none (plain colours)</option>{options}</select>'
+                '<div id="fw-colorbar"><div id="fw-colorbar-title"></div>'
+                '<div class="bar"></div><div id="fw-colorbar-ticks"></div>'
+                '<div class="range-row"><label>from<input type="text" id="fw-range-lo">'
+                '</label><label>to<input type="text" id="fw-range-hi"></label></div>'
+                '<div id="fw-colorbar-stats"></div></div>')
+    else:
+        heat = ('<div id="fw-colorbar" hidden><div id="fw-colorbar-title"></div>'
+                '<div id="fw-colorbar-ticks"></div><div id="fw-colorbar-stats"></div>'
+                '<input type="hidden" id="fw-range-lo"><input type="hidden" '
+                'id="fw-range-hi"></div>')
+    shapes = ""
+    if data["blendshapes"]:
+        bs = data["blendshapes"]
+        rows = "".join(
+            f'<div class="shape"><span title="{e(s["name"])}">{e(s["name"])}</span>'
+            f'<input type="range" min="0" max="1" step="0.01" value="0" '
+            f'aria-label="{e(s["name"])}" data-fw-shape="{k}"><output>0.00</output></div>'
+            for k, s in enumerate(bs["shapes"]))
+        shapes = (f'<h3>Blendshapes on {e(bs["mesh"])}</h3>{rows}'
+                  '<div style="margin-top:6px"><button id="fw-shapes-reset">'
+                  'Reset weights</button></div>')
+    views = "".join(f'<button data-fw-view="{v}">{t}</button>' for v, t in
+                    (("front", "Front"), ("three_quarter", "¾"), ("left", "Left"),
+                     ("right", "Right")))
+    return (
+        '<section class="card viewer"><div class="stage"><div id="fw-canvas-host"></div>'
+        f'<div class="views">{views}</div>'
+        '<div id="fw-viewer-message" hidden></div><div id="fw-probe" hidden></div>'
+        '<div class="hint">drag: orbit · right-drag: pan · wheel: zoom</div></div>'
+        f'<aside class="panel"><h3>Layers</h3>{layers}{heat}{shapes}</aside></section>')
+
+
+def write_html_report(folder, *, title: str = "facewrap report",
+                      summary: Mapping | None = None,
+                      images: Sequence = (),
+                      meshes: Mapping | None = None,
+                      scalars: Mapping | None = None,
+                      blendshapes=None,
+                      subtitle: str | None = None,
+                      visible: Sequence[str] | None = None,
+                      view_up=(0.0, 1.0, 0.0), view_front=(0.0, 0.0, 1.0),
+                      initial_view: str = "front",
+                      filename: str = "index.html") -> Path:
+    """Write one self-contained HTML page (numbers, pictures, 3D viewer).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Output folder, created if missing.  Only ``filename`` is written there.
+    title : str
+        Page title and heading.
+    summary : dict, optional
+        Numbers shown as tables.  Top-level scalars go in an "Overview" table; a
+        nested dict becomes its own table (deeper dicts flattened as ``a › b``);
+        a list of dicts (e.g. per-iteration records) becomes a wide scrolling
+        table; a list of equal-length number lists (e.g. a 4×4 transform) a matrix;
+        a list of strings (e.g. warnings) a bulleted list.
+        Ints, floats (4 significant digits), bools, strings and None are shown.
+    images : sequence of (str, path or bytes)
+        Captions and pictures (PNG or JPEG files or bytes), embedded in base64.
+    meshes : dict of str to Mesh or (V, T), optional
+        Meshes for the viewer, in drawing order, e.g. ``"scan"``, ``"result"``,
+        ``"template"``.  ``V`` is (n, 3) float, ``T`` (m, 3) int triangles; a
+        :class:`~facewrap.mesh.Mesh` contributes its fan triangulation.
+    scalars : dict of str to (str, (n,) float, str), optional
+        Heatmaps: ``name -> (mesh name, per-vertex values, units)``.  NaN or inf
+        mark vertices without a value (drawn grey).  The first is shown at
+        start; the colour range is 0 (or the 1st percentile for signed values)
+        to the 99th percentile, editable on the page.
+    blendshapes : (neutral, dict of str to (n, 3) float), optional
+        Sliders: ``neutral`` is the name of one of ``meshes`` or a Mesh / (V, T)
+        pair (then shown as a layer named ``"blendshapes"``); each shape is the
+        vertex positions at weight 1.  The viewer shows ``neutral + sum w (shape -
+        neutral)``.
+    subtitle : str, optional
+        Line under the title (default: the creation time).
+    visible : sequence of str, optional
+        Meshes shown at start (default: the first heatmap's mesh if any, else all).
+    view_up, view_front : (3,) float
+        Up direction and the direction from the model toward the front camera.
+    initial_view : {"front", "three_quarter", "left", "right"}
+    filename : str
+        Name of the page inside ``folder``.
+
+    Returns
+    -------
+    Path
+        The written page.
+
+    Raises
+    ------
+    ValueError
+        If a mesh, heatmap, blendshape or image is malformed (the message names it).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]); T = np.array([[0, 1, 2]])
+    >>> page = write_html_report(tempfile.mkdtemp(), title="one triangle",
+    ...                          summary={"fit_mean": 0.25, "vertices": 3},
+    ...                          meshes={"result": (V, T)},
+    ...                          scalars={"error": ("result", [0, 1, 2], "mm")})
+    >>> page.name, "one triangle" in page.read_text()
+    ('index.html', True)
+    """
+    meshes = dict(meshes or {})
+    scalars = dict(scalars or {})
+    if initial_view not in ("front", "three_quarter", "left", "right"):
+        raise ValueError(f"initial_view must be front, three_quarter, left or right, "
+                         f"not {initial_view!r}")
+    up, front = _unit(view_up, "view_up"), _unit(view_front, "view_front")
+    if abs(float(np.dot(up, front))) > 0.999:
+        raise ValueError("view_up and view_front must not be parallel")
+    figures = [_image_uri(item, k) for k, item in enumerate(images)]
+
+    mesh_entries, positions = [], {}
+    for k, (name, mesh) in enumerate(meshes.items()):
+        V, T = _triangles_of(mesh, str(name))
+        mesh_entries.append(_mesh_entry(name, V, T, k, True))
+        positions[str(name)] = V
+    bs_entry = (_blendshape_entry(blendshapes, mesh_entries, positions)
+                if blendshapes is not None else None)
+    sizes = {name: len(V) for name, V in positions.items()}
+    scalar_entries = [_scalar_entry(str(n), s, sizes) for n, s in scalars.items()]
+    if visible is None:
+        shown = {scalar_entries[0]["mesh"]} if scalar_entries else set(sizes)
+    else:
+        shown = {str(v) for v in visible}
+        unknown = shown - set(sizes)
+        if unknown:
+            raise ValueError(f"visible names unknown meshes {sorted(unknown)}; "
+                             f"meshes are {sorted(sizes)}")
+    for m in mesh_entries:
+        m["visible"] = m["name"] in shown
+    data = {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry,
+            "view": {"up": up, "front": front, "initial": initial_view}}
+
+    from .. import __version__
+    created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
+    e = html.escape
+    parts = [f'<header class="top"><div><h1>{e(title)}</h1><div class="sub">'
+             f'{e(subtitle if subtitle is not None else "created " + created)}</div></div>'
+             f'<div class="brand"><b>facewrap</b> {e(__version__)}</div></header>']
+    if mesh_entries:
+        counts = " · ".join(f'{e(m["name"])} {m["n_vertices"]:,} vertices'
+                            for m in mesh_entries)
+        parts.append(f'<h2>3D view <span class="sub" style="font-weight:400;'
+                     f'color:var(--muted);font-size:12.5px">— {counts}</span></h2>')
+        parts.append(_viewer_html(data))
+    if summary:
+        parts.append(f'<h2>Numbers</h2><div class="tables">{_summary_html(summary)}</div>')
+    if figures:
+        figs = "".join(f'<figure class="card"><img src="{uri}" alt="{e(cap)}">'
+                       f'<figcaption>{e(cap)}</figcaption></figure>'
+                       for cap, uri in figures)
+        parts.append(f'<h2>Pictures</h2><div class="figures">{figs}</div>')
+    parts.append(f'<footer>Made by facewrap {e(__version__)} on {e(created)}. '
+                 'Self-contained page: works offline. 3D view: three.js '
+                 f'{THREE_VERSION} (MIT).</footer>')
+
+    scripts = ""
+    if mesh_entries:
+        scripts = (f'<script type="application/json" id="facewrap-data">'
+                   f'{_json_for_script(data)}</script>\n'
+                   f'<script>{_static_text("three-viewer.min.js")}</script>\n'
+                   f'<script>{_static_text("viewer.js")}</script>')
+    page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
+            f"<meta name=\"generator\" content=\"facewrap {e(__version__)}\">"
+            f"<title>{e(title)}</title><style>{_static_text('report.css')}</style>"
+            f"</head><body><main class=\"page\">{''.join(parts)}</main>\n{scripts}"
+            "</body></html>\n")
+
+    from ..io.atomic import atomic_write
+    out = Path(os.fspath(folder))
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / filename
+    with atomic_write(path, "w", encoding="utf-8") as fh:
+        fh.write(page)
+    return path

@@ -1,0 +1,372 @@
+/* facewrap report viewer (MIT). Reads the JSON in <script id="facewrap-data">,
+ * draws its meshes with three.js (global FWTHREE, see three-viewer.min.js) and wires
+ * the controls: layer toggles and opacity, heatmap choice and range with a colour
+ * bar, blendshape sliders, view presets, and a value read-out under the pointer.
+ * Sets window.facewrapViewer = {ready, webgl, meshes, error} once drawn (tests).
+ */
+(function () {
+  "use strict";
+  const T = window.FWTHREE;
+  const state = { ready: false, webgl: false, meshes: 0, error: null, frames: 0 };
+  window.facewrapViewer = state;
+
+  // viridis, 11 stops (sRGB); the colour bar uses the same stops
+  const VIRIDIS = ["#440154", "#482475", "#414487", "#355f8d", "#2a788e", "#21918c",
+                   "#22a884", "#44bf70", "#7ad151", "#bddf26", "#fde725"];
+  const NO_VALUE = [0.62, 0.62, 0.64];
+  const STOPS = VIRIDIS.map(function (h) {
+    return [1, 3, 5].map(function (i) { return parseInt(h.substr(i, 2), 16) / 255; });
+  });
+
+  function $(id) { return document.getElementById(id); }
+
+  function decode(b64, Type) {
+    const bin = atob(b64);
+    const bytes = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+    return new Type(bytes.buffer);
+  }
+
+  function srgbToLinear(c) {
+    return c <= 0.04045 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4);
+  }
+
+  function colormap(t) {
+    if (!(t >= 0)) t = 0;
+    if (t > 1) t = 1;
+    const x = t * (STOPS.length - 1);
+    const i = Math.min(Math.floor(x), STOPS.length - 2);
+    const f = x - i;
+    const a = STOPS[i], b = STOPS[i + 1];
+    return [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])];
+  }
+
+  function fmt(v) {
+    if (!Number.isFinite(v)) return "–";
+    const a = Math.abs(v);
+    if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(2);
+    return Number(v.toPrecision(3)).toString();
+  }
+
+  function fail(message) {
+    state.error = message;
+    const box = $("fw-viewer-message");
+    box.textContent = message;
+    box.hidden = false;
+    state.ready = true;
+    console.warn("facewrap viewer: " + message);
+  }
+
+  function main() {
+    const data = JSON.parse($("facewrap-data").textContent);
+    const host = $("fw-canvas-host");
+    if (!T) { fail("three.js did not load."); return; }
+    if (!data.meshes.length) { fail("No meshes in this report."); return; }
+
+    let renderer;
+    try {
+      renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    } catch (e) {
+      fail("3D view unavailable: this browser has no WebGL.");
+      return;
+    }
+    state.webgl = true;
+    renderer.setPixelRatio(window.devicePixelRatio || 1);
+    renderer.setClearColor(0xeef1f5, 1);
+    renderer.outputColorSpace = T.SRGBColorSpace;
+    host.appendChild(renderer.domElement);
+
+    const scene = new T.Scene();
+    const camera = new T.PerspectiveCamera(30, 1, 0.1, 1000);
+    scene.add(new T.HemisphereLight(0xffffff, 0x8d8d99, 1.4));
+    const headlight = new T.DirectionalLight(0xffffff, 1.6);
+    headlight.position.set(0.3, 0.5, 1);
+    camera.add(headlight);
+    scene.add(camera);
+
+    // ---- meshes -------------------------------------------------------------
+    const layers = {};
+    data.meshes.forEach(function (m, k) {
+      const pos = decode(m.positions, Float32Array);
+      const geom = new T.BufferGeometry();
+      geom.setAttribute("position", new T.BufferAttribute(pos, 3));
+      geom.setIndex(new T.BufferAttribute(decode(m.indices, Uint32Array), 1));
+      const colors = new Float32Array(pos.length);
+      geom.setAttribute("color", new T.BufferAttribute(colors, 3));
+      geom.computeVertexNormals();
+      geom.computeBoundingSphere();
+      const mat = new T.MeshStandardMaterial({
+        color: new T.Color(m.color), roughness: 0.62, metalness: 0.0,
+        side: T.DoubleSide, polygonOffset: true,
+        polygonOffsetFactor: k, polygonOffsetUnits: k,
+      });
+      const obj = new T.Mesh(geom, mat);
+      obj.visible = m.visible;
+      obj.renderOrder = k;
+      scene.add(obj);
+      layers[m.name] = { spec: m, obj: obj, mat: mat, geom: geom,
+                         base: pos.slice(), scalar: null };
+    });
+    state.meshes = data.meshes.length;
+
+    // ---- camera -------------------------------------------------------------
+    const up = new T.Vector3().fromArray(data.view.up).normalize();
+    const front = new T.Vector3().fromArray(data.view.front).normalize();
+    const controls = new T.OrbitControls(camera, renderer.domElement);
+    controls.enableDamping = false;
+    controls.addEventListener("change", requestRender);
+
+    function visibleSphere() {
+      const box = new T.Box3();
+      Object.values(layers).forEach(function (l) {
+        if (l.obj.visible) box.expandByObject(l.obj);
+      });
+      if (box.isEmpty()) Object.values(layers).forEach(function (l) {
+        box.expandByObject(l.obj);
+      });
+      return box.getBoundingSphere(new T.Sphere());
+    }
+
+    function lookFrom(dir) {
+      const s = visibleSphere();
+      const r = Math.max(s.radius, 1e-6);
+      const dist = r / Math.sin((camera.fov * Math.PI) / 360) * 0.86;
+      camera.up.copy(up);
+      camera.position.copy(s.center).addScaledVector(dir.clone().normalize(), dist);
+      camera.near = dist / 100;
+      camera.far = dist * 100;
+      camera.updateProjectionMatrix();
+      controls.target.copy(s.center);
+      controls.update();
+      requestRender();
+    }
+    const side = new T.Vector3().crossVectors(up, front).normalize();
+    const views = {
+      front: function () { return front.clone(); },
+      left: function () { return side.clone().negate(); },
+      right: function () { return side.clone(); },
+      three_quarter: function () {
+        return front.clone().multiplyScalar(0.8).addScaledVector(side, -0.55)
+          .addScaledVector(up, 0.12);
+      },
+    };
+    document.querySelectorAll("[data-fw-view]").forEach(function (b) {
+      b.addEventListener("click", function () { lookFrom(views[b.dataset.fwView]()); });
+    });
+
+    // ---- layers -------------------------------------------------------------
+    document.querySelectorAll("[data-fw-layer]").forEach(function (box) {
+      const l = layers[box.dataset.fwLayer];
+      box.checked = l.obj.visible;
+      box.addEventListener("change", function () {
+        l.obj.visible = box.checked;
+        requestRender();
+      });
+    });
+    document.querySelectorAll("[data-fw-opacity]").forEach(function (r) {
+      const l = layers[r.dataset.fwOpacity];
+      r.addEventListener("input", function () {
+        const a = parseFloat(r.value);
+        l.mat.opacity = a;
+        l.mat.transparent = a < 0.999;
+        l.mat.depthWrite = a >= 0.999;
+        l.mat.needsUpdate = true;
+        requestRender();
+      });
+    });
+
+    // ---- heatmaps -----------------------------------------------------------
+    const scalars = data.scalars.map(function (s) {
+      return Object.assign({}, s, { data: decode(s.values, Float32Array),
+                                    lo: s.range[0], hi: s.range[1] });
+    });
+    const select = $("fw-heatmap");
+    const loInput = $("fw-range-lo"), hiInput = $("fw-range-hi");
+    let active = null;
+
+    function paint(layer, s) {
+      const c = layer.geom.getAttribute("color");
+      const span = s.hi - s.lo || 1;
+      for (let i = 0; i < s.data.length; i++) {
+        const v = s.data[i];
+        const rgb = isNaN(v) ? NO_VALUE : colormap((v - s.lo) / span);
+        c.array[3 * i] = srgbToLinear(rgb[0]);
+        c.array[3 * i + 1] = srgbToLinear(rgb[1]);
+        c.array[3 * i + 2] = srgbToLinear(rgb[2]);
+      }
+      c.needsUpdate = true;
+    }
+
+    function setHeatmap(index) {
+      Object.values(layers).forEach(function (l) {
+        if (l.scalar !== null) {
+          l.scalar = null;
+          l.mat.vertexColors = false;
+          l.mat.color.set(l.spec.color);
+          l.mat.needsUpdate = true;
+        }
+      });
+      active = index >= 0 ? scalars[index] : null;
+      $("fw-colorbar").hidden = active === null;
+      if (active) {
+        const l = layers[active.mesh];
+        l.scalar = active;
+        l.mat.vertexColors = true;
+        l.mat.color.set(0xffffff);
+        l.mat.needsUpdate = true;
+        paint(l, active);
+        if (!l.obj.visible) {
+          l.obj.visible = true;
+          const box = document.querySelector('[data-fw-layer="' + CSS.escape(active.mesh) + '"]');
+          if (box) box.checked = true;
+        }
+        loInput.value = fmt(active.lo);
+        hiInput.value = fmt(active.hi);
+        updateBar();
+      }
+      requestRender();
+    }
+
+    function updateBar() {
+      if (!active) return;
+      const units = active.units ? " " + active.units : "";
+      $("fw-colorbar-title").textContent = active.name + (units ? " (" + active.units + ")" : "");
+      const ticks = $("fw-colorbar-ticks");
+      ticks.textContent = "";
+      for (let k = 0; k <= 4; k++) {
+        const span = document.createElement("span");
+        span.textContent = fmt(active.lo + (k / 4) * (active.hi - active.lo));
+        ticks.appendChild(span);
+      }
+      $("fw-colorbar-stats").textContent = "mean " + fmt(active.stats.mean) +
+        " · p95 " + fmt(active.stats.p95) + " · max " + fmt(active.stats.max) + units +
+        (active.stats.missing ? " · " + active.stats.missing + " without value (grey)" : "");
+    }
+
+    function onRange() {
+      if (!active) return;
+      const lo = parseFloat(loInput.value), hi = parseFloat(hiInput.value);
+      if (!isFinite(lo) || !isFinite(hi) || hi <= lo) return;
+      active.lo = lo;
+      active.hi = hi;
+      paint(layers[active.mesh], active);
+      updateBar();
+      requestRender();
+    }
+    if (select) {
+      select.addEventListener("change", function () { setHeatmap(parseInt(select.value, 10)); });
+      loInput.addEventListener("change", onRange);
+      hiInput.addEventListener("change", onRange);
+    }
+
+    // ---- blendshapes --------------------------------------------------------
+    const bs = data.blendshapes;
+    if (bs) {
+      const layer = layers[bs.mesh];
+      const shapes = bs.shapes.map(function (s) {
+        return { name: s.name, idx: decode(s.indices, Uint32Array),
+                 d: decode(s.deltas, Float32Array), w: 0 };
+      });
+      const apply = function () {
+        const p = layer.geom.getAttribute("position");
+        p.array.set(layer.base);
+        shapes.forEach(function (s) {
+          if (s.w === 0) return;
+          for (let j = 0; j < s.idx.length; j++) {
+            const o = 3 * s.idx[j];
+            p.array[o] += s.w * s.d[3 * j];
+            p.array[o + 1] += s.w * s.d[3 * j + 1];
+            p.array[o + 2] += s.w * s.d[3 * j + 2];
+          }
+        });
+        p.needsUpdate = true;
+        layer.geom.computeVertexNormals();
+        layer.geom.computeBoundingSphere();
+        requestRender();
+      };
+      document.querySelectorAll("[data-fw-shape]").forEach(function (r) {
+        const s = shapes[parseInt(r.dataset.fwShape, 10)];
+        const out = r.parentElement.querySelector("output");
+        r.addEventListener("input", function () {
+          s.w = parseFloat(r.value);
+          out.textContent = s.w.toFixed(2);
+          if (!layer.obj.visible) {
+            layer.obj.visible = true;
+            const box = document.querySelector('[data-fw-layer="' + CSS.escape(bs.mesh) + '"]');
+            if (box) box.checked = true;
+          }
+          apply();
+        });
+      });
+      const reset = $("fw-shapes-reset");
+      if (reset) reset.addEventListener("click", function () {
+        document.querySelectorAll("[data-fw-shape]").forEach(function (r) {
+          r.value = "0";
+          r.parentElement.querySelector("output").textContent = "0.00";
+        });
+        shapes.forEach(function (s) { s.w = 0; });
+        apply();
+      });
+    }
+
+    // ---- value under the pointer -------------------------------------------
+    const ray = new T.Raycaster();
+    const ndc = new T.Vector2();
+    const probe = $("fw-probe");
+    renderer.domElement.addEventListener("pointermove", function (ev) {
+      if (!active || ev.buttons) { probe.hidden = true; return; }
+      const rect = renderer.domElement.getBoundingClientRect();
+      ndc.set(((ev.clientX - rect.left) / rect.width) * 2 - 1,
+              -((ev.clientY - rect.top) / rect.height) * 2 + 1);
+      ray.setFromCamera(ndc, camera);
+      const l = layers[active.mesh];
+      const hit = ray.intersectObject(l.obj, false)[0];
+      if (!hit || !hit.face) { probe.hidden = true; return; }
+      const f = hit.face;
+      const p = l.geom.getAttribute("position");
+      let best = f.a, bd = Infinity;
+      [f.a, f.b, f.c].forEach(function (i) {
+        const dx = p.getX(i) - hit.point.x, dy = p.getY(i) - hit.point.y,
+              dz = p.getZ(i) - hit.point.z, d = dx * dx + dy * dy + dz * dz;
+        if (d < bd) { bd = d; best = i; }
+      });
+      probe.textContent = "vertex " + best + ": " + fmt(active.data[best]) +
+        (active.units ? " " + active.units : "");
+      probe.style.left = (ev.clientX - rect.left + 14) + "px";
+      probe.style.top = (ev.clientY - rect.top + 14) + "px";
+      probe.hidden = false;
+    });
+    renderer.domElement.addEventListener("pointerleave", function () { probe.hidden = true; });
+
+    // ---- rendering ----------------------------------------------------------
+    let pending = false;
+    function render() {
+      pending = false;
+      renderer.render(scene, camera);
+      state.frames += 1;
+    }
+    function requestRender() {
+      if (!pending) { pending = true; requestAnimationFrame(render); }
+    }
+    function resize() {
+      const w = Math.max(host.clientWidth, 1), h = Math.max(host.clientHeight, 1);
+      renderer.setSize(w, h, true);
+      camera.aspect = w / h;
+      camera.updateProjectionMatrix();
+      render();
+    }
+    new ResizeObserver(resize).observe(host);
+
+    setHeatmap(select ? parseInt(select.value, 10) : -1);
+    lookFrom(views[data.view.initial] ? views[data.view.initial]() : front.clone());
+    resize();
+    state.ready = true;
+  }
+
+  try {
+    main();
+  } catch (e) {
+    state.error = String(e && e.stack ? e.stack : e);
+    throw e;
+  }
+})();

@@ -1,0 +1,200 @@
+"""Deformation models: Jacobians against finite differences, invariants."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from facewrap.models.affine import AffineModel
+from facewrap.models.base import rotation_exp, skew
+from facewrap.models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
+                                        blendshape_basis)
+from facewrap.models.graph import GraphModel, GraphParams, build_graph
+from facewrap.models.hybrid import HybridModel, HybridParams
+from facewrap.terms import BlockJacobian
+
+
+@pytest.fixture(scope="module")
+def face():
+    from facewrap.sample import make_template
+    t = make_template(resolution=24)
+    V = t.mesh.vertices
+    c = V.mean(0)
+    size = np.linalg.norm(np.ptp(V, axis=0))
+    base = (V - c) / size
+    shapes = {k: (v - c) / size for k, v in t.blendshapes.items()}
+    D, names = blendshape_basis(base, shapes)
+    graph = build_graph(base, t.mesh.triangles, spacing=0.08)
+    return t, base, D, names, graph
+
+
+def dense(J):
+    return BlockJacobian.of(J).toarray()
+
+
+def check_jacobian(model, params, rng, eps=1e-6, tol=1e-6):
+    """Central differences of vertices and regularisers along random increments."""
+    Jv = dense(model.jacobian(params))
+    regs = {k: (r, dense(J)) for k, (r, J) in model.regularizers(params).items()}
+    for _ in range(3):
+        d = rng.normal(size=model.n_params)
+        plus, minus = model.update(params, eps * d), model.update(params, -eps * d)
+        fd = (model.vertices(plus) - model.vertices(minus)).ravel() / (2 * eps)
+        assert np.allclose(Jv @ d, fd, atol=tol * max(1, np.abs(fd).max()))
+        rp, rm = model.regularizer_residuals(plus), model.regularizer_residuals(minus)
+        for name, (r, J) in regs.items():
+            fd_r = (rp[name] - rm[name]) / (2 * eps)
+            assert np.allclose(J @ d, fd_r, atol=tol * max(1, np.abs(fd_r).max())), name
+            assert np.allclose(model.regularizer_residuals(params)[name], r)
+
+
+def random_graph_params(m, rng):
+    return GraphParams(rotation_exp(rng.normal(0, 0.3, (m, 3))), rng.normal(0, 0.05, (m, 3)))
+
+
+def test_rotation_helpers_are_consistent():
+    rng = np.random.default_rng(0)
+    w = rng.normal(size=(5, 3))
+    R = rotation_exp(w)
+    assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(R), 1)
+    assert np.allclose(rotation_exp(np.zeros(3)), np.eye(3))
+    a, b = rng.normal(size=3), rng.normal(size=3)
+    assert np.allclose(skew(a) @ b, np.cross(a, b))
+
+
+def test_graph_nodes_cover_the_mesh_and_weights_are_a_partition(face):
+    t, base, _, _, graph = face
+    assert graph.vertex_weights.shape == graph.vertex_nodes.shape
+    assert np.allclose(graph.vertex_weights.sum(1), 1)
+    assert (graph.vertex_weights >= 0).all()
+    # every node has an edge, both directions are present
+    assert set(np.unique(graph.edges)) == set(range(graph.n_nodes))
+    pairs = {tuple(e) for e in graph.edges.tolist()}
+    assert all((k, j) in pairs for j, k in pairs)
+
+
+def folded_strip(n=60, gap=0.02):
+    """A strip folded back on itself like closed lips: two sheets ``gap`` apart in
+    space, joined by a half-turn at x = 1, so they are ~2 apart on the surface."""
+    u = np.linspace(0, 2 + np.pi * gap / 2, 2 * n + 1)
+    w = np.linspace(0, 0.2, 5)
+    U, W = np.meshgrid(u, w, indexing="ij")
+    U, W = U.ravel(), W.ravel()
+    turn = np.clip((U - 1) / (np.pi * gap / 2), 0, 1) * np.pi
+    x = np.where(U < 1, U, np.where(turn < np.pi, 1 + gap / 2 * np.sin(turn),
+                                    1 - (U - 1 - np.pi * gap / 2)))
+    z = np.where(U < 1, 0.0, np.where(turn < np.pi, gap / 2 * (1 - np.cos(turn)) * -1,
+                                      -gap))
+    V = np.stack([x, W, z], 1)
+    i, j = np.meshgrid(np.arange(len(u) - 1), np.arange(len(w) - 1), indexing="ij")
+    a = (i * len(w) + j).ravel()
+    T = np.concatenate([np.stack([a, a + len(w), a + 1], 1),
+                        np.stack([a + 1, a + len(w), a + len(w) + 1], 1)])
+    return V, T
+
+
+def test_graph_skinning_follows_the_surface_not_space():
+    """Vertices that touch in space but are far apart on the surface (upper and
+    lower lip, upper and lower lid) must not be moved by the same nodes."""
+    V, T = folded_strip()
+    graph = build_graph(V, T, spacing=0.1)
+    top = np.flatnonzero((V[:, 2] == 0) & (V[:, 0] < 0.7))
+    bottom = np.flatnonzero((V[:, 2] < -0.015) & (V[:, 0] < 0.7))
+    assert len(top) and len(bottom)
+    shared = np.intersect1d(graph.vertex_nodes[top], graph.vertex_nodes[bottom])
+    assert len(shared) == 0
+    # Euclidean nearest nodes would have mixed the sheets
+    from scipy.spatial import cKDTree
+    _, j = cKDTree(V[graph.nodes]).query(V[top], k=4)
+    assert np.isin(j, graph.vertex_nodes[bottom]).any()
+
+
+def test_graph_identity_and_rigid_motion(face):
+    _, base, _, _, graph = face
+    model = GraphModel(base, graph)
+    p = model.initial_params()
+    assert np.allclose(model.vertices(p), base)
+    R = rotation_exp([0.3, -0.2, 0.1])
+    t = np.array([0.1, 0.2, -0.3])
+    X = base[graph.nodes]
+    # the same rigid motion at every node: t_j = R x_j + t - x_j
+    rigid = GraphParams(np.broadcast_to(R, (graph.n_nodes, 3, 3)).copy(), X @ R.T + t - X)
+    assert np.allclose(model.vertices(rigid), base @ R.T + t)
+    assert np.allclose(model.regularizer_residuals(rigid)["smooth"], 0, atol=1e-12)
+
+
+def test_graph_jacobian_matches_finite_differences(face):
+    rng = np.random.default_rng(1)
+    _, base, _, _, graph = face
+    model = GraphModel(base, graph)
+    check_jacobian(model, random_graph_params(graph.n_nodes, rng), rng)
+
+
+def test_hybrid_is_the_blend_when_the_graph_rests(face):
+    _, base, D, _, graph = face
+    model = HybridModel(base, D, graph)
+    w = np.linspace(-0.5, 1.0, D.shape[1])
+    p = HybridParams(GraphParams.identity(graph.n_nodes), w)
+    assert np.allclose(model.vertices(p), base + (D @ w).reshape(-1, 3))
+    # nodes follow the blend: no smoothness cost for any expression
+    assert np.allclose(model.regularizer_residuals(p)["smooth"], 0, atol=1e-12)
+    assert np.allclose(model.regularizer_residuals(p)["blend"], w)
+
+
+def test_hybrid_jacobian_matches_finite_differences(face):
+    rng = np.random.default_rng(2)
+    _, base, D, _, graph = face
+    model = HybridModel(base, D, graph)
+    p = HybridParams(random_graph_params(graph.n_nodes, rng), rng.normal(0, 0.5, D.shape[1]))
+    check_jacobian(model, p, rng)
+
+
+def test_blendshape_and_rigid_jacobians(face):
+    rng = np.random.default_rng(3)
+    _, base, D, _, _ = face
+    model = BlendshapeModel(base, D)
+    p = BlendshapeParams(rotation_exp([0.2, 0.1, -0.3]), np.array([0.1, 0, 0.2]), 1.1,
+                         rng.normal(size=D.shape[1]))
+    check_jacobian(model, p, rng)
+    rigid = RigidModel(base)
+    pr = BlendshapeParams(rotation_exp([0.1, 0.4, 0.0]), np.array([0.0, 0.3, 0.1]), 0.9,
+                          np.zeros(0))
+    check_jacobian(rigid, pr, rng)
+    assert rigid.regularizers(pr) == {}
+
+
+def test_affine_jacobian_and_identity(face):
+    rng = np.random.default_rng(4)
+    t, base, _, _, _ = face
+    model = AffineModel(base, t.mesh.triangles)
+    X = model.initial_params()
+    assert np.allclose(model.vertices(X), base)
+    assert np.allclose(model.regularizer_residuals(X)["smooth"], 0)
+    check_jacobian(model, X + rng.normal(0, 0.1, X.shape), rng)
+
+
+def test_pca_basis_spans_the_shapes(face):
+    _, base, D, _, _ = face
+    shapes = {f"s{k}": base + D[:, k].reshape(-1, 3) for k in range(D.shape[1])}
+    P, names = blendshape_basis(base, shapes, components=D.shape[1])
+    assert names[0] == "pc0" and P.shape == D.shape
+    # every raw shape is a combination of the components
+    coef, *_ = np.linalg.lstsq(P, D, rcond=None)
+    assert np.allclose(P @ coef, D, atol=1e-10)
+
+
+def test_block_jacobian_algebra():
+    rng = np.random.default_rng(5)
+    S = sp.random(12, 7, density=0.3, random_state=1, format="csr")
+    Dn = rng.normal(size=(12, 2))
+    J = BlockJacobian(S, Dn)
+    full = J.toarray()
+    x = rng.normal(size=9)
+    assert np.allclose(J @ x, full @ x)
+    w = rng.random(12)
+    assert np.allclose(J.scale_rows(w).toarray(), w[:, None] * full)
+    M = sp.random(4, 12, density=0.5, random_state=2, format="csr")
+    assert np.allclose(J.left(M).toarray(), M @ full)
+    assert np.allclose(J.rows([3, 1]).toarray(), full[[3, 1]])
+    with pytest.raises(ValueError):
+        BlockJacobian(S, Dn[:5])

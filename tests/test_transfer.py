@@ -1,0 +1,297 @@
+"""Deformation transfer: gradient operators, correspondence, transfer, CLI."""
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.spatial import cKDTree
+
+from conftest import needs_data, DATA
+from facewrap.errors import InputError
+from facewrap.geometry import closest_points
+from facewrap.io import read_mesh, write_obj
+from facewrap.sample import make_scan, make_template
+from facewrap.transfer import (Correspondence, CorrespondenceSettings,
+                               CorrespondenceStage, DeformationTransfer,
+                               deformation_gradients, find_correspondence,
+                               fourth_vertices, gradient_operator, match_triangles)
+from facewrap.transfer.gradients import (adjacent_triangle_pairs,
+                                         triangle_smoothness_operator)
+from facewrap.transfer.transfer import complete_pairs
+
+
+def _random_rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+@pytest.fixture(scope="module")
+def pair():
+    """Template face (quads, UVs) and a neutral scan of another face and topology,
+    with the 68 landmarks as markers."""
+    tpl = make_template(32)
+    face, vmap = tpl.mesh.submesh(tpl.mesh.face_groups == 0)
+    scan = make_scan(tpl, weights={}, resolution=40, noise=0, holes=0, crop=False,
+                     transform=False, texture_size=8)
+    markers = (tpl.landmarks.vertex,
+               cKDTree(scan.mesh.vertices).query(scan.landmarks.points)[1])
+    shapes = {k: v[vmap] for k, v in tpl.blendshapes.items()}
+    corr = find_correspondence(face, scan.mesh, markers)
+    return face, scan.mesh, markers, shapes, corr
+
+
+# -- gradients ----------------------------------------------------------------------
+def test_operator_matches_direct_formula():
+    rng = np.random.default_rng(1)
+    V = rng.normal(size=(30, 3))
+    T = np.array([rng.choice(30, 3, replace=False) for _ in range(40)])
+    X = V + 0.3 * rng.normal(size=V.shape)
+    op = gradient_operator(V, T)
+    Q = op.gradients(X)
+    for i in (0, 7, 39):
+        a, b, c = T[i]
+
+        def edges(P):
+            n = np.cross(P[b] - P[a], P[c] - P[a])
+            return np.column_stack([P[b] - P[a], P[c] - P[a], n / np.sqrt(np.linalg.norm(n))])
+        np.testing.assert_allclose(Q[i], edges(X) @ np.linalg.inv(edges(V)), atol=1e-9)
+    assert op.matrix.shape == (3 * len(T), len(V) + len(T))
+    np.testing.assert_allclose(np.asarray(op.matrix.sum(axis=1)).ravel(), 0, atol=1e-9)
+
+
+def test_gradient_of_similarity_and_affine_map():
+    rng = np.random.default_rng(2)
+    mesh = make_template(20).mesh
+    V, T = mesh.vertices, mesh.triangles
+    R = _random_rotation(rng)
+    Q, degenerate = deformation_gradients(V, 1.7 * V @ R.T + [1, 2, 3], T)
+    assert not degenerate.any()
+    np.testing.assert_allclose(Q, np.broadcast_to(1.7 * R, Q.shape), atol=1e-9)
+    A = rng.normal(size=(3, 3)) + 3 * np.eye(3)        # general affine: edges map as A
+    Q, _ = deformation_gradients(V, V @ A.T, T)
+    E = V[T[:, 1]] - V[T[:, 0]]
+    np.testing.assert_allclose(np.einsum("tij,tj->ti", Q, E), E @ A.T, atol=1e-9)
+
+
+def test_degenerate_triangles_are_finite_and_reported():
+    V = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [5, 5, 5.]])
+    T = np.array([[0, 1, 3], [0, 1, 2], [4, 4, 4], [1, 2, 3]])  # collinear, a point
+    op = gradient_operator(V, T)
+    assert op.degenerate.tolist() == [False, True, True, False]
+    assert np.isfinite(op.matrix.data).all()
+    assert np.isfinite(fourth_vertices(V, T)).all()
+    Q = op.gradients(V)
+    assert np.isfinite(Q).all()
+    np.testing.assert_allclose(Q[~op.degenerate], np.broadcast_to(np.eye(3), (2, 3, 3)),
+                               atol=1e-12)
+
+
+def test_smoothness_operator_vanishes_on_rigid_motion():
+    mesh = make_template(20).mesh
+    op = gradient_operator(mesh.vertices, mesh.triangles)
+    D = triangle_smoothness_operator(op, adjacent_triangle_pairs(mesh.triangles))
+    R = _random_rotation(np.random.default_rng(3))
+    X = op.extend(mesh.vertices @ R.T + 5)
+    assert np.abs(D @ X).max() < 1e-9
+    assert np.abs(op.matrix @ X - np.tile(R.T, (op.n_triangles, 1))).max() < 1e-9
+
+
+# -- correspondence ---------------------------------------------------------------------
+def test_self_correspondence_matches_each_triangle_to_itself():
+    full = make_template(20).mesh
+    mesh, _ = full.submesh(full.face_groups == 0)
+    s, t = match_triangles(mesh.vertices, mesh.triangles, mesh.vertices, mesh.triangles)
+    np.testing.assert_array_equal(s, t)
+    assert len(s) == len(mesh.triangles)
+
+
+def test_correspondence_fits_and_round_trips(pair, tmp_path):
+    face, scan, markers, _, corr = pair
+    assert corr.stats["valid_closest"] > 0.95
+    assert len(corr.unmatched_target) == 0
+    dist = closest_points(scan.vertices, scan.triangles, corr.deformed).distances
+    assert dist.mean() < 2e-3 * scan.scale()
+    # markers are hard constraints
+    np.testing.assert_allclose(corr.deformed[markers[0]], scan.vertices[markers[1]],
+                               atol=1e-9)
+    path = tmp_path / "pair.npz"
+    corr.save(path)
+    back = Correspondence.load(path)
+    for name in ("source_triangles", "target_triangles", "markers", "deformed"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(corr, name))
+    assert back.stats == corr.stats
+    back.check(face, scan)
+    with pytest.raises(InputError, match="pair.npz"):
+        back.check(scan, face, path)
+
+
+def test_correspondence_file_errors(tmp_path):
+    bad = tmp_path / "x.npz"
+    np.savez(bad, a=np.zeros(3))
+    with pytest.raises(InputError, match="not a facewrap correspondence"):
+        Correspondence.load(bad)
+    junk = tmp_path / "junk.npz"
+    junk.write_text("hello")
+    with pytest.raises(InputError, match="junk.npz"):
+        Correspondence.load(junk)
+    with pytest.raises(InputError, match="no such file"):
+        Correspondence.load(tmp_path / "missing.npz")
+
+
+def test_markers_out_of_range_raise(pair):
+    face, scan, markers, _, _ = pair
+    with pytest.raises(InputError, match="m.cons.*target vertex 99999"):
+        find_correspondence(face, scan, (markers[0], markers[1] * 0 + 99999),
+                            markers_path="m.cons")
+
+
+def test_settings_validate():
+    with pytest.raises(ValueError):
+        CorrespondenceStage(w_closest=-1)
+    with pytest.raises(ValueError):
+        CorrespondenceSettings(deform="both")
+
+
+# -- transfer ---------------------------------------------------------------------------
+def test_identity_pose_reproduces_target(pair):
+    face, scan, _, _, corr = pair
+    dt = DeformationTransfer().fit(face, scan, corr)
+    np.testing.assert_allclose(dt.transfer(face.vertices), scan.vertices, atol=1e-7)
+
+
+def test_rigid_source_pose_moves_target_rigidly(pair):
+    face, scan, _, _, corr = pair
+    dt = DeformationTransfer(anchor=5).fit(face, scan, corr)
+    R = _random_rotation(np.random.default_rng(4))
+    out = dt.transfer(face.vertices @ R.T + [10, 0, 0])
+    expect = (scan.vertices - scan.vertices[5]) @ R.T + scan.vertices[5]
+    np.testing.assert_allclose(out, expect, atol=1e-6 * scan.scale())
+
+
+def test_schur_elimination_equals_full_system(pair):
+    """The factor eliminates fourth vertices; compare with the full (n + t) solve."""
+    face, scan, _, shapes, corr = pair
+    dt = DeformationTransfer(anchor=0).fit(face, scan, corr)
+    P = shapes["jaw_open"]
+    got = dt.transfer(P)
+    S = gradient_operator(face.vertices, face.triangles).gradients(P)
+    op = gradient_operator(scan.vertices, scan.triangles)
+    rows = (3 * corr.target_triangles[:, None] + np.arange(3)).ravel()
+    A = op.matrix[rows]
+    b = S[corr.source_triangles].transpose(0, 2, 1).reshape(-1, 3)
+    free = np.arange(1, op.n_unknowns)
+    H = (A.T @ A).tocsc()
+    rhs = A.T @ b - H[:, [0]] @ scan.vertices[[0]]
+    x = spla.spsolve(H[free][:, free], rhs[free])
+    np.testing.assert_allclose(got[1:], x[:scan.n_vertices - 1], atol=1e-6 * scan.scale())
+
+
+def test_transfer_follows_the_source_expression(pair):
+    face, scan, _, shapes, corr = pair
+    dt = DeformationTransfer().fit(face, scan, corr)
+    names = ["jaw_open", "brow_raise", "smile"]
+    out = dt.transfer(np.stack([shapes[k] for k in names]))
+    assert out.shape == (3, scan.n_vertices, 3)
+    cp = closest_points(face.vertices, face.triangles, scan.vertices)
+    for name, X in zip(names, out):
+        D = shapes[name] - face.vertices
+        ref = np.einsum("kc,kcd->kd", cp.barycentric, D[face.triangles[cp.triangles]])
+        size = np.linalg.norm(ref, axis=1)
+        moving = size > 0.05 * size.max()
+        err = np.linalg.norm(X - scan.vertices - ref, axis=1)[moving].mean()
+        assert err < 0.25 * size[moving].mean(), name
+
+
+def test_quad_target_keeps_topology_and_uvs(pair):
+    face, scan, markers, shapes, _ = pair
+    corr = find_correspondence(scan, face, (markers[1], markers[0]))
+    dt = DeformationTransfer().fit(scan, face, corr)
+    (mesh,) = dt.transfer_meshes(scan.vertices[None])
+    assert np.all(mesh.face_sizes == 4)
+    np.testing.assert_array_equal(mesh.face_uvs, face.face_uvs)
+    np.testing.assert_allclose(mesh.vertices, face.vertices, atol=1e-7)
+
+
+def test_unmatched_target_triangles_follow_neighbours():
+    T = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2]])
+    P = sp.csr_matrix(([1.0], ([0], [5])), shape=(3, 9))
+    filled, orphans = complete_pairs(P, T)
+    assert filled[1, 5] == 1 and filled[2, 5] == 1 and not orphans.any()
+
+
+def test_bad_pose_shape_raises(pair):
+    face, scan, _, _, corr = pair
+    dt = DeformationTransfer().fit(face, scan, corr)
+    with pytest.raises(ValueError, match="poses"):
+        dt.transfer(np.zeros((3, 3)))
+
+
+# -- CLI ----------------------------------------------------------------------------------
+def _run_cli(argv):
+    from facewrap.cli.transfer import register
+    p = argparse.ArgumentParser()
+    register(p.add_subparsers())
+    args = p.parse_args(["transfer", *argv])
+    return args.func(args)
+
+
+def test_cli_transfer_writes_objs_glb_report(pair, tmp_path):
+    face, scan, markers, shapes, _ = pair
+    write_obj(tmp_path / "src.obj", face)
+    write_obj(tmp_path / "tgt.obj", scan)
+    (tmp_path / "shapes").mkdir()
+    for k in ("jaw_open", "smile"):
+        write_obj(tmp_path / "shapes" / f"{k}.obj", face.with_vertices(shapes[k]))
+    (tmp_path / "m.txt").write_text(f"{len(markers[0])}\n" + "".join(
+        f"{a} {b}\n" for a, b in zip(*markers)))
+    argv = [str(tmp_path / "src.obj"), str(tmp_path / "tgt.obj"), "--source-shapes",
+            str(tmp_path / "shapes"), "--markers", str(tmp_path / "m.txt"), "-o",
+            str(tmp_path / "out"), "--gltf", str(tmp_path / "o.glb"), "--correspondence",
+            str(tmp_path / "c.npz"), "--report", str(tmp_path / "r.json"), "-q"]
+    assert _run_cli(argv) == 0
+    out = read_mesh(tmp_path / "out" / "jaw_open.obj")
+    assert out.n_vertices == scan.n_vertices
+    np.testing.assert_array_equal(out.face_indices, scan.face_indices)
+    assert (tmp_path / "c.npz").is_file() and (tmp_path / "o.glb").is_file()
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["shapes"] == 2
+    first = out.vertices
+    assert _run_cli(argv) == 0            # second run reuses the correspondence
+    np.testing.assert_allclose(read_mesh(tmp_path / "out" / "jaw_open.obj").vertices,
+                               first, atol=1e-5)
+
+
+def test_cli_bad_inputs_name_the_file(pair, tmp_path):
+    face, scan, markers, shapes, _ = pair
+    write_obj(tmp_path / "src.obj", face)
+    write_obj(tmp_path / "tgt.obj", scan)
+    write_obj(tmp_path / "wrong.obj", scan)            # a shape of the wrong topology
+    (tmp_path / "m.txt").write_text("0 0\n1 999999\n")
+    base = [str(tmp_path / "src.obj"), str(tmp_path / "tgt.obj"), "-o",
+            str(tmp_path / "out"), "-q"]
+    with pytest.raises(InputError, match="m.txt.*999999"):
+        _run_cli(base + ["--source-shapes", str(tmp_path / "src.obj"), "--markers",
+                         str(tmp_path / "m.txt")])
+    (tmp_path / "m.txt").write_text("0 0\n1 1\n2 2\n")
+    with pytest.raises(InputError, match="wrong.obj"):
+        _run_cli(base + ["--source-shapes", str(tmp_path / "wrong.obj"), "--markers",
+                         str(tmp_path / "m.txt")])
+
+
+# -- real data ------------------------------------------------------------------------------
+@needs_data
+def test_cat_to_lion_against_sumners_result():
+    from facewrap.datasets import load_sumner_pair
+    p = load_sumner_pair(DATA / "sumner2004" / "cat-lion" / "markers-cat-lion.yml")
+    s, t = p.source, p.target
+    corr = find_correspondence(s.reference, t.reference, p.markers)
+    # Sumner's lion poses keep the last lion vertex where it was
+    dt = DeformationTransfer(anchor=t.reference.n_vertices - 1).fit(s.reference,
+                                                                    t.reference, corr)
+    out = dt.transfer(np.stack(s.poses))
+    err = np.linalg.norm(out - np.stack(t.poses), axis=2).mean(axis=1) / t.reference.scale()
+    assert err.max() < 0.035 and err.mean() < 0.02
