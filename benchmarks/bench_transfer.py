@@ -1,6 +1,8 @@
 """Benchmark: deformation transfer (Sumner 2004) and landmark-guided avatar
 blendshapes (Onizuka 2019) on ../shared/data, plus a synthetic case that always
-runs.  Writes nothing: every output goes to a temporary folder."""
+runs.  Writes only the pictures ``docs/images/avatar_<name>.png`` (a few key shapes
+per avatar, plain vs landmark-guided); every other output goes to a temporary
+folder."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from facewrap.sample import make_scan, make_template
 from facewrap.transfer import AvatarTransfer, DeformationTransfer, find_correspondence
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+IMAGES = Path(__file__).resolve().parents[1] / "docs" / "images"
 
 
 def _flips(X, mesh) -> int:
@@ -125,7 +128,58 @@ def _mouth(X, lm):
             / np.linalg.norm(X[..., lm[31], :] - X[..., lm[37], :], axis=-1))
 
 
-def onizuka() -> dict:
+def _smile(X, lm):
+    """Rise of the mouth corners (51-point 31, 37) toward the brows plus their
+    spread, over mouth width: large for a smile."""
+    up = X[..., lm[:10], :].mean(axis=-2) - X[..., lm[31:51], :].mean(axis=-2)
+    up = up / np.linalg.norm(up, axis=-1, keepdims=True)
+    corners = (X[..., lm[31], :] + X[..., lm[37], :]) / 2 - X[..., lm[31:51], :].mean(axis=-2)
+    width = np.linalg.norm(X[..., lm[31], :] - X[..., lm[37], :], axis=-1)
+    return (np.einsum("...i,...i->...", corners, up) + 0.5 * width) / width
+
+
+def _face_view(mesh, lm, size):
+    """How to look at a face from its landmarks: (frame, view, centre, pixel size).
+
+    Up is from the mouth to the brows, image x from the subject's right eye to the
+    left; the camera turns toward the subject's left until it faces the left eye's
+    surface (a horse's eyes look sideways, a person's forward), by 15° to 60°."""
+    from facewrap.geometry import vertex_normals
+    from facewrap.report import frame_from_axes
+    P = mesh.vertices[lm]
+    up = P[:10].mean(0) - P[31:51].mean(0)
+    right = P[25:31].mean(0) - P[19:25].mean(0)
+    frame = frame_from_axes(up=up, front=np.cross(right, up))
+    n = vertex_normals(mesh.vertices, mesh.triangles)[lm[25:31]].sum(0) @ frame.T
+    view = (float(np.clip(np.degrees(np.arctan2(n[0], n[2])), 15, 60)), 5.0)
+    from facewrap.report import view_rotation
+    Q = P @ view_rotation(view, frame)[:2].T
+    return frame, view, P.mean(0), 1.45 * np.ptp(Q, axis=0).max() / size
+
+
+def _avatar_picture(name, av, la, rows, picks, path, size=220) -> None:
+    """Neutral and a few key shapes, one row per method, one view and scale; shapes
+    coloured by how far each vertex moved (one colour range for the picture)."""
+    from facewrap.report import image_grid, render_mesh, robust_clim, save_png
+    frame, view, centre, px = _face_view(av, la, size)
+    moved = [np.linalg.norm(out[k] - av.vertices, axis=1) for _, out in rows
+             for _, k in picks]
+    clim = robust_clim(np.concatenate(moved), 99.5)
+    images, labels = [], []
+    for method, out in rows:
+        for label, k in [("neutral", None), *picks]:
+            V = av.vertices if k is None else out[k]
+            scalars = None if k is None else np.linalg.norm(V - av.vertices, axis=1)
+            images.append(render_mesh((V, av.triangles), scalars=scalars, clim=clim,
+                                      frame=frame, view=view, center=centre,
+                                      pixel_size=px, size=(size, size)))
+            labels.append(f"{method}: {label}")
+    save_png(path, image_grid(
+        images, labels, columns=1 + len(picks), gap=6, font_size=13,
+        title=f"{name}: template shapes transferred (colour: distance moved)"))
+
+
+def onizuka(pictures: bool = True) -> dict:
     from facewrap.io import read_mesh
     from facewrap.io.landmarks import read_vertex_indices
     from facewrap.io.obj import read_obj_vertices
@@ -138,6 +192,12 @@ def onizuka() -> dict:
     blink = src_gap < 0.3                                          # (48, 2)
     src_mouth = _mouth(shapes, ls) - _mouth(src.vertices, ls)
     opens = np.argsort(-src_mouth)[:3]
+    both = int(np.argmin(src_gap.min(axis=1)))             # an eye shut the most
+    smile = _smile(shapes, ls) - _smile(src.vertices, ls)
+    smile[opens[0]] = -np.inf
+    picks = [(f"blink ({both:02d}m)", both), (f"mouth open ({opens[0]:02d}m)", int(opens[0])),
+             (f"smile ({int(np.argmax(smile)):02d}m)", int(np.argmax(smile)))]
+    images = {}
     rows = []
     for name in ("Horse", "Mario", "Oldman"):
         av = read_mesh(root / "avatars" / f"{name}.ply")
@@ -150,6 +210,10 @@ def onizuka() -> dict:
         plain = AvatarTransfer(landmark_guided=False).fit(
             src, ls, av, la, correspondence=guided.correspondence_)
         op = plain.transfer(shapes)
+        if pictures:
+            path = IMAGES / f"avatar_{name.lower()}.png"
+            _avatar_picture(name, av, la, [("plain", op), ("guided", og)], picks, path)
+            images[name] = path.name
         for label, out, fit, solve in (("plain (Sumner)", op, None, None),
                                        ("landmark-guided", og, t1 - t0, t2 - t1)):
             gap = _per_eye_gap(out, la) / _per_eye_gap(av.vertices, la)
@@ -163,7 +227,7 @@ def onizuka() -> dict:
                          "flipped_shapes": int(sum(_flips(X, av) > 0 for X in out)),
                          "fit": fit, "solve": solve})
     return {"rows": rows, "blink_shapes": int(blink.any(axis=1).sum()),
-            "open_shapes": [f"{i:02d}m" for i in opens]}
+            "open_shapes": [f"{i:02d}m" for i in opens], "images": images}
 
 
 def ict_to_oldman() -> dict:
@@ -261,6 +325,9 @@ def markdown(r: dict) -> str:
                          f"({x['gap_src']:.2f}) | {x['mouth']:.2f} ({x['mouth_src']:.2f}) "
                          f"| {x['flips']} ({x['flipped_shapes']}) | {fit} | {solve} |")
         lines.append("")
+        for name, file in o.get("images", {}).items():
+            lines += [f"![{name}: neutral, blink, mouth open and smile, plain (top) and "
+                      f"landmark-guided (bottom)](images/{file})", ""]
     if "ict" in r:
         i = r["ict"]
         lines += [f"**ICT-FaceKit face ({i['source']:,} v) → Oldman ({i['target']:,} v)**,"

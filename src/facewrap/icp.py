@@ -185,6 +185,8 @@ class NonRigidICP:
         A stage ends when no vertex moved more than this (normalised units).
     damping : float
         Initial Levenberg–Marquardt damping.
+    blas_threads : int or None
+        BLAS threads during the fit (None: leave as is).
 
     Attributes (after :meth:`fit`)
     ------------------------------
@@ -200,7 +202,8 @@ class NonRigidICP:
                  robust: str = "welsch", robust_factor: float = 3.0,
                  min_scale: float = 5e-4, max_distance: float = 0.05,
                  max_normal_angle: float = 60.0, reject_boundary: bool = True,
-                 tolerance: float = 2e-4, damping: float = 1e-4):
+                 tolerance: float = 2e-4, damping: float = 1e-4,
+                 blas_threads: int | None = 1):
         self.stages = stages
         self.point_weight = point_weight
         self.robust = robust
@@ -211,6 +214,7 @@ class NonRigidICP:
         self.reject_boundary = reject_boundary
         self.tolerance = tolerance
         self.damping = damping
+        self.blas_threads = blas_threads
 
     def fit(self, model, triangles, tree: ClosestPointTree, *, center, size,
             fit_mask=None, landmark_matrix=None, landmark_targets=None,
@@ -237,6 +241,16 @@ class NonRigidICP:
         params : optional
             Warm start (default ``model.initial_params()``).
         """
+        # Many small vector operations: BLAS threads only contend (10x slower on a
+        # loaded 2-core machine), one thread is fastest.
+        from threadpoolctl import threadpool_limits
+        with threadpool_limits(limits=self.blas_threads, user_api="blas"):
+            return self._fit(model, triangles, tree, center=center, size=size,
+                             fit_mask=fit_mask, landmark_matrix=landmark_matrix,
+                             landmark_targets=landmark_targets, params=params)
+
+    def _fit(self, model, triangles, tree, *, center, size, fit_mask, landmark_matrix,
+             landmark_targets, params):
         stages = self.stages or default_schedule("graph")
         T = np.asarray(triangles, dtype=np.int64)
         n = model.n_vertices
@@ -269,7 +283,9 @@ class NonRigidICP:
                                     landmark_matrix, landmark_targets, has_lm)
                 e0 = energy_of(p, V)
                 for _ in range(6):  # Levenberg–Marquardt: retry with more damping
-                    delta = gauss_newton_step(terms, damping=mu, n_params=model.n_params)
+                    delta = gauss_newton_step(terms, damping=mu, n_params=model.n_params,
+                                              method=model.solver,
+                                              block=model.param_block)
                     p_new = model.update(p, delta)
                     V_new = model.vertices(p_new)
                     e1 = energy_of(p_new, V_new)

@@ -6,12 +6,25 @@ with a :class:`~facewrap.wrap.WrapSettings`, and writes the outputs atomically
 (mesh, optional baked texture, optional JSON report).  Every input problem is an
 :class:`~facewrap.errors.InputError` naming the file, raised before anything is
 written; inputs are only read.
+
+Inputs that are legal but odd (duplicate vertices, degenerate or non-manifold
+faces, loose pieces, landmarks beside the scan, a scan in other units...) are fitted
+anyway; each oddity becomes one line in the report's ``"warnings"`` list and an
+:class:`InputWarning`.  Exact duplicate scan vertices (seams split by an exporter,
+triangle soups) are merged before fitting, so they do not read as holes.
+
+Each :class:`WrapJob` field says in its ``metadata`` which job-file table it
+belongs to (``"inputs"`` or ``"outputs"``) and whether it is a path; job files
+(:mod:`facewrap.pipeline`) and batches (:mod:`facewrap.batch`) derive their keys
+from that, so a new field here is a new key there.
 """
 
 from __future__ import annotations
 
+import os
 import time
-from dataclasses import asdict, dataclass
+import warnings
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +32,23 @@ import numpy as np
 from .errors import InputError
 from .wrap import WrapSettings
 
-__all__ = ["WrapJob", "run_wrap_job", "load_wrap_inputs"]
+__all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
+           "job_inputs", "job_outputs", "check_job_paths"]
+
+#: Mesh formats an output may have.
+MESH_EXTENSIONS = (".obj", ".ply")
+
+
+class InputWarning(UserWarning):
+    """An input that is legal but odd; the message names the file and the oddity."""
+
+
+def _input(**kw):
+    return field(metadata={"table": "inputs", "path": True}, **kw)
+
+
+def _output(path=True, **kw):
+    return field(metadata={"table": "outputs", "path": path}, **kw)
 
 
 @dataclass
@@ -28,8 +57,10 @@ class WrapJob:
 
     Attributes
     ----------
-    template, scan : path
-        Meshes (OBJ/PLY).
+    template : path
+        Template mesh (OBJ/PLY) whose topology the result keeps.
+    scan : path
+        Scan mesh (OBJ/PLY).
     template_landmarks : path
         Template vertex ids (text) or facewrap landmark JSON.
     scan_landmarks : path
@@ -48,16 +79,185 @@ class WrapJob:
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
     """
-    template: str
-    scan: str
-    template_landmarks: str
-    scan_landmarks: str
-    output: str
-    blendshapes: str | None = None
-    exclude: str | None = None
-    texture: str | None = None
-    texture_size: int = 1024
-    report: str | None = None
+    template: str = _input()
+    scan: str = _input()
+    template_landmarks: str = _input()
+    scan_landmarks: str = _input()
+    output: str = _output()
+    blendshapes: str | None = _input(default=None)
+    exclude: str | None = _input(default=None)
+    texture: str | None = _input(default=None)
+    texture_size: int = _output(path=False, default=1024)
+    report: str | None = _output(default=None)
+
+
+def _path_fields(table: str) -> list[str]:
+    return [f.name for f in fields(WrapJob)
+            if f.metadata.get("table", "inputs") == table and f.metadata.get("path")]
+
+
+def job_inputs(job: WrapJob) -> list[str]:
+    """Input paths of ``job`` that are set, in field order (files or folders)."""
+    return [getattr(job, n) for n in _path_fields("inputs") if getattr(job, n)]
+
+
+def texture_output(job: WrapJob) -> str | None:
+    """Where the baked texture goes (beside ``output``, ``.png``), or None."""
+    return str(Path(job.output).with_suffix(".png")) if job.texture else None
+
+
+def job_outputs(job: WrapJob) -> list[str]:
+    """Files that :func:`run_wrap_job` writes for ``job``: mesh, texture, report."""
+    out = [getattr(job, n) for n in _path_fields("outputs") if getattr(job, n)]
+    png = texture_output(job)
+    return out + ([png] if png else [])
+
+
+def _same_file(a, b) -> bool:
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def check_job_paths(job: WrapJob, source=None) -> None:
+    """Check output names before any work: formats known, no input overwritten.
+
+    Parameters
+    ----------
+    job : WrapJob
+    source : path, optional
+        The file the job came from (job file, manifest), named in errors; default
+        the offending output.
+
+    Raises
+    ------
+    InputError
+    """
+    ext = os.path.splitext(job.output)[1].lower()
+    if ext not in MESH_EXTENSIONS:
+        raise InputError(f"output {job.output!r}: unknown mesh format "
+                         f"{ext or '(no extension)'!r}; use .obj or .ply",
+                         source or job.output)
+    outs = job_outputs(job)
+    for i, o in enumerate(outs):
+        for p in job_inputs(job):
+            if _same_file(o, p):
+                raise InputError(f"output {o!r} is also an input; inputs are never "
+                                 "overwritten", source or o)
+        for q in outs[:i]:
+            if _same_file(o, q):
+                raise InputError(f"two outputs of one job are the same file {o!r}",
+                                 source or o)
+    if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
+        raise InputError(f"texture_size must be an integer in [1, 16384], got "
+                         f"{job.texture_size!r}", source or job.output)
+
+
+# -- checks of legal but odd inputs -------------------------------------------------
+def _duplicate_map(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First occurrence of each distinct position: (unique_index, inverse)."""
+    rows = np.ascontiguousarray(V).view(np.dtype((np.void, V.dtype.itemsize * 3)))[:, 0]
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    return first, inverse.reshape(-1)
+
+
+def _survey(mesh, path, what: str, pieces: bool = True) -> list[str]:
+    """One line per oddity of a mesh's triangles (counts; nothing is changed).
+
+    ``pieces``: also report disconnected pieces (not for templates, whose eyes and
+    teeth are separate pieces by design).
+    """
+    from .geometry import connected_components
+    out = []
+    T = mesh.triangles
+    V = mesh.vertices
+    repeated = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 0] == T[:, 2])
+    if repeated.any():
+        out.append(f"{path}: {what} has {int(repeated.sum())} triangle(s) with a "
+                   "repeated vertex")
+    e1, e2 = V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]
+    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    scale = mesh.scale()
+    flat = (area2 <= 1e-12 * scale * scale) & ~repeated
+    if flat.any():
+        out.append(f"{path}: {what} has {int(flat.sum())} zero-area triangle(s)")
+    good = T[~repeated]
+    if len(good):
+        E = np.sort(np.concatenate([good[:, [0, 1]], good[:, [1, 2]], good[:, [2, 0]]]),
+                    axis=1)
+        key = E[:, 0] * np.int64(mesh.n_vertices) + E[:, 1]
+        _, counts = np.unique(key, return_counts=True)
+        nm = int((counts > 2).sum())
+        if nm:
+            out.append(f"{path}: {what} has {nm} non-manifold edge(s) (shared by more "
+                       "than two triangles)")
+    if not pieces:
+        return out
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[T.ravel()] = True
+    labels = connected_components(T, mesh.n_vertices)[used]
+    pieces = len(np.unique(labels))
+    if pieces > 1:
+        sizes = np.bincount(labels)
+        sizes = sizes[sizes > 0]
+        out.append(f"{path}: {what} has {pieces} disconnected pieces (the largest "
+                   f"has {int(sizes.max())} of {int(used.sum())} vertices)")
+    return out
+
+
+def _weld(mesh, landmarks, path):
+    """Merge exactly coincident scan vertices; returns (mesh, landmarks, warning).
+
+    Triangle count and order, UVs and normals per corner are kept, so triangle ids
+    of surface landmarks and texture baking are unaffected.
+    """
+    from .landmarks import Landmarks
+    from .mesh import Mesh
+    first, inverse = _duplicate_map(mesh.vertices)
+    dupes = mesh.n_vertices - len(first)
+    if dupes == 0:
+        return mesh, landmarks, None
+    offsets = mesh.face_offsets
+    kw = {}
+    if mesh.uvs is not None:
+        kw.update(uvs=mesh.uvs, face_uvs=(offsets, mesh.face_uvs))
+    if mesh.face_normals is not None:
+        kw.update(normals=mesh.normals, face_normals=(offsets, mesh.face_normals))
+    if mesh.vertex_colors is not None:
+        kw.update(vertex_colors=mesh.vertex_colors[first])
+    welded = Mesh(mesh.vertices[first], (offsets, inverse[mesh.face_indices]),
+                  face_materials=mesh.face_materials, materials=mesh.materials,
+                  face_groups=mesh.face_groups, groups=mesh.groups, mtllib=mesh.mtllib,
+                  texture=mesh.texture, **kw)
+    if np.any(landmarks.vertex >= 0):
+        v = np.where(landmarks.vertex >= 0, inverse[np.maximum(landmarks.vertex, 0)], -1)
+        landmarks = Landmarks(v, landmarks.triangle, landmarks.barycentric,
+                              landmarks.points, landmarks.names)
+    return welded, landmarks, (f"{path}: scan has {dupes} duplicate vertices (same "
+                               "position); merged for fitting")
+
+
+def _check_spread(points: np.ndarray, path) -> None:
+    """Landmarks must span a plane at least, or the alignment is undetermined."""
+    P = points - points.mean(axis=0)
+    s = np.linalg.svd(P, compute_uv=False)
+    if len(points) < 3 or s[0] == 0 or s[1] <= 1e-6 * s[0]:
+        raise InputError("landmarks are all at one point or on one line; the "
+                         "alignment needs at least three landmarks not in a line", path)
+
+
+def _check_on_scan(points: np.ndarray, names, tree, scale: float, path) -> list[str]:
+    """Scan landmarks should lie on (or near) the scan surface."""
+    d = tree.query(points).distances
+    far = d > 0.05 * scale
+    if np.median(d) > 0.1 * scale:
+        raise InputError(f"landmarks are not on the scan: median distance to its "
+                         f"surface {np.median(d):.4g}, scan size {scale:.4g} (wrong "
+                         "landmark file, or other units?)", path)
+    if far.any():
+        worst = int(np.argmax(d))
+        label = names[worst] if names is not None else str(worst)
+        return [f"{path}: {int(far.sum())} landmark(s) lie off the scan surface "
+                f"(farthest: {label}, {d[worst]:.4g} away; scan size {scale:.4g})"]
+    return []
 
 
 def load_wrap_inputs(job: WrapJob) -> dict:
@@ -65,13 +265,23 @@ def load_wrap_inputs(job: WrapJob) -> dict:
 
     Returns
     -------
-    dict with ``template``, ``scan`` (Mesh), ``template_landmarks``,
-    ``scan_landmarks`` (Landmarks), ``exclude`` (int array or None),
-    ``blendshapes`` (dict name → (n, 3) positions, or None), ``texture`` (image
-    array or None).
+    dict with ``template``, ``scan`` (Mesh, duplicate vertices merged),
+    ``template_landmarks``, ``scan_landmarks`` (Landmarks), ``exclude`` (int array
+    or None), ``blendshapes`` (dict name → (n, 3) positions, or None),
+    ``texture`` (image array or None), ``scan_tree`` (ClosestPointTree of the
+    scan) and ``warnings`` (list of str, one line per legal-but-odd input).
+
+    Raises
+    ------
+    InputError
+        Naming the file: unreadable or malformed files, a scan without faces or
+        with zero area, landmark counts that differ, landmarks in a line or off the
+        scan, indices out of range.
     """
+    from .geometry import ClosestPointTree
     from .io import read_mesh
     from .io.landmarks import read_landmarks, read_vertex_indices
+    notes: list[str] = []
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
     if len(scan.triangles) == 0:
@@ -89,6 +299,32 @@ def load_wrap_inputs(job: WrapJob) -> dict:
     if (tl.names is None or sl.names is None) and len(tl) != len(sl):
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({job.template_landmarks}) have {len(tl)}", job.scan_landmarks)
+
+    for mesh, where in ((template, job.template), (scan, job.scan)):
+        if not np.isfinite(mesh.scale()):
+            raise InputError("coordinates are too large (the bounding box overflows)",
+                             where)
+    scan_size = scan.scale()
+    V, T = scan.vertices, scan.triangles
+    area2 = np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
+                           axis=1)
+    if scan_size == 0 or not np.any(area2 > 1e-12 * scan_size * scan_size):
+        raise InputError("scan is degenerate: every triangle has zero area", job.scan)
+    if template.scale() == 0:
+        raise InputError("template is degenerate: all vertices at one point",
+                         job.template)
+    notes += _survey(template, job.template, "template", pieces=False)
+    scan, sl, welded = _weld(scan, sl, job.scan)
+    notes += [welded] if welded else []
+    notes += _survey(scan, job.scan, "scan")
+    if len(scan.triangles) < 100:
+        notes.append(f"{job.scan}: scan has only {len(scan.triangles)} triangle(s)")
+    _check_spread(tl.positions(template), job.template_landmarks)
+    scan_points = sl.positions(scan)
+    _check_spread(scan_points, job.scan_landmarks)
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    notes += _check_on_scan(scan_points, sl.names, tree, scan_size, job.scan_landmarks)
+
     exclude = None
     if job.exclude:
         exclude = read_vertex_indices(job.exclude, n_vertices=template.n_vertices).vertex
@@ -107,25 +343,37 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         image = load_image(job.texture)
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "blendshapes": shapes,
-            "texture": image}
+            "texture": image, "scan_tree": tree, "warnings": notes}
 
 
 def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     """Run one wrap job and write its outputs; returns the report as a dict.
 
     The mesh, the texture and the report are each written atomically (a crash
-    never leaves a half-written file).
+    never leaves a half-written file).  The report's ``"warnings"`` lists the
+    legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
     """
     from .io import write_mesh
     from .io.atomic import atomic_write
     from .wrap import wrap
     settings = settings or WrapSettings()
+    check_job_paths(job)
     t0 = time.perf_counter()
     inputs = load_wrap_inputs(job)
     read_seconds = time.perf_counter() - t0
     result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                   inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
-                  blendshapes=inputs["blendshapes"])
+                  blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"])
+    notes = list(inputs["warnings"])
+    scale = float(result.transform.scale)
+    if not 0.05 <= scale <= 20:
+        notes.append(f"{job.scan}: the template was scaled by {scale:.4g} to fit the "
+                     "scan; are both in the same units?")
+    if not np.isfinite(result.mesh.vertices).all():
+        raise InputError("the fit produced non-finite positions (degenerate input?)",
+                         job.scan)
+    for note in notes:
+        warnings.warn(note, InputWarning, stacklevel=2)
     write_mesh(job.output, result.mesh)
     report = {"job": {k: v for k, v in asdict(job).items() if v is not None},
               "settings": asdict(result.settings),
@@ -133,7 +381,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
               "read_seconds": read_seconds,
               "timings": result.timings, "metrics": result.metrics,
               "iterations": result.history,
-              "transform": result.transform.matrix.tolist()}
+              "transform": result.transform.matrix.tolist(),
+              "warnings": notes}
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
@@ -142,12 +391,13 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         t = time.perf_counter()
         baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
                              size=job.texture_size)
-        png = Path(job.output).with_suffix(".png")
+        png = texture_output(job)
         save_png(png, baked.image)
         report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
                              "seconds": time.perf_counter() - t}
     if job.report:
         import json
+        os.makedirs(os.path.dirname(os.path.abspath(job.report)), exist_ok=True)
         with atomic_write(job.report, "w") as fh:
             json.dump(report, fh, indent=1)
     return report

@@ -24,7 +24,7 @@ from ..wrap import MODELS, WrapSettings
 __all__ = ["main", "build_parser"]
 
 #: subcommands that live in their own module here, each with ``register(subparsers)``
-_COMMAND_MODULES = ("transfer", "evaluate", "report")
+_COMMAND_MODULES = ("transfer", "evaluate", "report", "run", "batch")
 
 
 def cmd_info(args) -> int:
@@ -95,7 +95,14 @@ def cmd_wrap(args) -> int:
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
                   report=args.report)
-    report = run_wrap_job(job, wrap_settings_from_args(args))
+    import warnings
+    from ..jobs import InputWarning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", InputWarning)
+        report = run_wrap_job(job, wrap_settings_from_args(args))
+    for w in caught:
+        if issubclass(w.category, InputWarning):
+            print(f"facewrap: warning: {w.message}", file=sys.stderr)
     if not args.quiet:
         m, t = report["metrics"], report["timings"]
         print(f"wrote {args.output}: {report['vertices']} vertices, model "

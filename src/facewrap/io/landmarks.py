@@ -50,6 +50,17 @@ __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
 _INT = re.compile(r"^[+-]?\d+$")
 
 
+#: Largest index a file may hold (int64); larger ones are errors, not overflows.
+_MAX_INDEX = 2**63 - 1
+
+
+def _bounded(value: int, path, line=None) -> int:
+    """An integer read from a file, checked to fit an int64 index."""
+    if abs(value) > _MAX_INDEX:
+        raise InputError(f"index {str(value)[:30]} is too large", path, line)
+    return value
+
+
 def _text(path) -> str:
     return read_file_bytes(path, text=True).decode("utf-8", errors="replace")
 
@@ -81,7 +92,7 @@ def read_vertex_indices(path, n_vertices: int | None = None) -> Landmarks:
         for tok in s.replace(",", " ").split():
             if not _INT.match(tok):
                 raise InputError(f"vertex index is not an integer: {tok!r}", path, no)
-            ids.append(int(tok))
+            ids.append(_bounded(int(tok), path, no))
             lines.append(no)
     if not ids:
         raise InputError("no vertex indices", path)
@@ -186,16 +197,25 @@ def read_ljson(path, ibug68: bool = True) -> Landmarks:
         if not isinstance(groups, dict) or not groups:
             raise InputError("LJSON has no 'groups'", path)
         group = groups.get("LJSON") or next(iter(groups.values()))
+        if not isinstance(group, dict) or not isinstance(group.get("landmarks", {}), dict):
+            raise InputError("LJSON group must be an object with 'landmarks'", path)
         raw = group.get("landmarks", {}).get("points")
         labels = group.get("labels", [])
+    if not isinstance(labels, list) or not all(isinstance(lab, dict) for lab in labels):
+        raise InputError("LJSON 'labels' must be a list of objects", path)
     if not isinstance(raw, list) or not raw:
         raise InputError("LJSON has no landmark points", path)
     if version in (1, 2) and raw and isinstance(raw[0], dict):
         raw = [p.get("point") for p in raw]
     for k, p in enumerate(raw):
-        if p is None or not isinstance(p, list) or len(p) != 3 or None in p:
+        if (not isinstance(p, list) or len(p) != 3
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           for x in p)):
             raise InputError(f"landmark {k} is missing or not an [x, y, z] point", path)
-    pts = np.asarray(raw, dtype=np.float64)
+    try:
+        pts = np.asarray(raw, dtype=np.float64)
+    except OverflowError:
+        raise InputError("landmark coordinate too large", path) from None
     if not np.isfinite(pts).all():
         raise InputError("NaN or infinite landmark coordinate", path)
     names = None
@@ -203,6 +223,9 @@ def read_ljson(path, ibug68: bool = True) -> Landmarks:
         names = [None] * len(pts)
         for lab in labels:
             mask = lab.get("mask", [])
+            if not isinstance(mask, list):
+                raise InputError(f"label {lab.get('label')!r}: 'mask' must be a list",
+                                 path)
             for k, i in enumerate(mask):
                 if not isinstance(i, int) or not 0 <= i < len(pts):
                     raise InputError(f"label {lab.get('label')!r} has a mask index "
@@ -283,6 +306,8 @@ def read_landmarks_json(path) -> Landmarks:
 def _nonneg_int(x) -> int:
     if isinstance(x, bool) or not isinstance(x, int) or x < 0:
         raise ValueError(f"index must be a non-negative integer, got {x!r}")
+    if x > _MAX_INDEX:
+        raise ValueError(f"index {str(x)[:30]} is too large")
     return x
 
 
@@ -355,11 +380,16 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
             raise InputError("not a facewrap marker file (\"format\": "
                              "\"facewrap.markers\" missing)", path)
         pairs = d.get("pairs")
+        if not isinstance(pairs, list) or not all(
+                isinstance(p, list) and all(isinstance(x, int) and not isinstance(x, bool)
+                                            for x in p) for p in pairs):
+            raise InputError("'pairs' must be a list of [source, target] integers",
+                             path)
         try:
             arr = np.asarray(pairs, dtype=np.int64)
-        except (TypeError, ValueError):
-            raise InputError("'pairs' must be a list of [source, target] integers",
-                             path) from None
+        except (TypeError, ValueError, OverflowError):
+            raise InputError("'pairs' must be a list of [source, target] integers "
+                             "(int64)", path) from None
         if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
             raise InputError("'pairs' must be a non-empty list of [source, target]", path)
         if (arr < 0).any():
@@ -371,7 +401,7 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
     if len(first_toks) == 1:
         if not _INT.match(first_toks[0]):
             raise InputError(f"not a marker count: {first_toks[0]!r}", path, rows[0][0])
-        expected = int(first_toks[0])
+        expected = _bounded(int(first_toks[0]), path, rows[0][0])
         rows = rows[1:]
     src, tgt = [], []
     for no, s in rows:
@@ -379,7 +409,7 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
         if len(toks) != 2 or not all(_INT.match(t) for t in toks):
             raise InputError(f"expected 'source_vertex target_vertex', found {s[:60]!r}",
                              path, no)
-        a, b = int(toks[0]), int(toks[1])
+        a, b = _bounded(int(toks[0]), path, no), _bounded(int(toks[1]), path, no)
         if a < 0 or b < 0:
             raise InputError("negative vertex id", path, no)
         src.append(a)
@@ -398,7 +428,8 @@ def _read_markers_yaml(path):
         d = yaml.safe_load(_text(path))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise InputError(f"invalid YAML: {getattr(exc, 'problem', exc)}", path,
+        problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise InputError(f"invalid YAML: {problem}", path,
                          None if mark is None else mark.line + 1) from None
     items = d.get("markers") if isinstance(d, dict) else None
     if not isinstance(items, list) or not items:
@@ -408,8 +439,8 @@ def _read_markers_yaml(path):
         m = re.match(r"^\s*(\d+)\s*[:,\s]\s*(\d+)\s*$", str(it))
         if not m:
             raise InputError(f"marker {k} is not 'source:target': {it!r}", path)
-        src.append(int(m.group(1)))
-        tgt.append(int(m.group(2)))
+        src.append(_bounded(int(m.group(1)), path))
+        tgt.append(_bounded(int(m.group(2)), path))
     return np.asarray(src, dtype=np.int64), np.asarray(tgt, dtype=np.int64)
 
 

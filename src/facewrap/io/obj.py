@@ -41,6 +41,8 @@ class _Lazy:
 
 def _read_bytes(path) -> bytes:
     data = read_file_bytes(path, text=True)
+    if b"\r" in data and b"\n" not in data:  # classic Mac line ends (CR only)
+        data = data.replace(b"\r", b"\n")
     if b"\\\n" in data:  # line continuation (rare): join, keeping byte offsets
         data = data.replace(b"\\\n", b"  ")
     if b"\n " in data or b"\n\t" in data or data[:1] in (b" ", b"\t"):
@@ -173,7 +175,11 @@ def _vertex_rows(rows: _Rows, path):
 def _parse_corners(rows: _Rows, path):
     """Face rows -> sizes (m,), and (c, 3) int64 [v, vt, vn] (0 where absent)."""
     original = rows.joined(blank=False)
-    fast = not any(x in original for x in (b"  ", b"\t", b" \n", b" \r", b"\r\n"))
+    raw = np.frombuffer(original, dtype=np.uint8)
+    # single spaces between corners and no control characters (which str.split and
+    # numpy's parser would treat differently)
+    fast = not (b"  " in original or b" \n" in original
+                or np.any((raw < 32) & (raw != 10)))
     fast = fast and not original.endswith(b" ")
     if fast:  # single spaces only: corners per face = spaces on the line
         spaces = np.flatnonzero(np.frombuffer(original, dtype=np.uint8) == 32)
@@ -277,8 +283,10 @@ def read_obj(path) -> Mesh:
         bad = (out < 0) | (out >= total)
         if bad.any():
             c = int(np.argmax(bad))
-            raise InputError(f"{what} index {idx[c]} out of range (the file has "
-                             f"{total})", path, corner_line(c))
+            shown = (f"{idx[c]} out of range" if abs(int(idx[c])) < np.iinfo(np.int64).max
+                     else "beyond the int64 range")
+            raise InputError(f"{what} index {shown} (the file has {total})", path,
+                             corner_line(c))
         return out
 
     if np.any(corner[:, 0] == 0):

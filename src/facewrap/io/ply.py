@@ -121,6 +121,9 @@ def _parse_header(data: bytes, path) -> _Header:
         toks = raw.split()
         if not toks or toks[0] == "obj_info":
             continue
+        if any(ord(c) < 32 and c not in "\t\r" for c in raw):
+            raise InputError("header line has control characters (binary data in the "
+                             "header?)", path, no)
         key = toks[0]
         if key == "comment":
             if len(toks) > 2 and toks[1].lower() == "texturefile" and texture is None:

@@ -39,6 +39,11 @@ class AffineModel(DeformationModel):
     """
 
     regularizer_names = ("smooth",)
+    # 12 unknowns per vertex make a sparse Cholesky slow (seconds per step on a
+    # 10k face); block-preconditioned CG capped at a few hundred iterations gives
+    # steps that the Levenberg–Marquardt test accepts
+    solver = "inexact"
+    param_block = 12
 
     def __init__(self, base, triangles, gamma: float = 1.0):
         self.base = np.asarray(base, dtype=np.float64)

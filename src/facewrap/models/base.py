@@ -34,6 +34,11 @@ class DeformationModel:
     n_params: int
     #: names of the regularisers this model returns (weights come from the schedule)
     regularizer_names: tuple = ()
+    #: linear solver of the Gauss–Newton steps ("cg" or "direct", see
+    #: :func:`facewrap.solve.gauss_newton_step`)
+    solver: str = "cg"
+    #: unknowns per node / vertex in the sparse block (preconditioner blocks)
+    param_block: int = 1
 
     def initial_params(self):
         raise NotImplementedError

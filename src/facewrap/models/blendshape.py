@@ -86,6 +86,7 @@ class BlendshapeModel(DeformationModel):
     """
 
     regularizer_names = ("blend",)
+    solver = "direct"  # a small dense system
 
     def __init__(self, base, deltas, *, scale: bool = True, pose: bool = True):
         self.base = np.asarray(base, dtype=np.float64)

@@ -261,6 +261,7 @@ class GraphModel(DeformationModel):
     """
 
     regularizer_names = ("smooth",)
+    param_block = 6
 
     def __init__(self, base, graph: DeformationGraph):
         self.base = np.asarray(base, dtype=np.float64)

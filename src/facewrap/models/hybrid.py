@@ -60,6 +60,7 @@ class HybridModel(DeformationModel):
     """
 
     regularizer_names = ("smooth", "blend")
+    param_block = 6
 
     def __init__(self, base, deltas, graph: DeformationGraph):
         self.base = np.asarray(base, dtype=np.float64)

@@ -1,0 +1,367 @@
+"""Benchmark: non-rigid ICP registration against ground truth (issue 4).
+
+* ICT-FaceKit cases (when ``../shared/data`` is present): ICT's neutral face region
+  (9,409 v, cm, 68 landmarks, 53 expression shapes) onto scans made from ICT with
+  another identity and an extreme expression, remeshed to another topology, with
+  noise, a hole, in mm and moved (see ``_nicp_cases.py``).
+* The built-in synthetic sample (jaw open, eyes shut, smile; noise, holes, crop).
+
+Methods, same inputs, one run each: facewrap ``rbf`` (SPEC §1 baseline), ``affine``,
+``graph``, ``blendshape``, ``hybrid``; peers ``trimesh.registration.nricp_amberg``
+and ``nricp_sumner`` (default steps, template pre-aligned by the same landmark
+similarity facewrap uses, landmarks as (triangle, barycentric) + target points);
+MeshMonk ``pyramid_register`` (rigid + pyramid non-rigid, defaults, same
+pre-alignment; it takes no landmarks) when ``meshmonk`` is importable.
+
+Also: runtime of the hybrid model vs the number of blendshapes, and the speed
+target (10k-vertex template onto a 200k-triangle scan, hybrid + 53 shapes).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import _nicp_cases as cases  # noqa: E402
+from facewrap.align import similarity_transform  # noqa: E402
+from facewrap.landmarks import pair_landmarks  # noqa: E402
+from facewrap.wrap import WrapSettings, wrap  # noqa: E402
+
+FACEWRAP_MODELS = ("rbf", "affine", "graph", "blendshape", "hybrid")
+PEERS = ("trimesh nricp_amberg", "trimesh nricp_sumner", "meshmonk pyramid")
+
+ICT_CASES = [
+    ("scream", "identity001", {"jawOpen": 1.0, "mouthStretch_L": 1.0,
+                               "mouthStretch_R": 1.0}),
+    ("eyes shut + smile", "identity002", {"eyeBlink_L": 1.0, "eyeBlink_R": 1.0,
+                                          "mouthSmile_L": 1.0, "mouthSmile_R": 1.0}),
+    ("pucker", "identity003", {"mouthPucker": 1.0, "mouthFunnel": 0.6}),
+]
+
+
+# -- helpers ---------------------------------------------------------------------
+def _errors(V, case) -> dict:
+    e = np.linalg.norm(np.asarray(V) - case.truth, axis=1)[case.mask]
+    return {"mean": float(e.mean()), "p95": float(np.percentile(e, 95))}
+
+
+def _prealign(case):
+    """The template moved by facewrap's own landmark similarity (same weights as
+    ``wrap``), the landmark pairs, and their targets."""
+    ia, ib = pair_landmarks(case.landmarks, case.scan_landmarks)
+    src = case.landmarks.positions(case.template)[ia]
+    dst = case.scan_landmarks.positions(case.scan)[ib]
+    try:
+        from facewrap.wrap import _alignment_weights
+        w = _alignment_weights(case.landmarks, ia)
+    except Exception:          # private helper: fall back to equal weights
+        w = None
+    T = similarity_transform(src, dst, weights=w)
+    return T.apply(case.template.vertices), ia, dst
+
+
+def _landmarks_as_barycentric(case, ia):
+    lm = case.landmarks
+    F = case.template.triangles
+    tri = np.empty(len(ia), dtype=np.int64)
+    bary = np.zeros((len(ia), 3))
+    for j, i in enumerate(ia):
+        if lm.vertex[i] >= 0:
+            hit = np.argwhere(F == lm.vertex[i])[0]
+            tri[j] = hit[0]
+            bary[j, hit[1]] = 1.0
+        else:
+            tri[j] = lm.triangle[i]
+            bary[j] = lm.barycentric[i]
+    return tri, bary
+
+
+def run_facewrap(case, model, blendshapes=None, scan_tree=None) -> dict:
+    shapes = blendshapes if blendshapes is not None else case.blendshapes
+    t = time.perf_counter()
+    res = wrap(case.template, case.scan, case.landmarks, case.scan_landmarks,
+               WrapSettings(model=model, project=True),
+               blendshapes=shapes if model in ("blendshape", "hybrid") else None,
+               scan_tree=scan_tree)
+    total = time.perf_counter() - t
+    out = {"method": f"facewrap {model}", "time": total, **_errors(res.vertices, case),
+           "unprojected": _errors(res.warped, case), "timings": dict(res.timings),
+           "iterations": len(res.history),
+           "history": [{k: v for k, v in h.items() if isinstance(v, (int, float, str))}
+                       for h in res.history]}
+    return out
+
+
+def run_peer(case, peer) -> dict:
+    import trimesh
+    V0, ia, dst = _prealign(case)
+    t = time.perf_counter()
+    src = trimesh.Trimesh(V0, case.template.triangles, process=False)
+    tgt = trimesh.Trimesh(case.scan.vertices, case.scan.triangles, process=False)
+    if peer == "trimesh nricp_amberg":
+        tri, bary = _landmarks_as_barycentric(case, ia)
+        V = trimesh.registration.nricp_amberg(src, tgt, source_landmarks=(tri, bary),
+                                              target_positions=dst)
+    elif peer == "trimesh nricp_sumner":
+        tri, bary = _landmarks_as_barycentric(case, ia)
+        V = trimesh.registration.nricp_sumner(src, tgt, source_landmarks=(tri, bary),
+                                              target_positions=dst)
+    elif peer == "meshmonk pyramid":
+        import meshmonk
+        meshmonk.set_log_level("error") if hasattr(meshmonk, "set_log_level") else None
+        V = meshmonk.pyramid_register(floating=src, target=tgt,
+                                      rigid_params={}).aligned_vertices
+    else:
+        raise ValueError(peer)
+    total = time.perf_counter() - t
+    return {"method": peer, "time": total, **_errors(V, case)}
+
+
+#: seconds a single method may run before it is stopped and reported as timed out
+TIME_LIMIT = float(os.environ.get("FACEWRAP_BENCH_NICP_LIMIT", 240))
+
+
+def _safe(fn, *args, method="?", **kw) -> dict:
+    """``fn(*args, **kw)`` in a forked child with :data:`TIME_LIMIT`; a failure or
+    a timeout is a result, not a crash."""
+    import multiprocessing as mp
+
+    def call():
+        try:
+            return fn(*args, **kw)
+        except Exception as exc:
+            traceback.print_exc()
+            return {"method": method, "error": f"{type(exc).__name__}: {exc}"[:200]}
+
+    try:
+        ctx = mp.get_context("fork")
+    except ValueError:           # no fork (Windows, macOS spawn): run inline
+        return call()
+    recv, send = ctx.Pipe(duplex=False)
+
+    def child():
+        send.send(call())
+
+    proc = ctx.Process(target=child, daemon=True)
+    proc.start()
+    send.close()
+    try:
+        if recv.poll(TIME_LIMIT):
+            out = recv.recv()
+        else:
+            out = {"method": method, "error": f"stopped after {TIME_LIMIT:.0f} s "
+                                              "(time limit)"}
+    except EOFError:
+        out = {"method": method, "error": f"child died (exit code {proc.exitcode})"}
+    proc.kill()
+    proc.join()
+    return out
+
+
+def _peers_available() -> list[str]:
+    out = ["trimesh nricp_amberg", "trimesh nricp_sumner"]
+    try:
+        import meshmonk  # noqa: F401
+        out.append("meshmonk pyramid")
+    except ImportError:
+        pass
+    return out
+
+
+def _log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def run_case(case, models=FACEWRAP_MODELS, peers=None, log=None) -> dict:
+    log = log or _log
+    rows = []
+    for m in models:
+        r = _safe(run_facewrap, case, m, method=f"facewrap {m}")
+        log(f"  {case.name}: {_row_text(r)}")
+        rows.append(r)
+    for p in (peers if peers is not None else _peers_available()):
+        r = _safe(run_peer, case, p, method=p)
+        log(f"  {case.name}: {_row_text(r)}")
+        rows.append(r)
+    return {"name": case.name, "note": case.note, "template_vertices":
+            case.template.n_vertices, "scan_triangles": len(case.scan.triangles),
+            "scan_vertices": case.scan.n_vertices, "mask": int(case.mask.sum()),
+            "rows": rows}
+
+
+def _row_text(r):
+    if "error" in r:
+        return f"{r['method']}: FAILED {r['error']}"
+    return f"{r['method']}: {r['mean']:.2f} / {r['p95']:.2f} mm, {r['time']:.1f} s"
+
+
+def _top_shapes(shapes: dict, k: int) -> dict:
+    """The k shapes that move the face most (deterministic)."""
+    neutral = cases.ict_template()[0].vertices
+    mag = {n: float(np.linalg.norm(v - neutral, axis=1).sum()) for n, v in shapes.items()}
+    names = sorted(shapes, key=lambda n: (-mag[n], n))[:k]
+    return {n: shapes[n] for n in names}
+
+
+def run(quick: bool = False, log=None) -> dict:
+    log = log or _log
+    load0 = os.getloadavg()
+    t_all = time.perf_counter()
+    out = {"cases": [], "scaling": None, "speed": None, "notes": []}
+    # the built-in sample
+    log("sample case")
+    out["cases"].append(run_case(cases.sample_case(), log=log))
+    if not cases.ict_available():
+        out["notes"].append("ICT-FaceKit sections skipped: ../shared/data/ict-facekit "
+                            "is absent.")
+    else:
+        specs = ICT_CASES[:1] if quick else ICT_CASES
+        ict = []
+        for name, ident, expr in specs:
+            log(f"ICT case {name}")
+            c = cases.ict_case(name, ident, expr)
+            ict.append(c)
+            out["cases"].append(run_case(c, log=log))
+        # runtime vs number of blendshapes (hybrid; 0 shapes = graph, see markdown)
+        c = ict[0]
+        rows = []
+        for k in (0, 10, 25, 53):
+            model = "hybrid" if k else "graph"
+            shapes = _top_shapes(c.blendshapes, k) if k else None
+            r = _safe(run_facewrap, c, model, blendshapes=shapes, method=model)
+            r["shapes"] = k
+            log(f"  scaling k={k}: {_row_text(r)}")
+            rows.append(r)
+        out["scaling"] = {"case": c.name, "rows": rows, **_fit_slope(rows)}
+        # speed target: 10k template onto a 200k-triangle scan
+        log("speed target")
+        name, ident, expr = ICT_CASES[0]
+        big = cases.ict_case(name + " 200k", ident, expr, n_triangles=200000)
+        r = _safe(run_facewrap, big, "hybrid", method="facewrap hybrid")
+        out["speed"] = {"case": big.name, "scan_triangles": len(big.scan.triangles),
+                        "template_vertices": big.template.n_vertices,
+                        "mask": int(big.mask.sum()), **r}
+    out["load"] = (load0, os.getloadavg())
+    out["seconds"] = time.perf_counter() - t_all
+    return out
+
+
+def _fit_slope(rows) -> dict:
+    ok = [r for r in rows if "error" not in r and r["shapes"] > 0]
+    if len(ok) < 2:
+        return {}
+    k = np.array([r["shapes"] for r in ok], float)
+    res = {}
+    for key, y in (("total", np.array([r["time"] for r in ok])),
+                   ("per_iteration", np.array([r["timings"].get("icp", np.nan) /
+                                               max(r["iterations"], 1) for r in ok]))):
+        A = np.c_[k, np.ones_like(k)]
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        pred = A @ coef
+        ss = ((y - y.mean()) ** 2).sum()
+        r2 = 1 - ((y - pred) ** 2).sum() / ss if ss > 0 else float("nan")
+        res[key] = {"slope": float(coef[0]), "intercept": float(coef[1]), "r2": float(r2)}
+    return res
+
+
+# -- markdown --------------------------------------------------------------------
+def _fmt(r, key, spec=".2f"):
+    return format(r[key], spec) if key in r else "—"
+
+
+def markdown(result: dict) -> str:
+    L = ["### Non-rigid ICP against ground truth (issue 4)", ""]
+    l0, l1 = result.get("load", ((0, 0, 0), (0, 0, 0)))
+    L.append(f"Machine load average at start / end: {l0[0]:.1f} / {l1[0]:.1f} "
+             f"({os.cpu_count()} cores; other work ran concurrently, so times are "
+             f"indicative). One run per method; total {result.get('seconds', 0):.0f} s.")
+    L.append("")
+    L.append("Error = ‖result − truth‖ per template vertex, in mm, over the vertices "
+             "whose true position lies on the scan (within 1 mm, closest triangle not "
+             "on the scan's border or hole). facewrap projects onto the scan at the end; "
+             "the error before projection is in brackets. Peers start from the same "
+             "landmark similarity as facewrap and get the same 68 landmarks (MeshMonk "
+             "takes none).")
+    L.append("")
+    for c in result["cases"]:
+        L.append(f"**{c['name']}** — {c['note']}; template {c['template_vertices']:,} v, "
+                 f"scan {c['scan_triangles']:,} triangles; error over "
+                 f"{c['mask']:,} vertices.")
+        L.append("")
+        L.append("| method | mean (mm) | p95 (mm) | time (s) | iterations |")
+        L.append("|---|---:|---:|---:|---:|")
+        for r in c["rows"]:
+            if "error" in r:
+                L.append(f"| {r['method']} | failed: {r['error']} | | | |")
+                continue
+            up = r.get("unprojected")
+            mean = f"{r['mean']:.2f}" + (f" ({up['mean']:.2f})" if up else "")
+            p95 = f"{r['p95']:.2f}" + (f" ({up['p95']:.2f})" if up else "")
+            L.append(f"| {r['method']} | {mean} | {p95} | {r['time']:.1f} | "
+                     f"{r.get('iterations', '—')} |")
+        L.append("")
+    for n in result.get("notes", []):
+        L += [f"_{n}_", ""]
+    sc = result.get("scaling")
+    if sc:
+        L += [f"**Runtime vs number of blendshapes** (hybrid, ICT face 9,409 v onto the "
+              f"'{sc['case']}' scan; the k shapes that move the face most; k = 0 is the "
+              "graph model, since the hybrid needs shapes)", "",
+              "| shapes | total (s) | model setup (s) | ICP (s) | iterations | "
+              "s / iteration | mean / p95 (mm) |", "|---:|---:|---:|---:|---:|---:|---:|"]
+        for r in sc["rows"]:
+            if "error" in r:
+                L.append(f"| {r['shapes']} | failed: {r['error']} | | | | | |")
+                continue
+            t = r["timings"]
+            L.append(f"| {r['shapes']} | {r['time']:.1f} | {t.get('model_setup', 0):.2f} | "
+                     f"{t.get('icp', 0):.1f} | {r['iterations']} | "
+                     f"{t.get('icp', 0) / max(r['iterations'], 1):.3f} | "
+                     f"{r['mean']:.2f} / {r['p95']:.2f} |")
+        L.append("")
+        for key, label in (("total", "total time"), ("per_iteration", "time per iteration")):
+            if key in sc:
+                f = sc[key]
+                L.append(f"- {label}: slope {f['slope']:.4f} s per shape, intercept "
+                         f"{f['intercept']:.3f} s, R² {f['r2']:.3f} (fit over k = 10, 25, 53)")
+        L.append("")
+    sp = result.get("speed")
+    if sp:
+        L.append(f"**Speed target** (≤ 3 s): ICT face ({sp['template_vertices']:,} v) onto "
+                 f"a {sp['scan_triangles']:,}-triangle scan, hybrid + 53 shapes.")
+        L.append("")
+        if "error" in sp:
+            L.append(f"Failed: {sp['error']}")
+        else:
+            t = sp["timings"]
+            keys = [k for k in ("setup", "align", "model_setup", "icp", "project")
+                    if k in t]
+            L.append("| total (s) | " + " | ".join(f"{k} (s)" for k in keys) +
+                     " | iterations | s / iteration (median, max) | mean / p95 (mm) |")
+            L.append("|---:|" + "---:|" * len(keys) + "---:|---:|---:|")
+            secs = [h["seconds"] for h in sp["history"] if "seconds" in h]
+            per = (f"{np.median(secs):.3f}, {max(secs):.3f}" if secs else "—")
+            L.append(f"| {sp['time']:.2f} | " + " | ".join(f"{t[k]:.2f}" for k in keys) +
+                     f" | {sp['iterations']} | {per} | {sp['mean']:.2f} / {sp['p95']:.2f} |")
+            stages = {}
+            for h in sp["history"]:
+                key = (h.get("model", "?"), h.get("stage", "?"))
+                n, s = stages.get(key, (0, 0.0))
+                stages[key] = (n + 1, s + h.get("seconds", 0.0))
+            L.append("")
+            L.append("Per stage: " + "; ".join(f"{m} stage {st}: {n} it, {s:.2f} s"
+                                               for (m, st), (n, s) in stages.items()))
+        L.append("")
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    quick = "--quick" in sys.argv
+    print(markdown(run(quick=quick)))

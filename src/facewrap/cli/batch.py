@@ -1,0 +1,101 @@
+"""``facewrap batch MANIFEST``: many wrap jobs, in parallel, resumable (parsing only).
+
+Manifests, job files, done-records and summaries are :mod:`facewrap.batch`'s.
+Exit status: 0 when every job is done (or was already), 1 when some job failed,
+2 when the manifest or job file is wrong (nothing runs then).
+``python -m facewrap.cli.batch ARGS`` is ``facewrap batch ARGS``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from ..errors import InputError
+
+__all__ = ["register", "cmd_batch", "main"]
+
+
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return n
+
+
+def cmd_batch(args) -> int:
+    """Read the manifest, run (or list) its jobs, write the summary."""
+    from ..batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
+                         run_batch, summary_stem, _record_matches)
+    jobs = read_manifest(args.manifest, job_file=args.job)
+    if args.dry_run:
+        for bj in jobs:
+            done = _record_matches(read_done_record(bj.job), fingerprint(bj.job,
+                                                                        bj.settings))
+            print(f"{bj.index + 1:>4} {'finished' if done else 'to run':<8} {bj.name}: "
+                  f"{bj.job.scan} -> {bj.job.output}")
+        return 0
+    total, seen = len(jobs), [0]
+
+    def progress(row):
+        seen[0] += 1
+        if row["status"] == FAILED:
+            print(f"facewrap: job {row['name']} failed: {row['error']}", file=sys.stderr)
+        elif not args.quiet:
+            extra = "" if row["status"] == SKIPPED else f" ({row['seconds']:.1f} s)"
+            print(f"[{seen[0]}/{total}] {row['status']} {row['name']}{extra}", flush=True)
+
+    stem = summary_stem(args.manifest, args.summary)
+    result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
+                       on_result=progress, manifest=os.path.abspath(args.manifest))
+    counts = ", ".join(f"{result.count(s)} {s}" for s in ("done", "skipped", "failed"))
+    if not args.quiet or not result.ok:
+        print(f"{counts}; summary: {result.csv_path}", file=sys.stdout if result.ok
+              else sys.stderr)
+    return 0 if result.ok else 1
+
+
+def register(subparsers) -> None:
+    """Add ``batch`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser(
+        "batch", help="run many wrap jobs from a manifest (CSV or TOML), resumable",
+        description="Run the jobs of a manifest (CSV: scan, scan_landmarks, output "
+                    "and optional override columns; or TOML [[jobs]]) with the "
+                    "settings of a shared job file, in parallel. Finished jobs leave "
+                    "OUTPUT.done.json; re-running skips them. A failed job is "
+                    "reported in the summary and does not stop the others.")
+    p.add_argument("manifest", metavar="MANIFEST", help="manifest (.csv or .toml)")
+    p.add_argument("--job", metavar="JOB.toml",
+                   help="shared job file (template, landmarks, [wrap] settings)")
+    p.add_argument("--workers", type=_positive, default=None, metavar="N",
+                   help="jobs at once (default: one per core; 1 = in this process)")
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="run on a Dask cluster: a scheduler address, or 'local' for a "
+                        "local cluster of --workers processes")
+    p.add_argument("--summary", metavar="DIR",
+                   help="folder of the summary (MANIFEST.summary.csv/.json; default: "
+                        "the manifest's folder)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="list the jobs and which are already finished; run nothing")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_batch)
+
+
+def main(argv=None) -> int:
+    """``facewrap batch`` on its own (``python -m facewrap.cli.batch``)."""
+    parser = argparse.ArgumentParser(prog="facewrap")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["batch", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"facewrap: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

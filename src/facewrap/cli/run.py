@@ -1,0 +1,73 @@
+"""``facewrap run JOB.toml``: run the wrap a job file describes (parsing only).
+
+The job file format is :mod:`facewrap.pipeline`'s; ``--write-template`` writes a
+commented job file with every key to start from, ``--dry-run`` checks a job file
+and its inputs and prints the job as resolved (absolute paths, every setting)
+without writing anything.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+from ..errors import InputError
+
+__all__ = ["register", "cmd_run"]
+
+
+def _print_warnings(caught) -> None:
+    for w in caught:
+        print(f"facewrap: warning: {w.message}", file=sys.stderr)
+
+
+def cmd_run(args) -> int:
+    """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
+    from ..jobs import InputWarning, job_inputs, run_wrap_job
+    from ..pipeline import job_to_toml, load_job, write_job
+    if args.write_template:
+        if os.path.exists(args.job) and not args.force:
+            raise InputError("already exists (use --force to replace it)", args.job)
+        write_job(args.job)
+        if not args.quiet:
+            print(f"wrote {args.job}")
+        return 0
+    job, settings = load_job(args.job)
+    if args.dry_run:
+        for p in job_inputs(job):
+            if not os.path.exists(p):
+                raise InputError(f"no such file: {p}", args.job)
+        print(job_to_toml(job, settings, header=f"{args.job}, resolved (dry run: "
+                                                "nothing written)"), end="")
+        return 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", InputWarning)
+        report = run_wrap_job(job, settings)
+    _print_warnings(w for w in caught if issubclass(w.category, InputWarning))
+    if not args.quiet:
+        m, t = report["metrics"], report["timings"]
+        print(f"wrote {job.output}: {report['vertices']} vertices, model "
+              f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
+              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
+              f"{t['total']:.2f} s")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``run`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser(
+        "run", help="run a wrap described by a TOML job file",
+        description="Run the wrap a TOML job file describes (inputs, outputs and "
+                    "[wrap] settings; paths relative to the file). Start from "
+                    "`facewrap run --write-template job.toml`.")
+    p.add_argument("job", metavar="JOB.toml", help="job file")
+    p.add_argument("--dry-run", action="store_true",
+                   help="check the job file and its inputs, print the resolved job, "
+                        "write nothing")
+    p.add_argument("--write-template", action="store_true",
+                   help="write a commented job file with every key to JOB.toml")
+    p.add_argument("--force", action="store_true",
+                   help="with --write-template: replace an existing file")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_run)
