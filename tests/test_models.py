@@ -163,10 +163,11 @@ def test_blendshape_and_rigid_jacobians(face):
     assert rigid.regularizers(pr) == {}
 
 
-def test_affine_jacobian_and_identity(face):
+def test_affine_jacobian_and_identity():
     rng = np.random.default_rng(4)
-    t, base, _, _, _ = face
-    model = AffineModel(base, t.mesh.triangles)
+    V, T = folded_strip(n=8)   # small: the dense Jacobian check is (3n, 12n)
+    base = V
+    model = AffineModel(base, T)
     X = model.initial_params()
     assert np.allclose(model.vertices(X), base)
     assert np.allclose(model.regularizer_residuals(X)["smooth"], 0)

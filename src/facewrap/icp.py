@@ -58,12 +58,19 @@ class Stage:
     data_weight : float
         Weight of the data term (0: landmarks and regularisers only, e.g. a
         first landmark-driven stage).
+    robust_scale : float
+        Floor of the robust norm's scale σ in this stage, as a fraction of the
+        template's size.  Early stages keep it large so that parts of the
+        template still far from the scan are pulled in, not written off as
+        outliers; σ otherwise follows the data (a multiple of the median
+        distance).
     """
     iterations: int = 10
     stiffness: float = 1.0
     landmark_weight: float = 1.0
     blend_weight: float = 1e-6
     data_weight: float = 1.0
+    robust_scale: float = 0.0
 
 
 def default_schedule(model: str) -> list[Stage]:
@@ -91,15 +98,18 @@ def default_schedule(model: str) -> list[Stage]:
     if model == "hybrid":
         return [Stage(iterations=4, stiffness=100.0, landmark_weight=1.0,
                       blend_weight=1e-8, data_weight=0.0),
-                Stage(iterations=5, stiffness=10.0, landmark_weight=0.5, blend_weight=1e-8),
-                Stage(iterations=5, stiffness=1.0, landmark_weight=0.2, blend_weight=1e-8),
-                Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, blend_weight=1e-8),
+                Stage(iterations=5, stiffness=10.0, landmark_weight=0.5, blend_weight=1e-8,
+                      robust_scale=0.02),
+                Stage(iterations=5, stiffness=1.0, landmark_weight=0.2, blend_weight=1e-8,
+                      robust_scale=0.01),
+                Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, blend_weight=1e-8,
+                      robust_scale=0.005),
                 Stage(iterations=5, stiffness=0.03, landmark_weight=0.1, blend_weight=1e-8)]
     # graph
     return [Stage(iterations=4, stiffness=1.0, landmark_weight=1.0, data_weight=0.0),
-            Stage(iterations=5, stiffness=1.0, landmark_weight=0.5),
-            Stage(iterations=5, stiffness=0.3, landmark_weight=0.2),
-            Stage(iterations=5, stiffness=0.1, landmark_weight=0.1),
+            Stage(iterations=5, stiffness=1.0, landmark_weight=0.5, robust_scale=0.02),
+            Stage(iterations=5, stiffness=0.3, landmark_weight=0.2, robust_scale=0.01),
+            Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, robust_scale=0.005),
             Stage(iterations=5, stiffness=0.03, landmark_weight=0.1)]
 
 
@@ -274,7 +284,7 @@ class NonRigidICP:
                         raise ValueError("no template vertex found a valid scan point: "
                                          "is the scan aligned with the template?")
                     sigma = max(self.robust_factor * float(np.median(corr.distances)),
-                                self.min_scale)
+                                stage.robust_scale, self.min_scale)
                     rw = robust_weights(corr.distances, sigma, self.robust)
                 energy_of = self._energy_function(model, stage, corr, rw if corr else None,
                                                   landmark_matrix, landmark_targets, has_lm)
