@@ -13,6 +13,7 @@ each stage, timings and fit metrics; nothing here reads or writes files.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -179,7 +180,8 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
          exclude=None, blendshapes=None,
-         scan_tree: ClosestPointTree | None = None) -> WrapResult:
+         scan_tree: ClosestPointTree | None = None,
+         initial: WrapResult | None = None) -> WrapResult:
     """Fit ``template`` to ``scan``.
 
     Parameters
@@ -199,6 +201,10 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         "blendshape" and "hybrid" models.
     scan_tree : ClosestPointTree, optional
         Reuse a tree already built on the scan.
+    initial : WrapResult, optional
+        A previous result of the same template (the previous frame of a
+        sequence): its similarity replaces the landmark alignment and its blend
+        weights start the fit.
 
     Returns
     -------
@@ -236,8 +242,12 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     timings["setup"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    T = similarity_transform(src, dst, weights=_alignment_weights(template_landmarks, ia),
-                             scale=s.scale)
+    if initial is not None:
+        T = initial.transform
+    else:
+        T = similarity_transform(src, dst,
+                                 weights=_alignment_weights(template_landmarks, ia),
+                                 scale=s.scale)
     if s.rigid_refine:
         T = rigid_icp(template.vertices[~excluded], tree, init=T,
                       max_distance=0.05 * scan.scale()).transform
@@ -251,8 +261,9 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         warp = RBFWarp(kernel=s.kernel, smoothing=s.smoothing).fit(lm_now, dst - lm_now)
         V = warp.transform(V)
     elif s.model in NONRIGID_MODELS:
+        w_init = None if initial is None else initial.weights
         fitted = _nonrigid_icp(template, V, T, tree, template_landmarks.subset(ia), dst,
-                               s, excluded, blendshapes)
+                               s, excluded, blendshapes, w_init)
         V, history, weights, names, timings["model_setup"] = fitted
     timings["warp" if s.model == "rbf" else "icp"] = time.perf_counter() - t
 
@@ -289,7 +300,27 @@ def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
     return np.where(moving, 0.05, 1.0)
 
 
-def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes):
+_GRAPHS: "weakref.WeakKeyDictionary[Mesh, dict]" = weakref.WeakKeyDictionary()
+
+
+def _template_graph(template: Mesh, spacing: float):
+    """The deformation graph of a template, built once per template and spacing.
+
+    Nodes and skinning depend only on the template's surface (geodesic
+    distances in the normalised frame, which a similarity does not change), so
+    every scan of a batch or frame of a sequence reuses it.
+    """
+    per_template = _GRAPHS.setdefault(template, {})
+    if spacing not in per_template:
+        V = template.vertices
+        size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+        per_template[spacing] = build_graph((V - V.mean(axis=0)) / size,
+                                            template.triangles, spacing=spacing)
+    return per_template[spacing]
+
+
+def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes,
+                  w_init=None):
     """Non-rigid ICP from the similarity-aligned template ``V``.
 
     Returns (vertices, history, blend weights or None, shape names, setup seconds).
@@ -312,8 +343,9 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
     max_distance = (s.max_distance / size if s.max_distance else 0.05)
 
     def engine(model_name):
-        return NonRigidICP(default_schedule(model_name) if model_name == "rigid"
-                           or not s.stages else s.stages,
+        # the user's stages are for the main model; the coarse pre-fit keeps its own
+        return NonRigidICP(s.stages if s.stages and model_name == s.model
+                           else default_schedule(model_name),
                            point_weight=s.point_weight, robust=s.robust,
                            max_distance=max_distance, max_normal_angle=s.max_normal_angle,
                            reject_boundary=s.reject_boundary)
@@ -332,7 +364,10 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
             pre = BlendshapeModel(base, deltas, scale=s.scale)
         else:
             pre = RigidModel(base, scale=s.scale)
-        coarse = fit(pre, "blendshape" if s.model == "hybrid" else "rigid")
+        p_init = None
+        if s.model == "hybrid" and w_init is not None and len(w_init) == deltas.shape[1]:
+            p_init = BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.asarray(w_init))
+        coarse = fit(pre, "blendshape" if s.model == "hybrid" else "rigid", p_init)
         history += [dict(h, model="pre-" + ("blendshape" if s.model == "hybrid"
                                             else "rigid")) for h in coarse.history_]
         p0 = coarse.params_
@@ -343,7 +378,7 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
             deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * len(V), -1)
             w0 = p0.w
     if s.model in ("graph", "hybrid"):
-        graph = build_graph(base, template.triangles, spacing=s.node_spacing)
+        graph = _template_graph(template, s.node_spacing)
     if s.model == "affine":
         model = AffineModel(base, template.triangles)
     elif s.model == "graph":

@@ -24,7 +24,7 @@ from ..wrap import MODELS, WrapSettings
 __all__ = ["main", "build_parser"]
 
 #: subcommands that live in their own module here, each with ``register(subparsers)``
-_COMMAND_MODULES = ("transfer", "evaluate", "report", "run", "batch")
+_COMMAND_MODULES = ("track", "transfer", "evaluate", "report", "run", "batch")
 
 
 def cmd_info(args) -> int:
@@ -141,6 +141,35 @@ def cmd_demo(args) -> int:
     return run_demo(Path(args.out), verbose=not args.quiet)
 
 
+def add_fit_options(p) -> None:
+    """The fitting options shared by ``wrap`` and ``track`` (see WrapSettings)."""
+    p.add_argument("--blendshapes", metavar="DIR",
+                   help="folder of meshes in the template's topology (shape = file - "
+                        "template)")
+    p.add_argument("--model", default="auto", choices=list(MODELS),
+                   help="deformation model (default: hybrid with --blendshapes, "
+                        "else graph)")
+    p.add_argument("--exclude", help="template vertex ids not to fit (they follow)")
+    p.add_argument("--node-spacing", type=float, default=WrapSettings.node_spacing,
+                   help="graph node spacing, fraction of template size (default "
+                        "%(default)s)")
+    p.add_argument("--robust", default=WrapSettings.robust,
+                   choices=["welsch", "huber", "geman_mcclure", "none"],
+                   help="robust norm of the data term (default %(default)s)")
+    p.add_argument("--pca-components", type=int, default=None,
+                   help="fit this many PCA components of the blendshapes")
+    p.add_argument("--kernel", default="biharmonic",
+                   choices=["biharmonic", "thin_plate", "exponential", "gaussian"],
+                   help="RBF kernel of the landmark warp")
+    p.add_argument("--smoothing", type=float, default=0.0,
+                   help="RBF smoothing for noisy landmarks (default 0)")
+    p.add_argument("--max-distance", type=float, default=None,
+                   help="longest projection move (default 5%% of template size)")
+    p.add_argument("--no-project", action="store_true", help="skip the projection")
+    p.add_argument("--rigid-refine", action="store_true",
+                   help="refine the alignment with rigid ICP")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="facewrap",
@@ -171,31 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="template vertex ids (text) or facewrap landmark JSON")
     p.add_argument("--scan-landmarks", required=True,
                    help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
-    p.add_argument("--blendshapes", metavar="DIR",
-                   help="folder of meshes in the template's topology (shape = file - "
-                        "template)")
-    p.add_argument("--model", default="auto", choices=list(MODELS),
-                   help="deformation model (default: hybrid with --blendshapes, "
-                        "else graph)")
-    p.add_argument("--exclude", help="template vertex ids not to fit (they follow)")
-    p.add_argument("--node-spacing", type=float, default=WrapSettings.node_spacing,
-                   help="graph node spacing, fraction of template size (default "
-                        "%(default)s)")
-    p.add_argument("--robust", default=WrapSettings.robust,
-                   choices=["welsch", "huber", "geman_mcclure", "none"],
-                   help="robust norm of the data term (default %(default)s)")
-    p.add_argument("--pca-components", type=int, default=None,
-                   help="fit this many PCA components of the blendshapes")
-    p.add_argument("--kernel", default="biharmonic",
-                   choices=["biharmonic", "thin_plate", "exponential", "gaussian"],
-                   help="RBF kernel of the landmark warp")
-    p.add_argument("--smoothing", type=float, default=0.0,
-                   help="RBF smoothing for noisy landmarks (default 0)")
-    p.add_argument("--max-distance", type=float, default=None,
-                   help="longest projection move (default 5%% of template size)")
-    p.add_argument("--no-project", action="store_true", help="skip the projection")
-    p.add_argument("--rigid-refine", action="store_true",
-                   help="refine the alignment with rigid ICP")
+    add_fit_options(p)
     p.add_argument("--texture", help="scan texture image to bake into the template UVs")
     p.add_argument("--texture-size", type=int, default=1024)
     p.add_argument("--report", help="write metrics and timings as JSON")

@@ -1,0 +1,99 @@
+"""``facewrap track``: register a 4D sequence of scans (parsing and calling only).
+
+Outputs in ``OUT``: ``frame_0000.obj``… in the template's exact topology,
+``weights.csv`` (blend weights per frame) and ``track.json`` (fit and landmark
+errors over time, iterations, seconds).  See :mod:`facewrap.track`.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = ["register", "cmd_track"]
+
+_MESH_SUFFIXES = (".obj", ".ply")
+
+
+def _scan_paths(items) -> list[Path]:
+    """Scans from files and/or folders (a folder gives its meshes in name order)."""
+    paths = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in _MESH_SUFFIXES)
+            if not found:
+                raise InputError("holds no OBJ or PLY scans", p)
+            paths += found
+        else:
+            paths.append(p)
+    return paths
+
+
+def cmd_track(args) -> int:
+    """Track the template through the scans and write the sequence."""
+    from ..io import read_mesh
+    from ..io.landmarks import read_landmarks, read_vertex_indices
+    from ..track import track, write_track_outputs
+    from .__init__ import wrap_settings_from_args
+    template = read_mesh(args.template)
+    scans = _scan_paths(args.scans)
+    if len(args.scan_landmarks) not in (1, len(scans)):
+        raise InputError(f"give scan landmarks for the first frame or for all "
+                         f"{len(scans)} frames, not {len(args.scan_landmarks)}",
+                         args.scan_landmarks[0])
+    tl = read_landmarks(args.template_landmarks, kind="auto")
+    try:
+        tl.check(template.n_vertices, len(template.triangles))
+    except ValueError as exc:
+        raise InputError(str(exc), args.template_landmarks) from None
+    meshes = [read_mesh(p) for p in scans]
+    lms = [read_landmarks(p, kind="points") for p in args.scan_landmarks]
+    for path, lm in zip(args.scan_landmarks, lms):
+        if (tl.names is None or lm.names is None) and len(lm) != len(tl):
+            raise InputError(f"has {len(lm)} landmarks but the template landmarks have "
+                             f"{len(tl)}", path)
+    lms += [None] * (len(meshes) - len(lms))
+    shapes = None
+    if args.blendshapes:
+        from ..datasets import load_shape_folder
+        shapes = load_shape_folder(args.blendshapes, template, exclude=())
+    exclude = None
+    if args.exclude:
+        exclude = read_vertex_indices(args.exclude, n_vertices=template.n_vertices).vertex
+
+    def say(i, result):
+        if not args.quiet:
+            m = result.metrics
+            print(f"frame {i}: fit mean {m['fit_mean']:.4g}, landmarks mean "
+                  f"{m['landmark_mean']:.4g}, {result.timings['total']:.2f} s",
+                  file=sys.stderr)
+
+    result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
+                   blendshapes=shapes, exclude=exclude, progress=say)
+    paths = write_track_outputs(
+        args.out, result,
+        extra_report={"template": str(args.template), "scans": [str(p) for p in scans],
+                      "shape_names": result.shape_names})
+    if not args.quiet:
+        print(f"wrote {len(paths['meshes'])} frames to {args.out}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``track`` to the ``facewrap`` subcommands."""
+    from .__init__ import add_fit_options
+    p = subparsers.add_parser(
+        "track", help="register a sequence of scans (4D), each frame from the last")
+    p.add_argument("template", help="template mesh (OBJ/PLY)")
+    p.add_argument("scans", nargs="+", help="scan files in frame order, or a folder")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+    p.add_argument("--template-landmarks", required=True,
+                   help="template vertex ids (text) or facewrap landmark JSON")
+    p.add_argument("--scan-landmarks", required=True, nargs="+", metavar="F",
+                   help="landmarks of the first frame, or one file per frame")
+    add_fit_options(p)
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_track)

@@ -1,0 +1,177 @@
+"""4D tracking: register a sequence of scans of one performer, frame after frame.
+
+Frame 0 is a normal :func:`~facewrap.wrap.wrap` (it needs landmarks).  Every
+later frame starts from the previous result: its similarity replaces the
+landmark alignment and its blend weights start the fit (see
+:func:`tracking_schedule`).  Where a frame has no landmarks of its own, the
+previous result's landmark positions moved onto the new scan (closest points)
+stand in for them, with a small weight.
+
+:func:`track` returns a :class:`TrackResult` with one :class:`~facewrap.wrap.WrapResult`
+per frame, the per-frame blend weights and the fit over time;
+:func:`write_track_outputs` writes the numbered OBJ sequence, the weights as
+CSV and a JSON report.
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .geometry import ClosestPointTree
+from .icp import Stage, default_schedule
+from .landmarks import Landmarks
+from .mesh import Mesh
+from .wrap import WrapResult, WrapSettings, wrap
+
+__all__ = ["TrackResult", "track", "tracking_schedule", "write_track_outputs"]
+
+
+def tracking_schedule(model: str, landmarks_given: bool) -> list[Stage]:
+    """The schedule of frames after the first.
+
+    The model's default schedule without its landmark-only first stage (the
+    warm start is already close).  Landmarks moved over from the previous frame
+    would hold the face where it *was*, so when a frame has no landmarks of its
+    own they only guard against gross failure (weight × 0.05) and the scan
+    surface drives the fit.
+    """
+    stages = [st for st in default_schedule(model) if st.data_weight > 0]
+    if not landmarks_given:
+        stages = [replace(st, landmark_weight=0.05 * st.landmark_weight) for st in stages]
+    return stages
+
+
+@dataclass
+class TrackResult:
+    """Outcome of :func:`track`.
+
+    Attributes
+    ----------
+    frames : list of WrapResult
+    weights : (F, K) float64 or None
+        Blend weights per frame (blendshape / hybrid models).
+    shape_names : list of str
+    landmarks_given : (F,) bool
+        Whether each frame had its own landmarks (else they were propagated).
+    """
+    frames: list
+    weights: np.ndarray | None
+    shape_names: list
+    landmarks_given: np.ndarray
+
+    def summary(self) -> list[dict]:
+        """Per-frame numbers (fit, landmarks, iterations, seconds)."""
+        out = []
+        for i, r in enumerate(self.frames):
+            row = {"frame": i, "landmarks_given": bool(self.landmarks_given[i]),
+                   "iterations": len(r.history), "seconds": r.timings.get("total")}
+            row.update({k: v for k, v in r.metrics.items() if not isinstance(v, dict)})
+            out.append(row)
+        return out
+
+
+def _propagated_landmarks(previous: WrapResult, template_landmarks: Landmarks,
+                          tree: ClosestPointTree) -> Landmarks:
+    """The previous frame's landmarks moved onto this frame's scan."""
+    P = template_landmarks.positions(previous.mesh)
+    return Landmarks.from_points(tree.query(P).points, names=template_landmarks.names)
+
+
+def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
+          settings: WrapSettings | None = None, *, blendshapes=None, exclude=None,
+          progress=None) -> TrackResult:
+    """Register ``template`` to every scan of a sequence.
+
+    Parameters
+    ----------
+    template : Mesh
+    scans : sequence of Mesh
+        The frames, in order.
+    template_landmarks : Landmarks
+    scan_landmarks : sequence of (Landmarks or None)
+        One entry per frame; the first must be given, the others may be None.
+    settings : WrapSettings, optional
+        For the first frame; later frames use :func:`tracking_schedule` unless
+        ``settings.stages`` is set.
+    blendshapes : dict name -> (n, 3), optional
+    exclude : vertex ids or mask, optional
+    progress : callable(frame_index, WrapResult), optional
+        Called after each frame.
+
+    Returns
+    -------
+    TrackResult
+    """
+    scans = list(scans)
+    scan_landmarks = list(scan_landmarks)
+    if not scans:
+        raise ValueError("track needs at least one scan")
+    if len(scan_landmarks) != len(scans):
+        raise ValueError(f"{len(scans)} scans but {len(scan_landmarks)} landmark entries")
+    if scan_landmarks[0] is None:
+        raise ValueError("the first frame needs landmarks")
+    s0 = settings or WrapSettings()
+    frames, given = [], []
+    previous = None
+    for i, scan in enumerate(scans):
+        tree = ClosestPointTree(scan.vertices, scan.triangles)
+        lm = scan_landmarks[i]
+        given.append(lm is not None)
+        if previous is None:
+            result = wrap(template, scan, template_landmarks, lm, s0, exclude=exclude,
+                          blendshapes=blendshapes, scan_tree=tree)
+        else:
+            if lm is None:
+                lm = _propagated_landmarks(previous, template_landmarks, tree)
+            model = previous.settings.model
+            s = replace(s0, model=model,
+                        stages=s0.stages or tracking_schedule(model, given[-1]))
+            result = wrap(template, scan, template_landmarks, lm, s, exclude=exclude,
+                          blendshapes=blendshapes, scan_tree=tree, initial=previous)
+        frames.append(result)
+        if progress is not None:
+            progress(i, result)
+        previous = result
+    weights = None
+    if frames[0].weights is not None:
+        weights = np.stack([r.weights for r in frames])
+    return TrackResult(frames, weights, list(frames[0].shape_names), np.array(given))
+
+
+def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
+                        extra_report: dict | None = None) -> dict:
+    """Write ``prefix_0000.obj``…, ``weights.csv`` and ``track.json`` into ``folder``.
+
+    Each file is written atomically.  Returns the paths written.
+    """
+    from .io import write_mesh
+    from .io.atomic import atomic_write
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    width = max(4, len(str(len(result.frames) - 1)))
+    meshes = []
+    for i, r in enumerate(result.frames):
+        path = folder / f"{prefix}_{i:0{width}d}.obj"
+        write_mesh(path, r.mesh)
+        meshes.append(path)
+    paths = {"meshes": meshes}
+    if result.weights is not None:
+        buf = _io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["frame", *result.shape_names])
+        for i, row in enumerate(result.weights):
+            w.writerow([i, *(f"{x:.6f}" for x in row)])
+        with atomic_write(folder / "weights.csv", "w") as fh:
+            fh.write(buf.getvalue())
+        paths["weights"] = folder / "weights.csv"
+    report = {"frames": result.summary(), **(extra_report or {})}
+    with atomic_write(folder / "track.json", "w") as fh:
+        json.dump(report, fh, indent=1)
+    paths["report"] = folder / "track.json"
+    return paths
