@@ -295,3 +295,22 @@ def test_cat_to_lion_against_sumners_result():
     out = dt.transfer(np.stack(s.poses))
     err = np.linalg.norm(out - np.stack(t.poses), axis=2).mean(axis=1) / t.reference.scale()
     assert err.max() < 0.035 and err.mean() < 0.02
+
+
+def test_precomputed_rhs_map_matches_gradient_blocks(pair):
+    """The one sparse right-hand-side map equals Gₜᵀ applied to the summed source
+    gradient blocks (the textbook assembly), for a stack of poses and one by one."""
+    from facewrap.transfer.transfer import extend_poses, source_gradient_blocks
+    face, scan, _, shapes, corr = pair
+    dt = DeformationTransfer(anchor=0).fit(face, scan, corr)
+    P = np.stack(list(shapes.values())[:3])
+    k, op, n = len(P), dt._target_op, scan.n_vertices
+    blocks = source_gradient_blocks(dt._source_op, P)                  # (k, ts, 9)
+    B = np.stack([dt._pairs @ b for b in blocks]).reshape(k, op.n_triangles, 3, 3)
+    rhs = np.asarray(op.matrix.T @ B.transpose(1, 2, 0, 3).reshape(3 * op.n_triangles, 3 * k))
+    rhs = rhs[:n] - dt._Hvf_dff @ rhs[n:]
+    np.testing.assert_allclose(dt._rhs_map @ extend_poses(dt._source_op, P), rhs,
+                               atol=1e-9 * np.abs(rhs).max())
+    together = dt.transfer(P)
+    for j in range(k):
+        np.testing.assert_allclose(together[j], dt.transfer(P[j]), atol=1e-9)

@@ -30,10 +30,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from .geometry import ClosestPointTree, vertex_normals
 from .solve import gauss_newton_step
-from .terms import landmark_term, point_to_plane, point_to_point, robust_weights
+from .terms import landmark_term, point_and_plane, robust_weights
 
 __all__ = ["Stage", "default_schedule", "NonRigidICP", "Correspondences",
            "find_correspondences"]
@@ -64,6 +65,11 @@ class Stage:
         template still far from the scan are pulled in, not written off as
         outliers; σ otherwise follows the data (a multiple of the median
         distance).
+    sample : float
+        Fraction of the fitted vertices that get a correspondence in this stage
+        (a fixed, seeded subset).  A stiff stage moves a few hundred graph nodes
+        and needs far fewer data points than the template has vertices; the
+        last stage uses them all.
     """
     iterations: int = 10
     stiffness: float = 1.0
@@ -71,6 +77,7 @@ class Stage:
     blend_weight: float = 1e-6
     data_weight: float = 1.0
     robust_scale: float = 0.0
+    sample: float = 1.0
 
 
 def default_schedule(model: str) -> list[Stage]:
@@ -81,14 +88,16 @@ def default_schedule(model: str) -> list[Stage]:
     the landmarks' weight drops (they are less accurate than the scan surface).
     In the hybrid model the graph starts stiff so that the blendshapes, not the
     graph, take the expression; it relaxes once the weights have settled.
+    Stiff stages fit a third of the vertices (``sample``); the last one all.
     """
     if model == "rigid":
-        return [Stage(iterations=15, stiffness=0.0, landmark_weight=0.1)]
+        return [Stage(iterations=10, stiffness=0.0, landmark_weight=0.1, sample=0.3),
+                Stage(iterations=5, stiffness=0.0, landmark_weight=0.1)]
     if model == "blendshape":
-        return [Stage(iterations=5, landmark_weight=1.0, blend_weight=1e-7,
+        return [Stage(iterations=4, landmark_weight=1.0, blend_weight=1e-7,
                       data_weight=0.0),
-                Stage(iterations=10, landmark_weight=0.3, blend_weight=1e-8),
-                Stage(iterations=10, landmark_weight=0.1, blend_weight=1e-8)]
+                Stage(iterations=6, landmark_weight=0.3, blend_weight=1e-8, sample=0.3),
+                Stage(iterations=6, landmark_weight=0.1, blend_weight=1e-8)]
     if model == "affine":
         return [Stage(iterations=3, stiffness=10.0, landmark_weight=1.0),
                 Stage(iterations=3, stiffness=3.0, landmark_weight=0.5),
@@ -96,20 +105,22 @@ def default_schedule(model: str) -> list[Stage]:
                 Stage(iterations=3, stiffness=0.3, landmark_weight=0.1),
                 Stage(iterations=3, stiffness=0.1, landmark_weight=0.1)]
     if model == "hybrid":
-        return [Stage(iterations=4, stiffness=100.0, landmark_weight=1.0,
-                      blend_weight=1e-8, data_weight=0.0),
-                Stage(iterations=5, stiffness=10.0, landmark_weight=0.5, blend_weight=1e-8,
-                      robust_scale=0.02),
+        # (no landmark-only stage: the blendshape pre-fit in wrap() did that job)
+        return [Stage(iterations=5, stiffness=10.0, landmark_weight=0.5, blend_weight=1e-8,
+                      robust_scale=0.02, sample=0.3),
                 Stage(iterations=5, stiffness=1.0, landmark_weight=0.2, blend_weight=1e-8,
-                      robust_scale=0.01),
+                      robust_scale=0.01, sample=0.3),
                 Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, blend_weight=1e-8,
-                      robust_scale=0.005),
+                      robust_scale=0.005, sample=0.3),
                 Stage(iterations=5, stiffness=0.03, landmark_weight=0.1, blend_weight=1e-8)]
     # graph
     return [Stage(iterations=4, stiffness=1.0, landmark_weight=1.0, data_weight=0.0),
-            Stage(iterations=5, stiffness=1.0, landmark_weight=0.5, robust_scale=0.02),
-            Stage(iterations=5, stiffness=0.3, landmark_weight=0.2, robust_scale=0.01),
-            Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, robust_scale=0.005),
+            Stage(iterations=5, stiffness=1.0, landmark_weight=0.5, robust_scale=0.02,
+                  sample=0.3),
+            Stage(iterations=5, stiffness=0.3, landmark_weight=0.2, robust_scale=0.01,
+                  sample=0.3),
+            Stage(iterations=5, stiffness=0.1, landmark_weight=0.1, robust_scale=0.005,
+                  sample=0.3),
             Stage(iterations=5, stiffness=0.03, landmark_weight=0.1)]
 
 
@@ -212,7 +223,7 @@ class NonRigidICP:
                  robust: str = "welsch", robust_factor: float = 3.0,
                  min_scale: float = 5e-4, max_distance: float = 0.05,
                  max_normal_angle: float = 60.0, reject_boundary: bool = True,
-                 tolerance: float = 2e-4, damping: float = 1e-4,
+                 tolerance: float = 5e-4, damping: float = 1e-4,
                  blas_threads: int | None = 1):
         self.stages = stages
         self.point_weight = point_weight
@@ -265,6 +276,10 @@ class NonRigidICP:
         T = np.asarray(triangles, dtype=np.int64)
         n = model.n_vertices
         candidates = np.flatnonzero(np.ones(n, bool) if fit_mask is None else fit_mask)
+        # a fixed subset order for stages that sample the data (deterministic)
+        sample_order = candidates[np.random.default_rng(0).permutation(len(candidates))]
+        lm_vertices = (np.unique(sp.csr_matrix(landmark_matrix).indices)
+                       if landmark_matrix is not None else np.zeros(0, np.int64))
         p = model.initial_params() if params is None else params
         V = model.vertices(p)
         history = []
@@ -275,8 +290,10 @@ class NonRigidICP:
                 t0 = time.perf_counter()
                 corr = None
                 if stage.data_weight > 0:
+                    used = candidates if stage.sample >= 1 else np.sort(
+                        sample_order[:max(1, int(np.ceil(stage.sample * len(candidates))))])
                     corr = find_correspondences(
-                        V, T, tree, candidates, center=center, size=size,
+                        V, T, tree, used, center=center, size=size,
                         max_distance=self.max_distance,
                         max_normal_angle=self.max_normal_angle,
                         reject_boundary=self.reject_boundary)
@@ -288,9 +305,13 @@ class NonRigidICP:
                     rw = robust_weights(corr.distances, sigma, self.robust)
                 energy_of = self._energy_function(model, stage, corr, rw if corr else None,
                                                   landmark_matrix, landmark_targets, has_lm)
-                Jv = model.jacobian(p)
-                terms = self._terms(model, p, V, Jv, stage, corr, rw if corr else None,
-                                    landmark_matrix, landmark_targets, has_lm)
+                # the Jacobian of the vertices that enter a term, nothing more
+                active = lm_vertices if corr is None else np.union1d(corr.vertices,
+                                                                     lm_vertices)
+                Jv = model.jacobian(p, active)
+                terms = self._terms(model, p, V, Jv, active, stage, corr,
+                                    rw if corr else None, landmark_matrix,
+                                    landmark_targets, has_lm)
                 e0 = energy_of(p, V)
                 for _ in range(6):  # Levenberg–Marquardt: retry with more damping
                     delta = gauss_newton_step(terms, damping=mu, n_params=model.n_params,
@@ -327,18 +348,16 @@ class NonRigidICP:
         return self
 
     # -- energy assembly ---------------------------------------------------------
-    def _terms(self, model, p, V, Jv, stage, corr, rw, L, targets, has_lm):
+    def _terms(self, model, p, V, Jv, active, stage, corr, rw, L, targets, has_lm):
         terms = []
         if corr is not None:
             k = max(len(corr.vertices), 1)
-            r, J = point_to_plane(V, Jv, corr.vertices, corr.points, corr.normals)
-            terms.append((stage.data_weight / k, r, J, rw))
-            if self.point_weight > 0:
-                r, J = point_to_point(V, Jv, corr.vertices, corr.points)
-                terms.append((stage.data_weight * self.point_weight / k, r, J,
-                              np.repeat(rw, 3)))
+            r, J = point_and_plane(V, Jv, corr.vertices, corr.points, corr.normals,
+                                   self.point_weight,
+                                   jacobian_rows=np.searchsorted(active, corr.vertices))
+            terms.append((stage.data_weight / k, r, J, np.repeat(rw, 3)))
         if has_lm and stage.landmark_weight > 0:
-            r, J = landmark_term(V, Jv, L, targets)
+            r, J = landmark_term(V, Jv, L, targets, jacobian_vertices=active)
             terms.append((stage.landmark_weight / L.shape[0], r, J, None))
         weights = {"smooth": stage.stiffness, "blend": stage.blend_weight}
         for name, (r, J) in model.regularizers(p).items():

@@ -72,7 +72,7 @@ class WrapSettings:
         (see :func:`facewrap.icp.default_schedule`).
     node_spacing : float, optional
         Deformation-graph node spacing as a fraction of the template's bounding
-        box diagonal (default 0.03: ~400 nodes on a face).
+        box diagonal (default 0.05: ~200 nodes on a face).
     point_weight : float
         Weight of point-to-point against point-to-plane (weight 1) in the data term.
     robust : {"welsch", "huber", "geman_mcclure", "none"}
@@ -93,7 +93,7 @@ class WrapSettings:
     max_normal_angle: float = 60.0
     blend_order: int = 2
     stages: list[Stage] | None = None
-    node_spacing: float = 0.03
+    node_spacing: float = 0.05
     point_weight: float = 0.1
     robust: str = "welsch"
     pca_components: int | None = None

@@ -77,8 +77,11 @@ class AffineModel(DeformationModel):
     def vertices(self, X) -> np.ndarray:
         return np.einsum("na,nac->nc", np.c_[self.base, np.ones(self.n_vertices)], X)
 
-    def jacobian(self, X):
-        return self._J
+    def jacobian(self, X, vertices=None):
+        if vertices is None:
+            return self._J
+        v = np.asarray(vertices)
+        return self._J[(3 * v[:, None] + np.arange(3)).ravel()]
 
     def regularizers(self, X) -> dict:
         return {"smooth": (self._S @ X.ravel(), self._S)}

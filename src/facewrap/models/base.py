@@ -6,9 +6,12 @@ the energy terms and the solver are shared by all models (SPEC §2):
 
 - ``initial_params()`` — the parameters of "no deformation" (or a warm start),
 - ``vertices(params)`` — (n, 3) deformed vertex positions,
-- ``jacobian(params)`` — sparse (3n, P) derivative of the flattened vertices
-  (row ``3 i + c`` is coordinate ``c`` of vertex ``i``) with respect to a
-  parameter *increment* ``delta`` (P = ``n_params``),
+- ``jacobian(params, vertices=None)`` — (3n, P) derivative of the flattened
+  vertices (row ``3 i + c`` is coordinate ``c`` of vertex ``i``) with respect to
+  a parameter *increment* ``delta`` (P = ``n_params``); sparse, dense or a
+  :class:`~facewrap.terms.BlockJacobian`; with ``vertices``, only their rows
+  (3v, P) — the ICP engine asks only for vertices that have a correspondence
+  or carry a landmark,
 - ``regularizers(params)`` — dict name → (residual (r,), Jacobian (r, P)),
   unweighted; the schedule weights them by name ("smooth", "blend"),
 - ``regularizer_residuals(params)`` — the same residuals without Jacobians,
@@ -46,7 +49,7 @@ class DeformationModel:
     def vertices(self, params) -> np.ndarray:
         raise NotImplementedError
 
-    def jacobian(self, params):
+    def jacobian(self, params, vertices=None):
         raise NotImplementedError
 
     def regularizers(self, params) -> dict:

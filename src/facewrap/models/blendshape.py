@@ -109,9 +109,10 @@ class BlendshapeModel(DeformationModel):
         local = self.blended(p.w) - self.center
         return p.s * local @ p.R.T + self.center + p.t
 
-    def jacobian(self, p: BlendshapeParams):
-        n = self.n_vertices
-        moved = p.s * (self.blended(p.w) - self.center) @ p.R.T
+    def jacobian(self, p: BlendshapeParams, vertices=None):
+        sel = slice(None) if vertices is None else np.asarray(vertices)
+        moved = p.s * (self.blended(p.w)[sel] - self.center) @ p.R.T
+        n = len(moved)
         J = np.zeros((n, 3, self.n_params))
         if self.pose:
             J[:, :, 0:3] = cross_matrix_blocks(moved)
@@ -119,7 +120,7 @@ class BlendshapeModel(DeformationModel):
             if self.scale:
                 J[:, :, 6] = moved
         if self.n_shapes:
-            Dw = self.deltas.reshape(n, 3, self.n_shapes)
+            Dw = self.deltas.reshape(-1, 3, self.n_shapes)[sel]
             J[:, :, 7:] = p.s * np.einsum("ab,nbk->nak", p.R, Dw)
         return BlockJacobian(None, J.reshape(3 * n, self.n_params))
 

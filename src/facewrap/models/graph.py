@@ -197,10 +197,14 @@ def graph_vertices(B, graph: DeformationGraph, p: GraphParams) -> np.ndarray:
     return np.einsum("nk,nka->na", W, moved)
 
 
-def graph_jacobian(B, graph: DeformationGraph, p: GraphParams) -> sp.csr_matrix:
-    """Derivative of eq. 6 (flattened, (3n, 6m)) w.r.t. node increments."""
+def graph_jacobian(B, graph: DeformationGraph, p: GraphParams,
+                   vertices=None) -> sp.csr_matrix:
+    """Derivative of eq. 6 w.r.t. node increments: (3n, 6m), or (3v, 6m) for the
+    rows of the given ``vertices`` only."""
     X = B[graph.nodes]
     J, W = graph.vertex_nodes, graph.vertex_weights
+    if vertices is not None:
+        J, W, B = J[vertices], W[vertices], B[vertices]
     n, k = J.shape
     rotated = np.einsum("nkab,nkb->nka", p.R[J], B[:, None, :] - X[J])
     # values laid out row by row (vertex i, coordinate a), then slot, then column
@@ -275,8 +279,8 @@ class GraphModel(DeformationModel):
     def vertices(self, params: GraphParams) -> np.ndarray:
         return graph_vertices(self.base, self.graph, params)
 
-    def jacobian(self, params: GraphParams):
-        return graph_jacobian(self.base, self.graph, params)
+    def jacobian(self, params: GraphParams, vertices=None):
+        return graph_jacobian(self.base, self.graph, params, vertices)
 
     def regularizers(self, params: GraphParams) -> dict:
         r, J = graph_smoothness(self.base, self.graph, params)

@@ -83,20 +83,23 @@ class HybridModel(DeformationModel):
     def vertices(self, p: HybridParams) -> np.ndarray:
         return graph_vertices(self.blended(p.w), self.graph, p.graph)
 
-    def jacobian(self, p: HybridParams):
+    def jacobian(self, p: HybridParams, vertices=None):
         B = self.blended(p.w)
-        Jg = graph_jacobian(B, self.graph, p.graph)
+        Jg = graph_jacobian(B, self.graph, p.graph, vertices)
         if not self.n_shapes:
             return Jg
         # dv_i/dw = Σ_j a_ij ( R_j (D_i − D_xj) + D_xj )
         #         = (Σ_j a_ij R_j) D_i + Σ_j a_ij (I − R_j) D_xj
         J, W = self.graph.vertex_nodes, self.graph.vertex_weights
+        Dv = self._D
+        if vertices is not None:
+            J, W, Dv = J[vertices], W[vertices], Dv[vertices]
         R = p.graph.R
         M = np.einsum("nk,nkab->nab", W, R[J])
         Dn = self._D[self.graph.nodes]                              # (m, 3, K)
         IminusR = np.eye(3) - R                                     # (m, 3, 3)
         node_term = np.einsum("mab,mbk->mak", IminusR, Dn)          # (m, 3, K)
-        Jw = np.einsum("nab,nbk->nak", M, self._D) \
+        Jw = np.einsum("nab,nbk->nak", M, Dv) \
             + np.einsum("nj,njak->nak", W, node_term[J])
         return BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
 

@@ -29,10 +29,11 @@ import scipy.sparse as sp
 from ..mesh import Mesh
 from ..solve import factorize
 from .correspondence import _TETHER, Correspondence, untethered_vertices
-from .gradients import GradientOperator, adjacent_triangle_pairs, gradient_operator
+from .gradients import (GradientOperator, _fourth_offsets, _typical_edge,
+                        adjacent_triangle_pairs, gradient_operator)
 
 __all__ = ["DeformationTransfer", "pair_matrix", "complete_pairs",
-           "source_gradient_blocks", "as_pose_stack"]
+           "source_gradient_blocks", "extend_poses", "as_pose_stack"]
 
 
 def as_pose_stack(poses, n_vertices: int, name: str = "poses") -> tuple[np.ndarray, bool]:
@@ -106,6 +107,24 @@ def complete_pairs(pairs: sp.csr_matrix, target_T) -> tuple[sp.csr_matrix, np.nd
     return P, (~matched).astype(np.float64)
 
 
+def extend_poses(op: GradientOperator, poses: np.ndarray) -> np.ndarray:
+    """Poses with their fourth vertices, as columns: (n + t, 3 k) float64.
+
+    Column ``3 j + d`` is coordinate ``d`` of pose ``j`` (the layout ``op.matrix``
+    multiplies); all poses' fourth vertices are built in one vectorised pass.
+    """
+    k, n = poses.shape[0], poses.shape[1]
+    T = op.triangles
+    P0 = poses[:, T[:, 0]].reshape(-1, 3)
+    e1 = poses[:, T[:, 1]].reshape(-1, 3) - P0
+    e2 = poses[:, T[:, 2]].reshape(-1, 3) - P0
+    # the typical edge only sizes zero-size triangles' offsets: the first pose's
+    offsets, _ = _fourth_offsets(e1, e2, _typical_edge(e1[:len(T)], e2[:len(T)]))
+    fourth = (P0 + offsets).reshape(k, len(T), 3)
+    ext = np.concatenate([poses, fourth], axis=1)                   # (k, n + t, 3)
+    return np.ascontiguousarray(ext.transpose(1, 0, 2).reshape(n + len(T), 3 * k))
+
+
 def source_gradient_blocks(op: GradientOperator, poses: np.ndarray) -> np.ndarray:
     """Transposed deformation gradients of each pose, flattened.
 
@@ -121,7 +140,7 @@ def source_gradient_blocks(op: GradientOperator, poses: np.ndarray) -> np.ndarra
         Row ``i`` of pose ``j`` is ``S_iᵀ`` row-major (the layout of ``G @ X``).
     """
     k, t = len(poses), op.n_triangles
-    ext = np.concatenate([op.extend(P) for P in poses], axis=1)     # (n + t, 3k)
+    ext = extend_poses(op, poses)                                     # (n + t, 3k)
     blocks = np.asarray(op.matrix @ ext)                              # (3t, 3k)
     return blocks.reshape(t, 3, k, 3).transpose(2, 0, 1, 3).reshape(k, t, 9)
 
@@ -217,6 +236,14 @@ class DeformationTransfer:
         self._identity_rhs = np.asarray(
             G.T @ (np.repeat(orphans, 3)[:, None] * np.tile(np.eye(3), (op.n_triangles, 1))))
         H_ff = H_red[self._free][:, self._free]
+        # The right-hand side is linear in the source poses: Gₜᵀ (M ⊗ I₃) G_s applied
+        # to the poses' vertices and fourth vertices, then reduced like H.  One sparse
+        # map, built once, so a pose costs one sparse product and one back-substitution.
+        K = sp.kron(self._pairs, sp.identity(3), format="csr")
+        rhs_map = (G.T @ (K @ self._source_op.matrix)).tocsr()
+        self._rhs_map = (rhs_map[:n] - self._Hvf_dff @ rhs_map[n:]).tocsr()
+        self._const_rhs = (self._identity_rhs[:n] - self._Hvf_dff @ self._identity_rhs[n:]
+                           + self._tether_rhs)
         m = correspondence.markers
         spread = [np.sqrt(((X[ids] - X[ids].mean(0)) ** 2).sum(1).mean())
                   for X, ids in ((source.vertices, m[:, 0]), (target.vertices, m[:, 1]))]
@@ -260,14 +287,9 @@ class DeformationTransfer:
         """
         P, single = as_pose_stack(poses, self.source_.n_vertices)
         k = len(P)
-        op = self._target_op
-        blocks = source_gradient_blocks(self._source_op, P)             # (k, ts, 9)
-        summed = np.stack([self._pairs @ b for b in blocks])             # (k, tt, 9)
-        B = summed.reshape(k, op.n_triangles, 3, 3).transpose(1, 2, 0, 3)
-        rhs = np.asarray(op.matrix.T @ B.reshape(3 * op.n_triangles, 3 * k))
-        rhs += np.tile(self._identity_rhs, (1, k))
         n = self.target_.n_vertices
-        rhs = rhs[:n] - self._Hvf_dff @ rhs[n:] + np.tile(self._tether_rhs, (1, k))
+        rhs = self._rhs_map @ extend_poses(self._source_op, P)
+        rhs += np.tile(self._const_rhs, (1, k))
         xa = np.tile(self.target_.vertices[self._anchor], k)
         rhs_f = rhs[self._free] - self._H_fa[:, None] * xa[None, :]
         x = np.empty((n, 3 * k))
