@@ -45,3 +45,9 @@ def mixed_mesh():
                 face_normals=face_normals, face_materials=[0, 0, 1],
                 materials=["skin", "lips"], face_groups=[0, 0, 0], groups=["head"],
                 mtllib=["head.mtl"])
+
+
+def facewrap(*argv) -> int:
+    """Run ``facewrap ARGV`` in-process; returns the exit status."""
+    from facewrap.cli import main
+    return main([str(a) for a in argv])

@@ -3,7 +3,6 @@ determinism across engines."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import signal
@@ -11,7 +10,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from unittest import mock
 
 import pytest
 
@@ -20,36 +18,14 @@ from facewrap.batch import (done_record_path, read_manifest, run_batch, run_one,
 from facewrap.errors import InputError
 from facewrap.icp import Stage
 from facewrap.io import read_mesh
+from conftest import facewrap
 
 N_SCANS = 3
 
 
-def facewrap(*argv) -> int:
-    """``facewrap ARGV`` through facewrap.cli.main, with run/batch registered."""
-    import facewrap.cli as cli
-    from facewrap.cli import batch as batch_cmd, run as run_cmd
-    build = cli.build_parser
-
-    def parser():
-        p = build()
-        sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
-        for name, mod in (("run", run_cmd), ("batch", batch_cmd)):
-            if name not in sub.choices:
-                mod.register(sub)
-        return p
-
-    with mock.patch.object(cli, "build_parser", parser):
-        return cli.main([str(a) for a in argv])
-
-
 def batch_command() -> list[str]:
-    """The batch command line as a subprocess: ``facewrap.cli`` once it has batch."""
-    from facewrap.cli import build_parser
-    p = build_parser()
-    sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
-    if "batch" in sub.choices:
-        return [sys.executable, "-m", "facewrap.cli", "batch"]
-    return [sys.executable, "-m", "facewrap.cli.batch"]
+    """The batch command line as a subprocess."""
+    return [sys.executable, "-m", "facewrap.cli", "batch"]
 
 
 @pytest.fixture(scope="module")

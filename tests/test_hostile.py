@@ -19,7 +19,6 @@ that it lists every case.  Hypothesis fuzzes the readers at the end.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import re
@@ -28,7 +27,6 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
-from unittest import mock
 
 import numpy as np
 import pytest
@@ -40,27 +38,10 @@ from facewrap.io.landmarks import read_landmarks, read_markers
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.mesh import Mesh
+from conftest import facewrap
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "reliability.md"
-
-
-def facewrap(*argv) -> int:
-    """``facewrap ARGV`` through facewrap.cli.main, with run/batch registered."""
-    import facewrap.cli as cli
-    from facewrap.cli import batch as batch_cmd, run as run_cmd
-    build = cli.build_parser
-
-    def parser():
-        p = build()
-        sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
-        for name, mod in (("run", run_cmd), ("batch", batch_cmd)):
-            if name not in sub.choices:
-                mod.register(sub)
-        return p
-
-    with mock.patch.object(cli, "build_parser", parser):
-        return cli.main([str(a) for a in argv])
 
 
 # -- the sample every case starts from ----------------------------------------------------

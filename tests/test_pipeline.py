@@ -19,24 +19,7 @@ from facewrap.jobs import WrapJob
 from facewrap.pipeline import (_toml_string, job_to_toml, load_job, read_job_tables,
                                settings_keys, write_job)
 from facewrap.wrap import WrapSettings
-
-
-def facewrap(*argv) -> int:
-    """``facewrap ARGV`` through facewrap.cli.main, with run/batch registered."""
-    import facewrap.cli as cli
-    from facewrap.cli import batch as batch_cmd, run as run_cmd
-    build = cli.build_parser
-
-    def parser():
-        p = build()
-        sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
-        for name, mod in (("run", run_cmd), ("batch", batch_cmd)):
-            if name not in sub.choices:
-                mod.register(sub)
-        return p
-
-    with mock.patch.object(cli, "build_parser", parser):
-        return cli.main([str(a) for a in argv])
+from conftest import facewrap
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,5 @@
 """Pictures: the rasteriser, cameras, colour maps, shading and figures."""
 
-import io
 
 import numpy as np
 import pytest

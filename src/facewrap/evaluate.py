@@ -23,7 +23,6 @@ Distances are in the meshes' units (millimetres for face scans).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 import scipy.sparse as sp

@@ -168,7 +168,6 @@ def point_and_plane(V, Jv, vertices, targets, normals, point_weight: float,
     r : (3k,) float64
     J : (3k, P) BlockJacobian
     """
-    k = len(vertices)
     n = np.asarray(normals, dtype=np.float64)
     lam = float(point_weight)
     a, b = np.sqrt(lam), np.sqrt(1.0 + lam) - np.sqrt(lam)

@@ -12,7 +12,6 @@ import argparse
 from importlib import import_module
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np

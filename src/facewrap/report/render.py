@@ -28,12 +28,10 @@ are lit with their normal flipped toward the viewer and drawn a little darker.
 
 from __future__ import annotations
 
-from typing import Sequence
-
 import numpy as np
 
 from ..geometry._checks import as_triangles, as_vertices
-from ..geometry.normals import _face_normals, _normalize_rows, _vertex_normals
+from ..geometry.normals import _face_normals, _vertex_normals
 
 __all__ = ["VIEWS", "COLORMAPS", "view_rotation", "frame_from_axes", "rasterize",
            "Raster", "colormap", "apply_colormap", "render_mesh", "fit_pixel_size",
