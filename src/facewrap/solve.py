@@ -143,7 +143,7 @@ def _gram(S) -> np.ndarray:
         idx = S.indices.reshape(R // 3, 3, q[0])
         if (idx == idx[:, :1]).all():
             vals = S.data.reshape(R // 3, 3, q[0])
-            G = np.einsum("nar,nas->nrs", vals, vals)
+            G = np.matmul(vals.transpose(0, 2, 1), vals)
             cols = idx[:, 0, :]
             flat = (cols[:, :, None] * P + cols[:, None, :]).ravel()
             return np.bincount(flat, G.ravel(), minlength=P * P).reshape(P, P)
