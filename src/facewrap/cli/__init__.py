@@ -175,6 +175,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Wrap a template head onto face scans, transfer deformations, "
                     "make avatar blendshapes.")
     parser.add_argument("--version", action="version", version=f"facewrap {__version__}")
+    parser.add_argument("-v", "--verbose", dest="log_verbose", action="count", default=0,
+                        help="more log lines (-v info, -vv debug) on standard error")
+    parser.add_argument("--silent", dest="log_quiet", action="count", default=0,
+                        help="only errors in the log, no progress bars")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser("info", help="summary of a mesh file")
@@ -229,6 +233,10 @@ def main(argv=None) -> int:
     """Entry point of the ``facewrap`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ..progress import configure_logging
+    # progress bars draw only on a terminal; logs go to standard error
+    configure_logging(args.log_verbose - args.log_quiet
+                      - (1 if getattr(args, "quiet", False) else 0))
     try:
         return int(args.func(args) or 0)
     except InputError as exc:

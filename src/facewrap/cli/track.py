@@ -7,7 +7,6 @@ errors over time, iterations, seconds).  See :mod:`facewrap.track`.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from ..errors import InputError
@@ -64,15 +63,19 @@ def cmd_track(args) -> int:
     if args.exclude:
         exclude = read_vertex_indices(args.exclude, n_vertices=template.n_vertices).vertex
 
-    def say(i, result):
-        if not args.quiet:
-            m = result.metrics
-            print(f"frame {i}: fit mean {m['fit_mean']:.4g}, landmarks mean "
-                  f"{m['landmark_mean']:.4g}, {result.timings['total']:.2f} s",
-                  file=sys.stderr)
+    from ..progress import progress
+    import logging
+    log = logging.getLogger("facewrap.track")
 
-    result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
-                   blendshapes=shapes, exclude=exclude, progress=say)
+    with progress(len(meshes), "tracking") as bar:
+        def say(i, result):
+            m = result.metrics
+            log.info("frame %d: fit mean %.4g, landmarks mean %.4g, %.2f s", i,
+                     m["fit_mean"], m["landmark_mean"], result.timings["total"])
+            bar.advance()
+
+        result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
+                       blendshapes=shapes, exclude=exclude, progress=say)
     paths = write_track_outputs(
         args.out, result,
         extra_report={"template": str(args.template), "scans": [str(p) for p in scans],
