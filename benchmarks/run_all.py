@@ -30,16 +30,24 @@ def main() -> int:
              f"{platform.machine()}, {cpu} cores, Python {platform.python_version()}. "
              "Times are wall-clock seconds, best of the repeats stated in each "
              "benchmark's source.", ""]
+    failed = []
     for name in names:
-        mod = importlib.import_module(name)
         t = time.perf_counter()
-        result = mod.run()
-        parts.append(mod.markdown(result))
+        try:  # one broken benchmark must not lose the others' results
+            mod = importlib.import_module(name)
+            result = mod.run()
+            text = mod.markdown(result)
+        except Exception as exc:  # noqa: BLE001 - reported in the document
+            failed.append(name)
+            text = f"## {name}\n\n**failed**: `{type(exc).__name__}: {exc}`\n"
+        parts.append(text)
         parts.append(f"_{name}: {time.perf_counter() - t:.0f} s to run._\n")
-        print(mod.markdown(result), flush=True)
+        print(text, flush=True)
     Path(args.out).write_text("\n".join(parts))
     print(f"wrote {args.out}")
-    return 0
+    if failed:
+        print(f"failed: {', '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
