@@ -415,8 +415,8 @@ def markdown(result: dict) -> str:
                 n, s = stages.get(key, (0, 0.0))
                 stages[key] = (n + 1, s + h.get("seconds", 0.0))
             L.append("")
-            L.append("`model_setup` (coarse pose + blend-weight pre-fit, graph build) is "
-                     "part of `icp`. Per stage: " + "; ".join(f"{m} stage {st}: {n} it, {s:.2f} s"
+            L.append("`model_setup` (coarse pose + blend-weight pre-fit, graph build) and "
+                     "`icp` are separate parts of the total. Per stage: " + "; ".join(f"{m} stage {st}: {n} it, {s:.2f} s"
                                                for (m, st), (n, s) in stages.items()))
         L.append("")
     return "\n".join(L) + "\n"
