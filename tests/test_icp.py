@@ -213,12 +213,13 @@ def test_excluded_eyeballs_follow_the_face(sample):
     eyes = np.concatenate([template.parts["eyeball_left"], template.parts["eyeball_right"]])
     r = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
              WrapSettings(model="graph", project=False), exclude=eyes)
-    # an eyeball moves (nearly) rigidly with its socket: its shape is kept
+    # an eyeball moves with its socket (a similarity, nearly): it stays a ball
     V0, V1 = template.mesh.vertices[template.parts["eyeball_left"]], r.vertices[
         template.parts["eyeball_left"]]
     d0 = np.linalg.norm(V0 - V0.mean(0), axis=1)
     d1 = np.linalg.norm(V1 - V1.mean(0), axis=1)
-    assert np.abs(d1 / r.transform.scale - d0).max() < 0.05 * d0.max()
+    assert np.abs(d1 / d1.mean() - d0 / d0.mean()).max() < 0.03
+    assert 0.9 < d1.mean() / (r.transform.scale * d0.mean()) < 1.1
 
 
 def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):

@@ -345,9 +345,16 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
     max_distance = (s.max_distance / size if s.max_distance else 0.05)
 
     def engine(model_name):
-        # the user's stages are for the main model; the coarse pre-fit keeps its own
-        return NonRigidICP(s.stages if s.stages and model_name == s.model
-                           else default_schedule(model_name),
+        # the user's stages are for the main model; the coarse pre-fit keeps its own,
+        # on a third of the vertices throughout (the main fit refines afterwards)
+        if s.stages and model_name == s.model:
+            stages = s.stages
+        elif model_name != s.model:
+            stages = [replace(st, sample=min(st.sample, 0.3))
+                      for st in default_schedule(model_name)]
+        else:
+            stages = default_schedule(model_name)
+        return NonRigidICP(stages,
                            point_weight=s.point_weight, robust=s.robust,
                            max_distance=max_distance, max_normal_angle=s.max_normal_angle,
                            reject_boundary=s.reject_boundary)
