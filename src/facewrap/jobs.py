@@ -260,6 +260,27 @@ def _check_on_scan(points: np.ndarray, names, tree, scale: float, path) -> list[
     return []
 
 
+def read_mesh_landmarks(path, mesh, kind: str = "auto"):
+    """Read landmarks and check them against the mesh they belong to.
+
+    Returns
+    -------
+    Landmarks
+
+    Raises
+    ------
+    InputError
+        Naming ``path`` when a vertex or triangle id is outside ``mesh``.
+    """
+    from .io.landmarks import read_landmarks
+    landmarks = read_landmarks(path, kind=kind)
+    try:
+        landmarks.check(mesh.n_vertices, len(mesh.triangles))
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None
+    return landmarks
+
+
 def load_wrap_inputs(job: WrapJob) -> dict:
     """Read and cross-check a job's input files.
 
@@ -280,22 +301,14 @@ def load_wrap_inputs(job: WrapJob) -> dict:
     """
     from .geometry import ClosestPointTree
     from .io import read_mesh
-    from .io.landmarks import read_landmarks, read_vertex_indices
+    from .io.landmarks import read_vertex_indices
     notes: list[str] = []
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
     if len(scan.triangles) == 0:
         raise InputError("has no faces; a scan must be a surface", job.scan)
-    tl = read_landmarks(job.template_landmarks, kind="auto")
-    try:
-        tl.check(template.n_vertices, len(template.triangles))
-    except ValueError as exc:
-        raise InputError(str(exc), job.template_landmarks) from None
-    sl = read_landmarks(job.scan_landmarks, kind="points")
-    try:
-        sl.check(scan.n_vertices, len(scan.triangles))
-    except ValueError as exc:
-        raise InputError(str(exc), job.scan_landmarks) from None
+    tl = read_mesh_landmarks(job.template_landmarks, template, kind="auto")
+    sl = read_mesh_landmarks(job.scan_landmarks, scan, kind="points")
     if (tl.names is None or sl.names is None) and len(tl) != len(sl):
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({job.template_landmarks}) have {len(tl)}", job.scan_landmarks)

@@ -87,28 +87,35 @@ def wrap_settings_from_args(args) -> WrapSettings:
 
 def cmd_wrap(args) -> int:
     """Fit the template to the scan and write the template-topology result."""
-    from ..jobs import WrapJob, run_wrap_job
+    from ..jobs import WrapJob
     job = WrapJob(template=args.template, scan=args.scan,
                   template_landmarks=args.template_landmarks,
                   scan_landmarks=args.scan_landmarks, output=args.output,
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
                   report=args.report)
+    run_wrap_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
+    return 0
+
+
+def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
+    """Run a wrap job for the command line: input warnings as one
+    ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
     import warnings
-    from ..jobs import InputWarning
+    from ..jobs import InputWarning, run_wrap_job
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
-        report = run_wrap_job(job, wrap_settings_from_args(args))
+        report = run_wrap_job(job, settings)
     for w in caught:
         if issubclass(w.category, InputWarning):
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
-    if not args.quiet:
+    if not quiet:
         m, t = report["metrics"], report["timings"]
-        print(f"wrote {args.output}: {report['vertices']} vertices, model "
+        print(f"wrote {job.output}: {report['vertices']} vertices, model "
               f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
               f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
               f"{t['total']:.2f} s")
-    return 0
+    return report
 
 
 def cmd_animate(args) -> int:

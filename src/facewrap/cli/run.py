@@ -9,22 +9,15 @@ without writing anything.
 from __future__ import annotations
 
 import os
-import sys
-import warnings
 
 from ..errors import InputError
 
 __all__ = ["register", "cmd_run"]
 
 
-def _print_warnings(caught) -> None:
-    for w in caught:
-        print(f"facewrap: warning: {w.message}", file=sys.stderr)
-
-
 def cmd_run(args) -> int:
     """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
-    from ..jobs import InputWarning, job_inputs, run_wrap_job
+    from ..jobs import job_inputs
     from ..pipeline import job_to_toml, load_job, write_job
     if args.write_template:
         if os.path.exists(args.job) and not args.force:
@@ -41,16 +34,8 @@ def cmd_run(args) -> int:
         print(job_to_toml(job, settings, header=f"{args.job}, resolved (dry run: "
                                                 "nothing written)"), end="")
         return 0
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", InputWarning)
-        report = run_wrap_job(job, settings)
-    _print_warnings(w for w in caught if issubclass(w.category, InputWarning))
-    if not args.quiet:
-        m, t = report["metrics"], report["timings"]
-        print(f"wrote {job.output}: {report['vertices']} vertices, model "
-              f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
-              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
-              f"{t['total']:.2f} s")
+    from . import run_wrap_job_verbosely
+    run_wrap_job_verbosely(job, settings, quiet=args.quiet)
     return 0
 
 

@@ -34,7 +34,8 @@ def _scan_paths(items) -> list[Path]:
 def cmd_track(args) -> int:
     """Track the template through the scans and write the sequence."""
     from ..io import read_mesh
-    from ..io.landmarks import read_landmarks, read_vertex_indices
+    from ..io.landmarks import read_vertex_indices
+    from ..jobs import read_mesh_landmarks
     from ..track import track, write_track_outputs
     from .__init__ import wrap_settings_from_args
     template = read_mesh(args.template)
@@ -43,13 +44,10 @@ def cmd_track(args) -> int:
         raise InputError(f"give scan landmarks for the first frame or for all "
                          f"{len(scans)} frames, not {len(args.scan_landmarks)}",
                          args.scan_landmarks[0])
-    tl = read_landmarks(args.template_landmarks, kind="auto")
-    try:
-        tl.check(template.n_vertices, len(template.triangles))
-    except ValueError as exc:
-        raise InputError(str(exc), args.template_landmarks) from None
+    tl = read_mesh_landmarks(args.template_landmarks, template, kind="auto")
     meshes = [read_mesh(p) for p in scans]
-    lms = [read_landmarks(p, kind="points") for p in args.scan_landmarks]
+    lms = [read_mesh_landmarks(p, m, kind="points")
+           for p, m in zip(args.scan_landmarks, meshes)]
     for path, lm in zip(args.scan_landmarks, lms):
         if (tl.names is None or lm.names is None) and len(lm) != len(tl):
             raise InputError(f"has {len(lm)} landmarks but the template landmarks have "

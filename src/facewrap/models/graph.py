@@ -65,6 +65,12 @@ class DeformationGraph:
     def n_nodes(self) -> int:
         return len(self.nodes)
 
+    @property
+    def smoothness_scale(self) -> float:
+        """1/√edges: eq. 7 as a mean over edges, so its weight does not depend
+        on how many nodes the graph has."""
+        return 1.0 / np.sqrt(max(len(self.edges), 1))
+
 
 def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationGraph:
     """Build a deformation graph on a triangle mesh.
@@ -284,12 +290,12 @@ class GraphModel(DeformationModel):
 
     def regularizers(self, params: GraphParams) -> dict:
         r, J = graph_smoothness(self.base, self.graph, params)
-        scale = 1.0 / np.sqrt(max(len(self.graph.edges), 1))
+        scale = self.graph.smoothness_scale
         return {"smooth": (r * scale, J * scale)}
 
     def regularizer_residuals(self, params: GraphParams) -> dict:
         r = graph_smoothness(self.base, self.graph, params, jacobian=False)
-        return {"smooth": r / np.sqrt(max(len(self.graph.edges), 1))}
+        return {"smooth": r * self.graph.smoothness_scale}
 
     def update(self, params: GraphParams, delta) -> GraphParams:
         return params.updated(delta)

@@ -106,7 +106,7 @@ class HybridModel(DeformationModel):
     def regularizers(self, p: HybridParams) -> dict:
         B = self.blended(p.w)
         r, Jg = graph_smoothness(B, self.graph, p.graph)
-        scale = 1.0 / np.sqrt(max(len(self.graph.edges), 1))
+        scale = self.graph.smoothness_scale
         out = {}
         if self.n_shapes:
             # d e_jk / dw = (R_j − I)(D_xk − D_xj)
@@ -124,7 +124,7 @@ class HybridModel(DeformationModel):
 
     def regularizer_residuals(self, p: HybridParams) -> dict:
         r = graph_smoothness(self.blended(p.w), self.graph, p.graph, jacobian=False)
-        out = {"smooth": r / np.sqrt(max(len(self.graph.edges), 1))}
+        out = {"smooth": r * self.graph.smoothness_scale}
         if self.n_shapes:
             out["blend"] = np.asarray(p.w, dtype=np.float64)
         return out

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..geometry._checks import as_triangles, as_vertices
 from ..geometry.normals import _face_normals, _vertex_normals
+from ..texture import _chunks  # the UV rasteriser's work splitter
 
 __all__ = ["VIEWS", "COLORMAPS", "view_rotation", "frame_from_axes", "rasterize",
            "Raster", "colormap", "apply_colormap", "render_mesh", "fit_pixel_size",
@@ -388,18 +389,6 @@ def _scan_chunk(sel, cnt, X, Y, Zq, e1x, e1y, e2x, e2y, det, c0, r0, width, W, b
     packed = (zz.astype(np.int64) << 32) | sel[o]
     np.minimum.at(buf, key, packed)
     return key, packed, l1, l2
-
-
-def _chunks(counts: np.ndarray, budget: int):
-    """Index arrays of consecutive non-empty items whose counts sum to about budget."""
-    nz = np.flatnonzero(counts)
-    if len(nz) == 0:
-        return
-    cum = np.cumsum(counts[nz])
-    cuts = np.searchsorted(cum, np.arange(budget, cum[-1], budget), side="right")
-    for part in np.split(nz, np.unique(cuts)):
-        if len(part):
-            yield part
 
 
 # -- colour maps -----------------------------------------------------------------------------
