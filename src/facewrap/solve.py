@@ -142,12 +142,32 @@ def _gram(S) -> np.ndarray:
     if R and R % 3 == 0 and q[0] > 0 and (q == q[0]).all():
         idx = S.indices.reshape(R // 3, 3, q[0])
         if (idx == idx[:, :1]).all():
-            vals = S.data.reshape(R // 3, 3, q[0])
-            G = np.matmul(vals.transpose(0, 2, 1), vals)
             cols = idx[:, 0, :]
+            vals = S.data.reshape(R // 3, 3, q[0])
+            for b in (6,):
+                # columns in aligned runs of b (a graph node's 6 unknowns): a
+                # block-sparse product, ~2x faster than the bincount below when
+                # rows span several blocks (vertex rows: 4 nodes)
+                if P % b == 0 and q[0] % b == 0 and q[0] >= 2 * b:
+                    runs = cols.reshape(len(cols), -1, b)
+                    if (runs[..., :1] % b == 0).all() and \
+                            (runs == runs[..., :1] + np.arange(b)).all():
+                        return _block_gram(vals, runs[..., 0] // b, b, P)
+            G = np.matmul(vals.transpose(0, 2, 1), vals)
             flat = (cols[:, :, None] * P + cols[:, None, :]).ravel()
             return np.bincount(flat, G.ravel(), minlength=P * P).reshape(P, P)
     return (S.T @ S).toarray()
+
+
+def _block_gram(vals, blocks, b: int, P: int) -> np.ndarray:
+    """Dense ``SᵀS`` for rows in triples whose columns are whole ``b``-blocks:
+    ``vals`` (r, 3, k·b), ``blocks`` (r, k) block-column ids."""
+    r, k = blocks.shape
+    # (block columns need not be sorted within a row: the product accumulates)
+    data = vals.reshape(r, 3, k, b).transpose(0, 2, 1, 3)          # (r, k, 3, b)
+    B = sp.bsr_matrix((data.reshape(r * k, 3, b), blocks.ravel(),
+                       np.arange(0, r * k + 1, k)), shape=(3 * r, P))
+    return (B.T.tobsr(blocksize=(b, 3)) @ B).toarray()
 
 
 def _dense_step(S_rows, D, b, damping: float) -> np.ndarray:

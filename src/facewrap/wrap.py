@@ -321,6 +321,20 @@ def _template_graph(template: Mesh, spacing: float):
     return per_template[spacing]
 
 
+def _stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:
+    """Consecutive stages that share a node spacing (graph models), as
+    ``(factor, stages)``; one group for other models."""
+    if not by_graph:
+        return [(1.0, list(stages))]
+    groups: list[tuple[float, list]] = []
+    for st in stages:
+        if groups and groups[-1][0] == st.node_spacing_factor:
+            groups[-1][1].append(st)
+        else:
+            groups.append((st.node_spacing_factor, [st]))
+    return groups
+
+
 def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes,
                   w_init=None):
     """Non-rigid ICP from the similarity-aligned template ``V``.
@@ -344,25 +358,14 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
     lm_targets = (targets - center) / size
     max_distance = (s.max_distance / size if s.max_distance else 0.05)
 
-    def engine(model_name):
-        # the user's stages are for the main model; the coarse pre-fit keeps its own,
-        # on a third of the vertices throughout (the main fit refines afterwards)
-        if s.stages and model_name == s.model:
-            stages = s.stages
-        elif model_name != s.model:
-            stages = [replace(st, sample=min(st.sample, 0.3))
-                      for st in default_schedule(model_name)]
-        else:
-            stages = default_schedule(model_name)
-        return NonRigidICP(stages,
-                           point_weight=s.point_weight, robust=s.robust,
-                           max_distance=max_distance, max_normal_angle=s.max_normal_angle,
-                           reject_boundary=s.reject_boundary)
-
-    def fit(model, model_name, params=None):
-        return engine(model_name).fit(model, template.triangles, tree, center=center,
-                                      size=size, fit_mask=~excluded, landmark_matrix=L,
-                                      landmark_targets=lm_targets, params=params)
+    def fit(model, stages, params=None):
+        engine = NonRigidICP(stages, point_weight=s.point_weight, robust=s.robust,
+                             max_distance=max_distance,
+                             max_normal_angle=s.max_normal_angle,
+                             reject_boundary=s.reject_boundary)
+        return engine.fit(model, template.triangles, tree, center=center, size=size,
+                          fit_mask=~excluded, landmark_matrix=L,
+                          landmark_targets=lm_targets, params=params)
 
     history = []
     w0 = None
@@ -376,7 +379,11 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
         p_init = None
         if s.model == "hybrid" and w_init is not None and len(w_init) == deltas.shape[1]:
             p_init = BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.asarray(w_init))
-        coarse = fit(pre, "blendshape" if s.model == "hybrid" else "rigid", p_init)
+        # the coarse pre-fit keeps its own stages, on a third of the vertices
+        # throughout (the main fit refines afterwards)
+        pre_stages = [replace(st, sample=min(st.sample, 0.3)) for st in
+                      default_schedule("blendshape" if s.model == "hybrid" else "rigid")]
+        coarse = fit(pre, pre_stages, p_init)
         history += [dict(h, model="pre-" + ("blendshape" if s.model == "hybrid"
                                             else "rigid")) for h in coarse.history_]
         p0 = coarse.params_
@@ -386,8 +393,10 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
             D = deltas.reshape(len(V), 3, -1)
             deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * len(V), -1)
             w0 = p0.w
+    stages = s.stages or default_schedule(s.model)
+    groups = _stage_groups(stages, s.model in ("graph", "hybrid"))
     if s.model in ("graph", "hybrid"):
-        graph = _template_graph(template, s.node_spacing)
+        graph = _template_graph(template, s.node_spacing * groups[0][0])
     if s.model == "affine":
         model = AffineModel(base, template.triangles)
     elif s.model == "graph":
@@ -400,7 +409,18 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
     params = None
     if w0 is not None:
         params = HybridParams(model.initial_params().graph, w0)
-    icp = fit(model, s.model, params)
-    history += [dict(h, model=s.model) for h in icp.history_]
+    first = 0                       # index of the group's first stage
+    for factor, group in groups:
+        if s.model in ("graph", "hybrid") and first > 0:
+            # coarse-to-fine: the next graph continues the deformation so far
+            graph = _template_graph(template, s.node_spacing * factor)
+            model, params = model.on_graph(graph, params if params is not None
+                                           else model.initial_params())
+        icp = fit(model, group, params)
+        params = icp.params_
+        nodes = getattr(getattr(model, "graph", None), "n_nodes", None)
+        history += [dict(h, model=s.model, stage=h["stage"] + first, nodes=nodes)
+                    for h in icp.history_]
+        first += len(group)
     w = getattr(icp.params_, "w", None)
     return icp.vertices_, history, w, names, setup

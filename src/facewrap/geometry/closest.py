@@ -29,7 +29,7 @@ import igl
 import numpy as np
 
 from ._checks import as_points, as_triangles, as_vertices
-from .adjacency import boundary_vertices, triangle_adjacency
+from .adjacency import triangle_adjacency
 from .normals import _cross_rows, _normalize_rows, _vertex_normals
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
@@ -216,8 +216,15 @@ class ClosestPointTree:
     @cached_property
     def boundary_triangles(self) -> np.ndarray:
         """(t,) bool: triangles with a vertex on the mesh boundary (holes, borders)."""
-        on = boundary_vertices(self.triangles, len(self.vertices))
-        return _readonly(on[self.triangles].any(axis=1))
+        # border edges are the ones without a neighbour (the adjacency is needed
+        # for projection anyway, so this costs no second sort of the edges)
+        T = self.triangles
+        a, b = T, T[:, [1, 2, 0]]
+        border = (self.triangle_neighbours < 0) & (a != b)
+        on = np.zeros(len(self.vertices), dtype=bool)
+        on[a[border]] = True
+        on[b[border]] = True
+        return _readonly(on[T].any(axis=1))
 
     def __repr__(self) -> str:
         return (f"<ClosestPointTree {len(self.vertices)} vertices, "

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DeformationModel", "skew", "rotation_exp", "cross_matrix_blocks"]
+__all__ = ["DeformationModel", "skew", "rotation_exp", "cross_matrix_blocks",
+           "nearest_rotations"]
 
 
 class DeformationModel:
@@ -132,3 +133,29 @@ def cross_matrix_blocks(p) -> np.ndarray:
     (..., 3, 3) float
     """
     return -skew(p)
+
+
+def nearest_rotations(M) -> np.ndarray:
+    """The rotations closest to matrices ``M`` in the Frobenius norm (polar part,
+    reflections removed).
+
+    Parameters
+    ----------
+    M : (..., 3, 3) float
+
+    Returns
+    -------
+    (..., 3, 3) float, orthonormal with determinant 1.
+
+    Examples
+    --------
+    >>> R = nearest_rotations(2.0 * rotation_exp([0.0, 0.3, 0.0]))
+    >>> bool(np.allclose(R, rotation_exp([0.0, 0.3, 0.0])))
+    True
+    """
+    U, _, Vt = np.linalg.svd(np.asarray(M, dtype=np.float64))
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    U = U.copy()
+    U[..., :, 2] *= d[..., None]
+    return U @ Vt

@@ -35,10 +35,10 @@ from scipy.spatial import cKDTree
 
 from ..geometry import edges as mesh_edges
 from ..geometry import poisson_disk_vertices
-from .base import DeformationModel, cross_matrix_blocks, rotation_exp
+from .base import DeformationModel, cross_matrix_blocks, nearest_rotations, rotation_exp
 
 __all__ = ["DeformationGraph", "GraphParams", "GraphModel", "build_graph",
-           "graph_vertices", "graph_jacobian", "graph_smoothness"]
+           "graph_vertices", "graph_jacobian", "graph_smoothness", "resample_params"]
 
 
 @dataclass(frozen=True)
@@ -120,9 +120,16 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
     # edges: nodes that share a vertex (the graph of the surface) ...
     a = np.repeat(vertex_nodes, k, axis=1).ravel()
     b = np.tile(vertex_nodes, (1, k)).ravel()
-    pairs = np.unique(np.stack([a, b], 1)[a != b], axis=0)
+    pairs = _unique_pairs(a[a != b], b[a != b], len(nodes))
     pairs = _tie_components(pairs, V[nodes])
     return DeformationGraph(nodes, vertex_nodes, w, pairs)
+
+
+def _unique_pairs(a, b, m: int) -> np.ndarray:
+    """(e, 2) unique ordered pairs, sorted; one sort of int64 keys (several times
+    faster than ``np.unique(..., axis=0)``)."""
+    key = np.unique(np.asarray(a, np.int64) * m + np.asarray(b, np.int64))
+    return np.stack([key // m, key % m], axis=1)
 
 
 def _surface_poisson_nodes(V, G, spacing, seed, rounds: int = 4):
@@ -149,16 +156,18 @@ def _nearest_nodes_on_surface(G, nodes, count, limit):
     n = G.shape[0]
     best_d = np.full((n, count), np.inf)
     best_j = np.zeros((n, count), dtype=np.int64)
-    chunk = 64
-    for start in range(0, len(nodes), chunk):  # chunks of sources bound memory
+    chunk = max(64, int(4_000_000 // max(n, 1)))   # sources per chunk bound memory
+    for start in range(0, len(nodes), chunk):
         ids = np.arange(start, min(start + chunk, len(nodes)))
         D = dijkstra(G, directed=False, indices=nodes[ids], limit=limit).T  # (n, c)
         cand_d = np.concatenate([best_d, D], axis=1)
         cand_j = np.concatenate([best_j, np.broadcast_to(ids, D.shape)], axis=1)
-        order = np.argsort(cand_d, axis=1, kind="stable")[:, :count]
-        best_d = np.take_along_axis(cand_d, order, 1)
-        best_j = np.take_along_axis(cand_j, order, 1)
-    return best_j, best_d
+        # the count smallest (linear time), then ordered among themselves
+        pick = np.argpartition(cand_d, count - 1, axis=1)[:, :count]
+        best_d = np.take_along_axis(cand_d, pick, 1)
+        best_j = np.take_along_axis(cand_j, pick, 1)
+    order = np.lexsort((best_j, best_d), axis=1)     # ties: lower node first
+    return np.take_along_axis(best_j, order, 1), np.take_along_axis(best_d, order, 1)
 
 
 def _tie_components(pairs, X, ties: int = 3):
@@ -201,6 +210,38 @@ def graph_vertices(B, graph: DeformationGraph, p: GraphParams) -> np.ndarray:
     local = B[:, None, :] - X[J]                                 # (n, k, 3)
     moved = np.einsum("nkab,nkb->nka", p.R[J], local) + X[J] + p.t[J]
     return np.einsum("nk,nka->na", W, moved)
+
+
+def resample_params(B, source: DeformationGraph, params: GraphParams,
+                    target: DeformationGraph) -> GraphParams:
+    """Parameters of graph ``target`` that continue ``source``'s deformation
+    (coarse-to-fine: a stiff stage on few nodes hands over to many).
+
+    Each target node moves where ``source`` moves its vertex (eq. 6, so the
+    deformation is kept exactly at the target's nodes) and takes the rotation
+    nearest to the skinning-weighted mean of its source nodes' rotations.
+
+    Parameters
+    ----------
+    B : (n, 3) float64
+        Undeformed positions both graphs act on.
+    source : DeformationGraph
+    params : GraphParams
+        Of ``source``.
+    target : DeformationGraph
+        Built on the same template vertices.
+
+    Returns
+    -------
+    GraphParams of ``target``.
+    """
+    u = target.nodes
+    X = B[source.nodes]
+    J, W = source.vertex_nodes[u], source.vertex_weights[u]
+    local = B[u][:, None, :] - X[J]
+    moved = np.einsum("mkab,mkb->mka", params.R[J], local) + X[J] + params.t[J]
+    R = nearest_rotations(np.einsum("mk,mkab->mab", W, params.R[J]))
+    return GraphParams(R, np.einsum("mk,mka->ma", W, moved) - B[u])
 
 
 def graph_jacobian(B, graph: DeformationGraph, p: GraphParams,
@@ -299,6 +340,13 @@ class GraphModel(DeformationModel):
 
     def update(self, params: GraphParams, delta) -> GraphParams:
         return params.updated(delta)
+
+    def on_graph(self, graph: DeformationGraph, params: GraphParams
+                 ) -> tuple["GraphModel", GraphParams]:
+        """The same model on another graph of the template, with parameters that
+        continue ``params`` (:func:`resample_params`; coarse-to-fine)."""
+        return (GraphModel(self.base, graph),
+                resample_params(self.base, self.graph, params, graph))
 
     def summary(self, params: GraphParams) -> dict:
         return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges))}

@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from ..terms import BlockJacobian
 from .base import DeformationModel
 from .graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
-                    graph_vertices)
+                    graph_vertices, resample_params)
 
 __all__ = ["HybridParams", "HybridModel"]
 
@@ -72,13 +72,29 @@ class HybridModel(DeformationModel):
         self.n_params = self.n_graph + self.n_shapes
         # deltas at the nodes, (m, 3, K), and per vertex, (n, 3, K)
         self._D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
+        # skinning weights as an (n, m) matrix: Σ_j a_ij f(node j) is one product
+        k = graph.vertex_nodes.shape[1]
+        self._skin = sp.csr_matrix(
+            (graph.vertex_weights.ravel(), graph.vertex_nodes.ravel(),
+             np.arange(0, k * self.n_vertices + 1, k)),
+            shape=(self.n_vertices, graph.n_nodes))
+        self._last_blend = (None, None)
 
     def initial_params(self) -> HybridParams:
         return HybridParams(GraphParams.identity(self.graph.n_nodes),
                             np.zeros(self.n_shapes))
 
     def blended(self, w) -> np.ndarray:
-        return self.base + (self.deltas @ w).reshape(-1, 3)
+        # the engine asks for the same w several times per iteration (vertices,
+        # Jacobian, regularisers, energy): keep the last one
+        w = np.asarray(w, dtype=np.float64)
+        last_w, last_B = self._last_blend
+        if last_w is not None and np.array_equal(last_w, w):
+            return last_B
+        B = self.base + (self.deltas @ w).reshape(-1, 3)
+        B.setflags(write=False)
+        self._last_blend = (w.copy(), B)
+        return B
 
     def vertices(self, p: HybridParams) -> np.ndarray:
         return graph_vertices(self.blended(p.w), self.graph, p.graph)
@@ -91,16 +107,14 @@ class HybridModel(DeformationModel):
         # dv_i/dw = Σ_j a_ij ( R_j (D_i − D_xj) + D_xj )
         #         = (Σ_j a_ij R_j) D_i + Σ_j a_ij (I − R_j) D_xj
         J, W = self.graph.vertex_nodes, self.graph.vertex_weights
-        Dv = self._D
+        Dv, skin = self._D, self._skin
         if vertices is not None:
-            J, W, Dv = J[vertices], W[vertices], Dv[vertices]
+            J, W, Dv, skin = J[vertices], W[vertices], Dv[vertices], skin[vertices]
         R = p.graph.R
         M = np.einsum("nk,nkab->nab", W, R[J])
         Dn = self._D[self.graph.nodes]                              # (m, 3, K)
-        IminusR = np.eye(3) - R                                     # (m, 3, 3)
-        node_term = np.einsum("mab,mbk->mak", IminusR, Dn)          # (m, 3, K)
-        Jw = np.einsum("nab,nbk->nak", M, Dv) \
-            + np.einsum("nj,njak->nak", W, node_term[J])
+        node_term = np.matmul(np.eye(3) - R, Dn)                    # (m, 3, K)
+        Jw = np.matmul(M, Dv) + (skin @ node_term.reshape(len(R), -1)).reshape(Dv.shape)
         return BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
 
     def regularizers(self, p: HybridParams) -> dict:
@@ -132,6 +146,14 @@ class HybridModel(DeformationModel):
     def update(self, p: HybridParams, delta) -> HybridParams:
         d = np.asarray(delta, dtype=np.float64)
         return HybridParams(p.graph.updated(d[:self.n_graph]), p.w + d[self.n_graph:])
+
+    def on_graph(self, graph: DeformationGraph, p: HybridParams
+                 ) -> tuple["HybridModel", HybridParams]:
+        """The same model on another graph of the template (coarse-to-fine): the
+        blend weights carry over, the graph's motion is resampled on the blended
+        positions it acts on."""
+        g = resample_params(self.blended(p.w), self.graph, p.graph, graph)
+        return HybridModel(self.base, self.deltas, graph), HybridParams(g, p.w)
 
     def summary(self, p: HybridParams) -> dict:
         return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges)),
