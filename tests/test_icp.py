@@ -141,6 +141,35 @@ def test_default_schedules_go_from_stiff_to_loose():
         stiff = [st.stiffness for st in s]
         assert stiff == sorted(stiff, reverse=True), model
         assert s[0].data_weight == 0 or model in ("affine", "hybrid")
+        # and coarse to fine in node count, ending on the model's own graph
+        spacing = [st.node_spacing_factor for st in s]
+        assert spacing == sorted(spacing, reverse=True) and spacing[-1] == 1.0, model
+    with pytest.raises(ValueError, match="node_spacing_factor"):
+        Stage(node_spacing_factor=0.0)
+
+
+def test_gram_and_bordered_step_match_the_plain_products():
+    """The block-sparse Gram of vertex rows (4 node blocks per vertex, columns
+    unsorted as the skinning gives them) and the Schur-complement solve equal
+    ``SᵀS`` and the dense solve."""
+    from facewrap.solve import _bordered_step, _dense_step, _gram, _sparse_gram
+    rng = np.random.default_rng(2)
+    n, m, k = 300, 30, 4
+    nodes = np.stack([rng.choice(m, k, replace=False) for _ in range(n)])
+    cols = (6 * nodes)[:, None, :, None] + np.arange(6)
+    S = sp.csr_matrix((rng.normal(size=(n, 3, k, 6)).ravel(),
+                       np.broadcast_to(cols, (n, 3, k, 6)).ravel(),
+                       np.arange(0, 18 * k * n + 1, 6 * k)), shape=(3 * n, 6 * m))
+    assert np.allclose(_gram(S), (S.T @ S).toarray(), atol=1e-12)
+    assert np.allclose(_sparse_gram(S).toarray(), (S.T @ S).toarray(), atol=1e-12)
+    T = sp.random(50, 6 * m, density=0.05, random_state=1, format="csr")
+    D = rng.normal(size=(3 * n + 50, 5))
+    b = rng.normal(size=3 * n + 50)
+    for damping in (0.0, 1e-2):
+        x = _bordered_step([S, T], D, b, damping)
+        assert np.allclose(x, _dense_step([S, T], D, b, damping), atol=1e-9)
+    x0 = _bordered_step([S, T], D[:, :0], b, 0.0)
+    assert np.allclose(x0, _dense_step([S, T], D[:, :0], b, 0.0), atol=1e-9)
 
 
 # -- wraps on the built-in sample, ground truth known --------------------------------

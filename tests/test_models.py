@@ -199,3 +199,75 @@ def test_block_jacobian_algebra():
     assert np.allclose(J.rows([3, 1]).toarray(), full[[3, 1]])
     with pytest.raises(ValueError):
         BlockJacobian(S, Dn[:5])
+
+
+def test_nearest_rotations_remove_scale_shear_and_reflection():
+    from facewrap.models.base import nearest_rotations
+    rng = np.random.default_rng(4)
+    R = rotation_exp(rng.normal(size=(6, 3)))
+    assert np.allclose(nearest_rotations(R * rng.uniform(0.5, 2, (6, 1, 1))), R)
+    M = rng.normal(size=(50, 3, 3))
+    Q = nearest_rotations(M)
+    assert np.allclose(Q @ Q.transpose(0, 2, 1), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(Q), 1.0)
+    # no rotation is closer than the polar one (a few random competitors)
+    for i in range(5):
+        other = rotation_exp(rng.normal(size=(200, 3))) @ Q[i]
+        best = np.linalg.norm(M[i] - Q[i])
+        assert (np.linalg.norm(M[i] - other, axis=(1, 2)) >= best - 1e-12).all()
+
+
+def test_coarse_to_fine_resampling_keeps_the_deformation(face):
+    """A fine graph continuing a coarse one translates each node where the coarse
+    graph moved it; a rigid motion carries over exactly, a smooth bend closely;
+    the hybrid keeps its weights."""
+    from facewrap.models.base import nearest_rotations
+    _, base, D, _, fine = face
+    t = face[0]
+    coarse = build_graph(base, t.mesh.triangles, spacing=0.16)
+    assert coarse.n_nodes < fine.n_nodes / 2
+    X = base[coarse.nodes]
+    gm = GraphModel(base, coarse)
+    # rigid: R x + c at every node
+    R0 = rotation_exp([0.2, -0.4, 0.1])
+    rigid = GraphParams(np.broadcast_to(R0, (len(X), 3, 3)).copy(),
+                        X @ R0.T + [0.05, 0.0, -0.02] - X)
+    fm, fp = gm.on_graph(fine, rigid)
+    assert fm.graph is fine and fp.R.shape == (fine.n_nodes, 3, 3)
+    assert np.allclose(fm.vertices(fp), gm.vertices(rigid), atol=1e-12)
+    # smooth bend f(x) = x + a (y², 0, 0): node rotations from its gradient
+    a = 0.3
+
+    def bend_params(Y):
+        grad = np.broadcast_to(np.eye(3), (len(Y), 3, 3)).copy()
+        grad[:, 0, 1] = 2 * a * Y[:, 1]
+        return GraphParams(nearest_rotations(grad), np.c_[a * Y[:, 1] ** 2, 0 * Y[:, :2]])
+    bend = bend_params(X)
+    fm, fp = gm.on_graph(fine, bend)
+    V0, V1 = gm.vertices(bend), fm.vertices(fp)
+    assert np.allclose(base[fine.nodes] + fp.t, V0[fine.nodes], atol=1e-12)
+    # the handover costs nothing against the true field (the graphs only
+    # interpolate it: here 17 % of the motion for the coarse graph)
+    f = base + np.c_[a * base[:, 1] ** 2, 0 * base[:, :2]]
+    assert np.abs(V1 - f).max() <= 1.05 * np.abs(V0 - f).max()
+    motion = np.abs(f - base).max()
+    assert np.abs(V1 - V0).max() < 0.15 * motion
+    w = np.random.default_rng(5).normal(0, 0.3, D.shape[1])
+    hm = HybridModel(base, D, coarse)
+    hm2, hp = hm.on_graph(fine, HybridParams(bend_params(hm.blended(w)[coarse.nodes]), w))
+    assert np.array_equal(hp.w, w)
+    H0 = hm.vertices(HybridParams(bend_params(hm.blended(w)[coarse.nodes]), w))
+    assert np.abs(hm2.vertices(hp) - H0).max() < 0.15 * motion
+
+
+def test_hybrid_blend_cache_follows_the_weights(face):
+    _, base, D, _, graph = face
+    hm = HybridModel(base, D, graph)
+    w = np.full(D.shape[1], 0.2)
+    B1 = hm.blended(w)
+    w[0] = 0.9                      # same array, new values: no stale cache
+    B2 = hm.blended(w)
+    assert not np.allclose(B1, B2)
+    assert np.allclose(B2, base + (D @ w).reshape(-1, 3))
+    with pytest.raises(ValueError):
+        B2[0, 0] = 1.0              # shared result is read-only

@@ -217,9 +217,11 @@ def resample_params(B, source: DeformationGraph, params: GraphParams,
     """Parameters of graph ``target`` that continue ``source``'s deformation
     (coarse-to-fine: a stiff stage on few nodes hands over to many).
 
-    Each target node moves where ``source`` moves its vertex (eq. 6, so the
-    deformation is kept exactly at the target's nodes) and takes the rotation
-    nearest to the skinning-weighted mean of its source nodes' rotations.
+    Each target node is translated to where ``source`` moves its vertex (eq. 6)
+    and takes the rotation nearest to the skinning-weighted mean of its source
+    nodes' rotations: every node's own transform agrees with ``source`` to first
+    order around it, so the skinned surface changes only by the difference of
+    the two interpolations (small for a smooth, stiff-stage deformation).
 
     Parameters
     ----------
