@@ -124,8 +124,13 @@ def solve_spd(A, b) -> np.ndarray:
     return factorize(A).solve(b)
 
 
-#: systems with at most this many unknowns are assembled and solved densely
+#: systems with at most this many unknowns are solved directly: assembled
+#: densely up to :data:`BORDERED_FROM` sparse unknowns, above that by a sparse
+#: Cholesky of the sparse block and a dense Schur complement of the rest
 DENSE_LIMIT = 2500
+#: (ICT face, 195 nodes + 53 shapes: 1223 unknowns, the bordered solve saved
+#: 0.35 s of 2.2 s of ICP; at 64 nodes the dense one is as fast)
+BORDERED_FROM = 600
 
 
 def _gram(S) -> np.ndarray:
@@ -216,7 +221,11 @@ def _bordered_step(S_rows, D, b, damping: float) -> np.ndarray:
     X = factorize(A, check=False).solve(np.column_stack([g1, Bm]))
     Ainv_g, Ainv_B = X[:, 0], X[:, 1:]
     if K:
-        x2 = np.linalg.solve(C - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g)
+        Sc, rhs = C - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g
+        try:
+            x2 = np.linalg.solve(Sc, rhs)
+        except np.linalg.LinAlgError:
+            x2 = np.linalg.lstsq(Sc, rhs, rcond=None)[0]
         x1 = Ainv_g - Ainv_B @ x2
     else:
         x1, x2 = Ainv_g, np.zeros(0)
@@ -307,8 +316,9 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
     damping : float
         Levenberg–Marquardt factor on the diagonal of ``JᵀWJ``.
     Systems of at most :data:`DENSE_LIMIT` unknowns (graphs of a few hundred
-    nodes, blendshapes, poses) are assembled densely and solved by Cholesky,
-    whatever ``method`` says.
+    nodes, blendshapes, poses) are solved directly by Cholesky, whatever
+    ``method`` says: dense for small ones, sparse + Schur complement
+    (:data:`BORDERED_FROM`) for graphs of 100+ nodes.
 
     method : {"cg", "inexact", "direct"}
         "cg": conjugate gradients with a block-Jacobi preconditioner, falling
@@ -350,6 +360,8 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
     D = np.vstack(D_rows)
     b = np.concatenate(b_rows)
     if n_sparse + D.shape[1] <= DENSE_LIMIT:
+        if n_sparse >= BORDERED_FROM:
+            return _bordered_step(S_rows, D, b, damping)
         return _dense_step(S_rows, D, b, damping)
     # one stacked least-squares system: a single sparse product for the sparse
     # block, BLAS for the dense (blend) block
