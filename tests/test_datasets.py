@@ -55,3 +55,22 @@ def test_sumner_and_onizuka_layouts():
     neutral = read_mesh(DATA / "onizuka2019/blendshapes/Neutralm.obj")
     shapes = load_shape_folder(DATA / "onizuka2019/blendshapes", reference=neutral)
     assert len(shapes) == 48 and "00m" in shapes
+
+
+def test_ict_expansion_is_atomic_and_not_redone(data_dir, tmp_path):
+    """Processes sharing the cache never see a half-written shape: files appear
+    by rename, nothing temporary is left, and a finished folder is not rewritten."""
+    import os
+
+    from facewrap.datasets import expand_ict_facekit
+    out = tmp_path / "FaceXModel"
+    expand_ict_facekit(data_dir / "ict-facekit", out, ["jawOpen"])
+    first = (out / "jawOpen.obj").stat().st_mtime_ns
+    assert (out / "generic_neutral_mesh.obj").is_file()
+    expand_ict_facekit(data_dir / "ict-facekit", out, ["jawOpen", "eyeBlink_L"])
+    assert (out / "jawOpen.obj").stat().st_mtime_ns == first          # kept
+    from facewrap.datasets import ICTFaceKit
+    kit = ICTFaceKit(out)
+    assert kit.shape("eyeBlink_L").shape == kit.neutral.vertices.shape
+    assert sorted(os.listdir(tmp_path)) == ["FaceXModel"]              # no temp left
+    assert not (out / ".expanded-all").exists()                        # partial

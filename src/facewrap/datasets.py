@@ -18,6 +18,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,7 +70,9 @@ def expand_ict_facekit(compact_root, out_dir=None, names=None) -> Path:
     out_dir : path, optional
         Defaults to ``cache_dir("ict-facekit")``.
     names : list of str, optional
-        Shapes to write (all when omitted).  Shapes already written are kept.
+        Shapes to write (all when omitted).  Shapes already written are kept;
+        each file appears complete (written beside, then renamed), so processes
+        sharing the folder never read a half-written shape.
 
     Returns
     -------
@@ -81,12 +84,24 @@ def expand_ict_facekit(compact_root, out_dir=None, names=None) -> Path:
         raise InputError("expand.py not found (not a compact ICT-FaceKit copy)",
                          compact_root)
     out = Path(out_dir) if out_dir is not None else cache_dir("ict-facekit")
+    # Several processes (test workers, benchmarks) may share the cache: files
+    # appear only complete (written beside, then renamed), a finished folder
+    # is never rewritten, and "finished" is a marker written last.
+    marker = out / ".expanded-all"
+    if marker.is_file():
+        return out
     wanted = list(names) if names else None
     if wanted is not None:
         wanted = [n for n in wanted if not (out / f"{n}.obj").is_file()]
         if not wanted and (out / "generic_neutral_mesh.obj").is_file():
             return out
-    subprocess.run([sys.executable, str(script), str(out), *(wanted or [])], check=True)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out.parent, prefix=f".{out.name}-") as tmp:
+        subprocess.run([sys.executable, str(script), tmp, *(wanted or [])], check=True)
+        for f in Path(tmp).iterdir():
+            os.replace(f, out / f.name)
+    if wanted is None:
+        marker.write_text("complete\n")
     return out
 
 
