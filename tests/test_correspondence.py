@@ -1,0 +1,179 @@
+"""Correspondence solver internals: the reused-factorisation path against a plain
+solve of the same normal equations, and the two-phase triangle matching against a
+brute-force search."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.spatial import cKDTree
+
+from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.sample import make_scan, make_template
+from facewrap.solve import factorize
+from facewrap.transfer.correspondence import (_TETHER, SUMNER_SCHEDULE, CorrespondenceStage,
+                                              _FreeSystem, _nearest_compatible, _pcg,
+                                              closest_valid_points, deform_toward,
+                                              untethered_vertices)
+from facewrap.transfer.gradients import (adjacent_triangle_pairs, gradient_operator,
+                                         triangle_smoothness_operator)
+
+
+@pytest.fixture(scope="module")
+def normalised_pair():
+    """Template face and a scan of another topology (as tests/test_transfer.py's
+    ``pair``), in units of the scan's bounding-box diagonal like
+    :func:`find_correspondence` passes them, with the landmarks as markers."""
+    tpl = make_template(32)
+    face, _ = tpl.mesh.submesh(tpl.mesh.face_groups == 0)
+    scan = make_scan(tpl, weights={}, resolution=40, noise=0, holes=0, crop=False,
+                     transform=False, texture_size=8)
+    lo, hi = scan.mesh.bounding_box()
+    centre, unit = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    ids = np.asarray(tpl.landmarks.vertex)
+    goal = scan.mesh.vertices[cKDTree(scan.mesh.vertices).query(scan.landmarks.points)[1]]
+    uniq, first = np.unique(ids, return_index=True)
+    return ((face.vertices - centre) / unit, face.triangles,
+            (scan.mesh.vertices - centre) / unit, scan.mesh.triangles,
+            uniq, (goal[first] - centre) / unit)
+
+
+def _reference_deform(moving_V, moving_T, fixed_V, fixed_T, ids, points, schedule,
+                      neighbours=16):
+    """The textbook loop: build the full normal matrix every step, cut out the free
+    block, move the marked columns to the right-hand side, solve with SuperLU."""
+    n = len(moving_V)
+    op = gradient_operator(moving_V, moving_T)
+    N, t = op.n_unknowns, op.n_triangles
+    G = op.matrix
+    D = triangle_smoothness_operator(op, adjacent_triangle_pairs(moving_T))
+    GtG, DtD = (G.T @ G).tocsr(), (D.T @ D).tocsr()
+    identity_rhs = np.asarray(G.T @ np.tile(np.eye(3), (t, 1)))
+    free = np.setdiff1d(np.arange(N), ids)
+    x = op.extend(moving_V)
+    x[ids] = points
+    loose = np.zeros(N)
+    loose[:n] = untethered_vertices(moving_T, n, ids)
+    tether = _TETHER * float(GtG.diagonal().mean() + DtD.diagonal().mean()) * loose
+    tether_rhs = tether[:, None] * op.extend(moving_V)
+    tree = ClosestPointTree(fixed_V, fixed_T)
+    kd = cKDTree(fixed_V)
+    for stage in schedule:
+        for _ in range(stage.iterations):
+            w = np.zeros(N)
+            rhs = stage.w_identity * identity_rhs + tether_rhs
+            if stage.w_closest > 0:
+                cp, valid = closest_valid_points(tree, kd, x[:n],
+                                                 vertex_normals(x[:n], moving_T),
+                                                 neighbours)
+                valid[ids] = False
+                w[:n] = stage.w_closest * valid
+                rhs[:n] += w[:n, None] * cp
+            H = (stage.w_smooth * DtD + stage.w_identity * GtG
+                 + sp.diags(tether + w)).tocsc()
+            b = rhs[free] - H[free][:, ids] @ x[ids]
+            x[free] = spla.spsolve(H[free][:, free].tocsc(), b)
+    return x[:n]
+
+
+@pytest.mark.parametrize("schedule", [
+    SUMNER_SCHEDULE,
+    # w_I changes between stages (a new factorisation) and a stage repeats
+    (CorrespondenceStage(1.0, 0.1, 0.0), CorrespondenceStage(1.0, 0.001, 50.0, 3)),
+], ids=["sumner", "changing-weights"])
+def test_deform_toward_equals_reference_solve(normalised_pair, schedule):
+    """Reused factorisations + conjugate gradients solve the same normal equations
+    as a fresh factorisation of every step: same deformed vertices to 1e-6."""
+    mV, mT, fV, fT, ids, points = normalised_pair
+    got, stats = deform_toward(mV, mT, fV, fT, ids, points, schedule)
+    want = _reference_deform(mV, mT, fV, fT, ids, points, schedule)
+    solves = sum(s.iterations for s in schedule)
+    assert stats["solves"] == solves
+    # the fast path was taken: fewer factorisations than solves, some CG
+    assert stats["factorizations"] < solves and stats["cg_iterations"] > 0
+    scale = np.abs(want).max()
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * scale)
+    # and the result is a real fit, not a copy of the input
+    assert np.abs(got - mV).max() > 1e-3 * scale
+
+
+def test_free_system_assembles_the_sliced_matrix():
+    """Weighted value arrays on one pattern equal slicing the weighted sum, also
+    when the terms' patterns differ and one has explicit zeros."""
+    rng = np.random.default_rng(3)
+    N = 40
+    A = sp.random(N, N, density=0.1, random_state=rng)
+    A = (A @ A.T).tocsr()
+    A.data[::7] = 0.0                                   # explicit zeros kept
+    B = sp.random(N, N, density=0.05, random_state=rng)
+    B = (B @ B.T + sp.identity(N)).tocsr()
+    fixed = np.zeros(N, dtype=bool)
+    fixed[[3, 17, 30]] = True
+    P = rng.normal(size=(3, 3))
+    system = _FreeSystem(A, B, fixed, P)
+    free = np.flatnonzero(~fixed)
+    d = rng.uniform(0, 2, size=len(free))
+    got = system.matrix(0.7, 2.5, d).toarray()
+    full = (0.7 * A + 2.5 * B).toarray()
+    want = full[np.ix_(free, free)] + np.diag(d)
+    np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-14)
+    # a solve moves the marked columns over
+    rhs = rng.normal(size=(len(free), 3))
+    x = system.solve(0.7, 2.5, d, rhs, np.zeros_like(rhs))
+    expect = np.linalg.solve(want, rhs - full[np.ix_(free, np.flatnonzero(fixed))] @ P)
+    np.testing.assert_allclose(x, expect, rtol=0, atol=1e-8 * np.abs(expect).max())
+
+
+def _laplacian_2d(k):
+    L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))
+    I = sp.identity(k)
+    return (sp.kron(L, I) + sp.kron(I, L)).tocsr()
+
+
+def test_pcg_reuses_a_nearby_factor_and_gives_up_on_a_far_one():
+    L = _laplacian_2d(20)
+    H0 = (L @ L + 1e-3 * sp.identity(L.shape[0])).tocsr()
+    M = factorize(H0)
+    rng = np.random.default_rng(0)
+    b = rng.normal(size=(H0.shape[0], 3))
+    # a small diagonal change: converges to the exact answer in a few iterations
+    near = (H0 + sp.diags(rng.uniform(0, 1e-3, H0.shape[0]))).tocsr()
+    x, its = _pcg(near, b, np.zeros_like(b), M, 1e-10, 40)
+    assert x is not None and 0 < its < 15
+    np.testing.assert_allclose(x, spla.spsolve(near.tocsc(), b), rtol=0,
+                               atol=1e-8 * np.abs(x).max())
+    # a diagonal that dominates the smooth modes: predicted over budget, gives up early
+    far = (H0 + 100.0 * sp.identity(H0.shape[0])).tocsr()
+    x, its = _pcg(far, b, np.zeros_like(b), M, 1e-10, 40)
+    assert x is None and its < 40
+
+
+def _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance):
+    d = np.linalg.norm(qc[:, None] - c[None], axis=2)
+    order = np.argsort(d, axis=1, kind="stable")[:, :k]
+    out = np.full(len(qc), -1)
+    for i in range(len(qc)):
+        for j in order[i]:
+            if d[i, j] > max_distance:
+                break
+            if nrm[j] @ qn[i] > 0:
+                out[i] = j
+                break
+    return out
+
+
+@pytest.mark.parametrize("max_distance", [np.inf, 0.25])
+def test_nearest_compatible_equals_brute_force(max_distance):
+    """Nearest-first, then k candidates only where the nearest is incompatible:
+    the same as examining the k nearest for every query."""
+    rng = np.random.default_rng(7)
+    c = rng.uniform(size=(300, 3))
+    nrm = rng.normal(size=(300, 3))
+    qc = rng.uniform(size=(200, 3))
+    qn = rng.normal(size=(200, 3))
+    for k in (1, 4, 16):
+        got = _nearest_compatible(qc, qn, cKDTree(c), nrm, k, max_distance)
+        want = _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance)
+        np.testing.assert_array_equal(got, want)
+    # random normals: about half the nearest are incompatible, so both phases ran
+    assert (want == -1).sum() < len(qc) // 2
