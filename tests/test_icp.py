@@ -268,3 +268,17 @@ def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
     assert set(report["blend_weights"]) == set(template.blendshapes)
     assert report["iterations"] and "icp" in report["timings"]
     assert read_mesh(out).n_vertices == template.mesh.n_vertices
+
+
+def test_template_graph_is_cached_by_content(sample):
+    """Batch jobs read the template afresh: an equal mesh reuses the graph, a
+    changed one (or another spacing) gets its own."""
+    from facewrap.wrap import _template_graph
+    template = sample[0].mesh
+    again = template.with_vertices(template.vertices.copy())
+    assert again is not template
+    g = _template_graph(template, 0.07)
+    assert _template_graph(again, 0.07) is g
+    assert _template_graph(template, 0.09) is not g
+    moved = template.with_vertices(template.vertices * [1.0, 1.0, 1.3])
+    assert _template_graph(moved, 0.07) is not g

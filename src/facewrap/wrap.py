@@ -12,8 +12,9 @@ each stage, timings and fit metrics; nothing here reads or writes files.
 
 from __future__ import annotations
 
+import hashlib
 import time
-import weakref
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -302,7 +303,9 @@ def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
     return np.where(moving, 0.05, 1.0)
 
 
-_GRAPHS: "weakref.WeakKeyDictionary[Mesh, dict]" = weakref.WeakKeyDictionary()
+#: deformation graphs by (template content, spacing), most recent last
+_GRAPHS: "OrderedDict[tuple, object]" = OrderedDict()
+_GRAPH_CACHE_SIZE = 8
 
 
 def _template_graph(template: Mesh, spacing: float):
@@ -310,15 +313,23 @@ def _template_graph(template: Mesh, spacing: float):
 
     Nodes and skinning depend only on the template's surface (geodesic
     distances in the normalised frame, which a similarity does not change), so
-    every scan of a batch or frame of a sequence reuses it.
+    every scan of a batch or frame of a sequence reuses it.  The key is the
+    template's content, not the object: batch jobs read the template afresh
+    and still share one graph.
     """
-    per_template = _GRAPHS.setdefault(template, {})
-    if spacing not in per_template:
-        V = template.vertices
-        size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-        per_template[spacing] = build_graph((V - V.mean(axis=0)) / size,
-                                            template.triangles, spacing=spacing)
-    return per_template[spacing]
+    V = np.ascontiguousarray(template.vertices)
+    T = np.ascontiguousarray(template.triangles)
+    key = (hashlib.sha1(V.tobytes() + T.tobytes()).hexdigest(), V.shape, T.shape,
+           float(spacing))
+    if key in _GRAPHS:
+        _GRAPHS.move_to_end(key)
+        return _GRAPHS[key]
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    graph = build_graph((V - V.mean(axis=0)) / size, T, spacing=spacing)
+    _GRAPHS[key] = graph
+    while len(_GRAPHS) > _GRAPH_CACHE_SIZE:
+        _GRAPHS.popitem(last=False)
+    return graph
 
 
 def _stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:
