@@ -214,6 +214,20 @@ def test_hybrid_recovers_the_expression_weights(sample, fits):
     got = dict(zip(r.shape_names, r.weights))
     for name in template.blendshapes:
         assert got[name] == pytest.approx(scan.weights.get(name, 0.0), abs=0.12), name
+    # an expression rig's weights stay in [0, 1] (the default weight_range)
+    for r in (fits["hybrid"], fits["blendshape"]):
+        assert r.weights.min() > -0.01 and r.weights.max() < 1.01
+
+
+def test_weight_range_setting():
+    assert WrapSettings().blend_bounds() == (0.0, 1.0)
+    assert WrapSettings(weight_range=[]).blend_bounds() is None
+    assert WrapSettings(weight_range=None).blend_bounds() is None
+    assert WrapSettings(pca_components=5).blend_bounds() is None   # PCA: unbounded
+    assert WrapSettings(weight_range=[-1, 2]).blend_bounds() == (-1.0, 2.0)
+    for bad in ([1.0, 0.0], [0.0], [0, 1, 2]):
+        with pytest.raises(ValueError, match="weight_range"):
+            WrapSettings(weight_range=bad)
 
 
 def test_wrap_results_keep_topology_and_report_iterations(sample, fits):

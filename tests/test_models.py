@@ -271,3 +271,27 @@ def test_hybrid_blend_cache_follows_the_weights(face):
     assert np.allclose(B2, base + (D @ w).reshape(-1, 3))
     with pytest.raises(ValueError):
         B2[0, 0] = 1.0              # shared result is read-only
+
+
+def test_weight_bounds_penalty_and_its_jacobian(face):
+    """Weights outside [0, 1] are penalised by how far they are out; inside,
+    nothing changes; the Jacobians (with the penalty active) match finite
+    differences."""
+    from facewrap.models.blendshape import bound_violation
+    _, base, D, _, graph = face
+    rng = np.random.default_rng(8)
+    w = np.linspace(-0.5, 1.5, D.shape[1])           # some below, some above
+    r, d = bound_violation(w, (0.0, 1.0))
+    assert np.allclose(r, np.clip(w, None, 0) + np.clip(w - 1, 0, None))
+    assert np.array_equal(d, (r != 0).astype(float))
+    hm = HybridModel(base, D, graph, bounds=(0.0, 1.0))
+    p = HybridParams(random_graph_params(graph.n_nodes, rng), w + 1e-3)
+    assert np.allclose(hm.regularizer_residuals(p)["bounds"],
+                       bound_violation(w + 1e-3, (0, 1))[0])
+    check_jacobian(hm, p, rng)
+    bm = BlendshapeModel(base, D, bounds=(0.0, 1.0))
+    q = BlendshapeParams(rotation_exp([0.1, 0.2, 0.0]), np.zeros(3), 1.1, w + 1e-3)
+    check_jacobian(bm, q, rng)
+    assert "bounds" not in HybridModel(base, D, graph).regularizers(p)
+    inside = HybridParams(p.graph, np.full(D.shape[1], 0.5))
+    assert not hm.regularizer_residuals(inside)["bounds"].any()

@@ -81,6 +81,11 @@ class WrapSettings:
         annealed.
     pca_components : int, optional
         Fit this many PCA components of the blendshapes instead of the raw shapes.
+    weight_range : (lo, hi), optional
+        Range of the blend weights (an expression rig's [0, 1]); a one-sided
+        quadratic penalty (``Stage.bound_weight``) keeps them inside, so
+        opposing shapes cannot cancel each other with negative weights.  Empty
+        or None: unbounded.  Not applied to PCA components.
     reject_boundary : bool
         Ignore correspondences on the scan's border (holes, crop).
     """
@@ -98,7 +103,20 @@ class WrapSettings:
     point_weight: float = 0.1
     robust: str = "welsch"
     pca_components: int | None = None
+    weight_range: tuple[float, ...] | None = (0.0, 1.0)
     reject_boundary: bool = True
+
+    def __post_init__(self):
+        if self.weight_range is not None:
+            r = tuple(float(x) for x in self.weight_range)
+            if len(r) not in (0, 2) or (r and not r[0] < r[1]):
+                raise ValueError("weight_range must be (lo, hi) with lo < hi, or empty, "
+                                 f"got {self.weight_range!r}")
+            self.weight_range = r or None
+
+    def blend_bounds(self):
+        """The weight range the blend models use (None: unbounded)."""
+        return None if self.pca_components else self.weight_range
 
 
 @dataclass
@@ -384,7 +402,7 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
         # coarse first: the whole template's pose and scale (with blend weights for
         # the hybrid) before local deformation, which resists global scaling
         if s.model == "hybrid":
-            pre = BlendshapeModel(base, deltas, scale=s.scale)
+            pre = BlendshapeModel(base, deltas, scale=s.scale, bounds=s.blend_bounds())
         else:
             pre = RigidModel(base, scale=s.scale)
         p_init = None
@@ -413,9 +431,9 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
     elif s.model == "graph":
         model = GraphModel(base, graph)
     elif s.model == "blendshape":
-        model = BlendshapeModel(base, deltas, scale=s.scale)
+        model = BlendshapeModel(base, deltas, scale=s.scale, bounds=s.blend_bounds())
     else:
-        model = HybridModel(base, deltas, graph)
+        model = HybridModel(base, deltas, graph, bounds=s.blend_bounds())
     setup = time.perf_counter() - t0
     params = None
     if w0 is not None:

@@ -58,6 +58,23 @@ def blendshape_basis(neutral, shapes: dict, components: int | None = None):
     return U[:, :components] * scale, [f"pc{i}" for i in range(components)]
 
 
+def bound_violation(w, bounds) -> tuple[np.ndarray, np.ndarray]:
+    """How far each weight lies outside ``bounds = (lo, hi)`` (signed, 0 inside)
+    and the derivative (1 where outside): the residual of the ``"bounds"``
+    regulariser, a one-sided quadratic penalty.
+
+    Examples
+    --------
+    >>> r, d = bound_violation([-0.2, 0.5, 1.3], (0.0, 1.0))
+    >>> np.round(r, 12).tolist(), d.tolist()
+    ([-0.2, 0.0, 0.3], [1.0, 0.0, 1.0])
+    """
+    w = np.asarray(w, dtype=np.float64)
+    lo, hi = bounds
+    r = np.minimum(w - lo, 0.0) + np.maximum(w - hi, 0.0)
+    return r, (r != 0).astype(np.float64)
+
+
 @dataclass(frozen=True)
 class BlendshapeParams:
     """Pose (``R`` (3, 3), ``t`` (3,), ``s``) and blend weights ``w`` (K,)."""
@@ -80,15 +97,20 @@ class BlendshapeModel(DeformationModel):
         Optimise a uniform scale too.
     pose : bool
         Optimise the pose at all (False: weights only).
+    bounds : (lo, hi), optional
+        Range of the weights (an expression rig's [0, 1]); outside it the
+        ``"bounds"`` regulariser (:func:`bound_violation`) pulls them back.
 
     Parameter increment order: [δθ (3), δt (3), δσ (1), δw (K)].
-    Regulariser ``"blend"``: the weights themselves (eq. 5).
+    Regulariser ``"blend"``: the weights themselves (eq. 5); ``"bounds"``.
     """
 
-    regularizer_names = ("blend",)
+    regularizer_names = ("blend", "bounds")
     solver = "direct"  # a small dense system
 
-    def __init__(self, base, deltas, *, scale: bool = True, pose: bool = True):
+    def __init__(self, base, deltas, *, scale: bool = True, pose: bool = True,
+                 bounds=None):
+        self.bounds = None if bounds is None else (float(bounds[0]), float(bounds[1]))
         self.base = np.asarray(base, dtype=np.float64)
         self.deltas = np.asarray(deltas, dtype=np.float64)
         self.center = self.base.mean(axis=0)
@@ -126,10 +148,17 @@ class BlendshapeModel(DeformationModel):
 
     def regularizers(self, p: BlendshapeParams) -> dict:
         J = np.hstack([np.zeros((self.n_shapes, 7)), np.eye(self.n_shapes)])
-        return {"blend": (np.asarray(p.w, dtype=np.float64), BlockJacobian(None, J))}
+        out = {"blend": (np.asarray(p.w, dtype=np.float64), BlockJacobian(None, J))}
+        if self.bounds is not None:
+            r, d = bound_violation(p.w, self.bounds)
+            out["bounds"] = (r, BlockJacobian(None, J * np.r_[np.zeros(7), d]))
+        return out
 
     def regularizer_residuals(self, p: BlendshapeParams) -> dict:
-        return {"blend": np.asarray(p.w, dtype=np.float64)}
+        out = {"blend": np.asarray(p.w, dtype=np.float64)}
+        if self.bounds is not None:
+            out["bounds"] = bound_violation(p.w, self.bounds)[0]
+        return out
 
     def update(self, p: BlendshapeParams, delta) -> BlendshapeParams:
         d = np.asarray(delta, dtype=np.float64)

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 
 from ..terms import BlockJacobian
 from .base import DeformationModel
+from .blendshape import bound_violation
 from .graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
                     graph_vertices, resample_params)
 
@@ -59,10 +60,11 @@ class HybridModel(DeformationModel):
     per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
     """
 
-    regularizer_names = ("smooth", "blend")
+    regularizer_names = ("smooth", "blend", "bounds")
     param_block = 6
 
-    def __init__(self, base, deltas, graph: DeformationGraph):
+    def __init__(self, base, deltas, graph: DeformationGraph, *, bounds=None):
+        self.bounds = None if bounds is None else (float(bounds[0]), float(bounds[1]))
         self.base = np.asarray(base, dtype=np.float64)
         self.deltas = np.asarray(deltas, dtype=np.float64)
         self.graph = graph
@@ -132,6 +134,11 @@ class HybridModel(DeformationModel):
             Jb = BlockJacobian(sp.csr_matrix((self.n_shapes, self.n_graph)),
                                np.eye(self.n_shapes))
             out["blend"] = (np.asarray(p.w, dtype=np.float64), Jb)
+            if self.bounds is not None:
+                r, d = bound_violation(p.w, self.bounds)
+                out["bounds"] = (r, BlockJacobian(sp.csr_matrix((self.n_shapes,
+                                                                 self.n_graph)),
+                                                  np.diag(d)))
         else:
             out["smooth"] = (r * scale, Jg * scale)
         return out
@@ -141,6 +148,8 @@ class HybridModel(DeformationModel):
         out = {"smooth": r * self.graph.smoothness_scale}
         if self.n_shapes:
             out["blend"] = np.asarray(p.w, dtype=np.float64)
+            if self.bounds is not None:
+                out["bounds"] = bound_violation(p.w, self.bounds)[0]
         return out
 
     def update(self, p: HybridParams, delta) -> HybridParams:
@@ -153,7 +162,8 @@ class HybridModel(DeformationModel):
         blend weights carry over, the graph's motion is resampled on the blended
         positions it acts on."""
         g = resample_params(self.blended(p.w), self.graph, p.graph, graph)
-        return HybridModel(self.base, self.deltas, graph), HybridParams(g, p.w)
+        return (HybridModel(self.base, self.deltas, graph, bounds=self.bounds),
+                HybridParams(g, p.w))
 
     def summary(self, p: HybridParams) -> dict:
         return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges)),
