@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap.geometry import ClosestPointTree
 from facewrap.sample import make_scan, make_template
 from facewrap.wrap import WrapSettings, wrap
 

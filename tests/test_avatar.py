@@ -11,8 +11,10 @@ from facewrap.align import Similarity
 from facewrap.errors import InputError
 from facewrap.geometry import face_normals, vertex_normals
 from facewrap.sample import make_scan, make_template
-from facewrap.transfer import IBUG51_PARTS, AvatarTransfer, FacePart, read_parts
+from facewrap.transfer import (IBUG51_PARTS, AvatarTransfer, FacePart,
+                               flipped_triangles, read_parts)
 from facewrap.transfer.avatar import part_frame, part_motions
+from facewrap.transfer.transfer import complete_pairs, pair_matrix
 
 R90 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])   # 90° about y
 MOVE = Similarity(R90, np.array([100.0, -20, 3]), 2.5)
@@ -173,3 +175,69 @@ def test_onizuka_horse_blinks():
     ratio = gaps(out, la) / gaps(horse.vertices, la)
     closed = src_ratio < 0.3
     assert closed.any() and np.all(ratio[closed] < 0.4)
+
+
+def _new_flips(out, shapes, source, avatar, corr):
+    """Flipped avatar triangles none of whose source partners flips (the benchmark's
+    definition)."""
+    pairs, _ = complete_pairs(pair_matrix(corr), avatar.triangles)
+    src = flipped_triangles(shapes, source.vertices, source.triangles)
+    copied = (pairs @ src.T.astype(float)).T > 0
+    return (flipped_triangles(out, avatar.vertices, avatar.triangles) & ~copied).sum(axis=1)
+
+
+def test_guided_repair_unfolds_the_lids_and_keeps_them_closing(template, avatar):
+    """The landmark term pulls the sample avatar's lids shut and folds a few
+    triangles there; the repair unfolds them, the eyes still close, and shapes
+    without such flips are the plain solve bit for bit."""
+    face, lm51, shapes = template
+    mesh, ids = avatar
+    P = np.stack([shapes[k] for k in ("blink", "jaw_open", "smile")])
+    plain = AvatarTransfer(fix_flips=False).fit(face, lm51, mesh, ids)
+    fixed = AvatarTransfer().fit(face, lm51, mesh, ids,
+                                 correspondence=plain.correspondence_)
+    before, after = plain.transfer(P), fixed.transfer(P)
+    corr = plain.correspondence_
+    assert _new_flips(before, P, face, mesh, corr)[0] > 0
+    np.testing.assert_array_equal(_new_flips(after, P, face, mesh, corr), 0)
+    np.testing.assert_array_equal(after[1:], before[1:])
+    assert fixed.repairs_["found"][0] > 0 and fixed.repairs_["remaining"][0] == 0
+
+    def gap(X, lm):
+        return np.linalg.norm(X[lm[[20, 21, 26, 27]]] - X[lm[[24, 23, 30, 29]]],
+                              axis=1).mean()
+    g_plain = gap(before[0], ids) / gap(mesh.vertices, ids)
+    g_fixed = gap(after[0], ids) / gap(mesh.vertices, ids)
+    assert g_fixed < 0.5 and abs(g_fixed - g_plain) < 0.1
+
+
+@needs_data
+def test_onizuka_repair_leaves_no_new_flips():
+    """Mario has no lid geometry, so the guided transfer folds the skin around his
+    eyes when the template blinks; the horse's mouth corners fold when the plain
+    transfer opens its mouth.  Repaired: no new flips, and Mario's eyes still
+    close."""
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_vertex_indices
+    from facewrap.io.obj import read_obj_vertices
+    root = DATA / "onizuka2019"
+    src = read_mesh(root / "blendshapes" / "Neutralm.obj")
+    ls = read_vertex_indices(root / "landmarks" / "SOURCE" / "FACIAL_LANDMARKS.txt").vertex
+    shapes = np.stack([read_obj_vertices(root / "blendshapes" / f"{i:02d}m.obj",
+                                         src.n_vertices) for i in range(48)])
+
+    def gaps(X, lm):
+        return np.linalg.norm(X[..., lm[[20, 21, 26, 27]], :]
+                              - X[..., lm[[24, 23, 30, 29]], :], axis=-1)
+    blink = gaps(shapes, ls) / gaps(src.vertices, ls) < 0.3
+    for name, guided in (("Mario", True), ("Horse", False)):
+        av = read_mesh(root / "avatars" / f"{name}.ply")
+        la = read_vertex_indices(root / "landmarks" / f"landmarks_{name}.txt").vertex
+        model = AvatarTransfer(landmark_guided=guided).fit(src, ls, av, la)
+        out = model.transfer(shapes)
+        assert model.repairs_["found"].sum() > 0, name
+        np.testing.assert_array_equal(
+            _new_flips(out, shapes, src, av, model.correspondence_), 0)
+        if guided:
+            ratio = gaps(out, la) / gaps(av.vertices, la)
+            assert ratio[blink].mean() < 0.35

@@ -36,6 +36,14 @@ def _read_shapes(items, reference):
     return shapes
 
 
+def _repairs(repairs, names) -> dict:
+    """Per shape with new flipped triangles: found / repaired / remaining / rounds."""
+    if not repairs:
+        return {}
+    return {name: {k: int(v[i]) for k, v in repairs.items()}
+            for i, name in enumerate(names) if repairs["found"][i]}
+
+
 def cmd_transfer(args) -> int:
     """Transfer source shapes onto the target; write OBJs (+ GLB, report)."""
     from ..io import read_mesh
@@ -59,7 +67,7 @@ def cmd_transfer(args) -> int:
     t1 = time.perf_counter()
     if args.landmark_guided:
         parts = read_parts(args.parts) if args.parts else IBUG51_PARTS
-        model = AvatarTransfer(parts=parts).fit(source, src_ids, target, tgt_ids,
+        model = AvatarTransfer(parts=parts, fix_flips=not args.no_fix_flips).fit(source, src_ids, target, tgt_ids,
                                                 correspondence=corr,
                                                 landmarks_path=args.markers)
         corr = model.correspondence_
@@ -72,7 +80,8 @@ def cmd_transfer(args) -> int:
             from ..errors import InputError
             raise InputError(f"--anchor {args.anchor} out of range (target has "
                              f"{target.n_vertices} vertices)", args.target_neutral)
-        model = DeformationTransfer(anchor=anchor).fit(source, target, corr)
+        model = DeformationTransfer(anchor=anchor, fix_flips=not args.no_fix_flips
+                                    ).fit(source, target, corr)
     if corr_path is not None and not corr_path.is_file():
         corr_path.parent.mkdir(parents=True, exist_ok=True)
         corr.save(corr_path)
@@ -100,6 +109,7 @@ def cmd_transfer(args) -> int:
         "shapes": len(names), "outputs": written, "gltf": args.gltf,
         "correspondence": {"file": None if corr_path is None else str(corr_path),
                            "pairs": len(corr), **corr.stats},
+        "flip_repairs": _repairs(getattr(model, "repairs_", None), names),
         "timings": {"read": t1 - t0, "fit": t2 - t1, "transfer": t3 - t2,
                     "write": t4 - t3, "total": t4 - t0},
     }
@@ -140,6 +150,10 @@ def register(subparsers) -> None:
     p.add_argument("--anchor", type=int, default=None,
                    help="target vertex kept in place (default: follow the markers' "
                         "centroid)")
+    p.add_argument("--no-fix-flips", action="store_true",
+                   help="keep triangles the transfer turns over (by default a pose "
+                        "with new flipped triangles is re-solved locally until none "
+                        "is left)")
     p.add_argument("--report", metavar="F.json", help="write timings and counts as JSON")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_transfer)

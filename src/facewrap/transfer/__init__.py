@@ -14,7 +14,8 @@ Correspondence (:mod:`.correspondence`)
     :class:`CorrespondenceSettings`, :class:`CorrespondenceStage`,
     :data:`SUMNER_SCHEDULE`, :func:`match_triangles`
 Transfer (:mod:`.transfer`)
-    :class:`DeformationTransfer`
+    :class:`DeformationTransfer` (unfolds the triangles it would flip, see
+    ``fix_flips``), :func:`flipped_triangles`
 Avatar blendshapes (:mod:`.avatar`)
     :class:`AvatarTransfer`, :class:`FacePart`, :data:`IBUG51_PARTS`,
     :func:`read_parts`, :data:`ONIZUKA_SCHEDULE`
@@ -24,7 +25,7 @@ from .gradients import (GradientOperator, deformation_gradients, fourth_vertices
                         gradient_operator)
 from .correspondence import (SUMNER_SCHEDULE, Correspondence, CorrespondenceSettings,
                              CorrespondenceStage, find_correspondence, match_triangles)
-from .transfer import DeformationTransfer
+from .transfer import DeformationTransfer, flipped_triangles
 from .avatar import (IBUG51_PARTS, ONIZUKA_SCHEDULE, AvatarTransfer, FacePart,
                      read_parts)
 
@@ -32,6 +33,6 @@ __all__ = [
     "GradientOperator", "gradient_operator", "fourth_vertices", "deformation_gradients",
     "Correspondence", "CorrespondenceSettings", "CorrespondenceStage",
     "SUMNER_SCHEDULE", "find_correspondence", "match_triangles",
-    "DeformationTransfer",
+    "DeformationTransfer", "flipped_triangles",
     "AvatarTransfer", "FacePart", "IBUG51_PARTS", "ONIZUKA_SCHEDULE", "read_parts",
 ]

@@ -16,7 +16,13 @@ a few corresponding landmarks.  :class:`AvatarTransfer`:
 
    (deformation gradients over the matched pairs; landmark motion; equal gradients
    of neighbouring avatar triangles; gradients near the identity) and solves one
-   back-substitution per key shape.
+   back-substitution per key shape;
+4. unfolds triangles the solve flipped where the source does not (``fix_flips``):
+   the landmark term pulls lids shut, and on an avatar whose eye area has no lid
+   geometry (Mario) that folds the skin around the eye over.  Only such shapes are
+   re-solved, locally, with a term that unfolds exactly those triangles: the lids
+   still close as far as the avatar's surface allows, and where the avatar has lids
+   nothing changes.
 
 The landmark term moves avatar landmark ``corr(i)`` by ``R_tᵀ A_k R_s u_i``: the
 source landmark's displacement ``u_i`` expressed in the frame of its face part
@@ -59,8 +65,8 @@ from .correspondence import (_TETHER, Correspondence, CorrespondenceSettings,
                              untethered_vertices)
 from .gradients import adjacent_triangle_pairs, gradient_operator, \
     triangle_smoothness_operator
-from .transfer import DeformationTransfer, as_pose_stack, pair_matrix, \
-    source_gradient_blocks
+from .transfer import DeformationTransfer, _FlipRepair, as_pose_stack, complete_pairs, \
+    pair_matrix, source_gradient_blocks
 
 __all__ = ["FacePart", "IBUG51_PARTS", "read_parts", "ONIZUKA_SCHEDULE",
            "AvatarTransfer", "part_frame", "part_motions"]
@@ -335,6 +341,10 @@ class AvatarTransfer:
         Face parts over the landmark list (default :data:`IBUG51_PARTS`).
     correspondence : CorrespondenceSettings, optional
         Default: deform the avatar with :data:`ONIZUKA_SCHEDULE`.
+    fix_flips : bool
+        Unfold triangles the transfer flips where the source does not (both
+        methods; see :class:`~facewrap.transfer.DeformationTransfer`).  False keeps
+        the plain solve of either energy.
 
     Attributes
     ----------
@@ -346,12 +356,18 @@ class AvatarTransfer:
     parts_info_ : list of dict
     factor_ : facewrap.solve.Factor
     timings_ : dict
+    repairs_ : dict of (k,) int64 arrays
+        Set by each :meth:`transfer` with ``fix_flips``: per shape ``found`` (new
+        flips of the plain solve), ``repaired`` (triangles given the unfolding
+        term), ``remaining`` (normally 0) and ``rounds``.
     """
 
     def __init__(self, w_d: float = 1.0, w_l: float = 100.0, w_s: float = 10.0,
                  w_i: float = 1.0, landmark_guided: bool = True,
-                 parts=IBUG51_PARTS, correspondence: CorrespondenceSettings | None = None):
+                 parts=IBUG51_PARTS, correspondence: CorrespondenceSettings | None = None,
+                 fix_flips: bool = True):
         self.w_d, self.w_l, self.w_s, self.w_i = w_d, w_l, w_s, w_i
+        self.fix_flips = fix_flips
         self.landmark_guided = landmark_guided
         self.parts = tuple(parts)
         self.correspondence = correspondence
@@ -407,8 +423,9 @@ class AvatarTransfer:
         if self.landmark_guided:
             self._fit_guided(source, aligned, ls, la)
         else:
-            self._plain = DeformationTransfer(anchor="markers").fit(source, aligned,
-                                                                    correspondence)
+            self._plain = DeformationTransfer(
+                anchor="markers", fix_flips=self.fix_flips).fit(source, aligned,
+                                                                correspondence)
             self.factor_ = self._plain.factor_
         self.timings_ = {"correspondence": t1 - t0,
                          "factor": time.perf_counter() - t1}
@@ -440,7 +457,11 @@ class AvatarTransfer:
         self._tether_rhs = tether[:, None] * op.extend(aligned.vertices)
         self._identity_rhs = self.w_i * np.asarray(
             G.T @ np.tile(np.eye(3), (op.n_triangles, 1)))
-        self.factor_ = factorize(H.tocsr())
+        self._H = H.tocsr()
+        self.factor_ = factorize(self._H)
+        self._repair = _FlipRepair(aligned.vertices, aligned.triangles, self._source_op,
+                                   source.vertices,
+                                   complete_pairs(self._pairs, aligned.triangles)[0])
         src_n = vertex_normals(source.vertices, source.triangles)[ls]
         ava_n = vertex_normals(aligned.vertices, aligned.triangles)[la]
         self.motions_, self._owner, self.parts_info_ = part_motions(
@@ -483,6 +504,8 @@ class AvatarTransfer:
             out = self._solve_guided(P)
         else:
             out = self._plain.transfer(P)
+            if self.fix_flips:
+                self.repairs_ = self._plain.repairs_
         out = self.alignment_.inverse().apply(out.reshape(-1, 3)).reshape(out.shape)
         return out[0] if single else out
 
@@ -500,6 +523,9 @@ class AvatarTransfer:
         np.add.at(lm_rhs, self._la, w * goals.transpose(1, 0, 2))
         rhs += lm_rhs.reshape(op.n_unknowns, 3 * k)
         x = self.factor_.solve(rhs)
+        if self.fix_flips:
+            out, self.repairs_ = self._repair.repair_poses(self._H, rhs, x, P)
+            return out
         return x[:self.avatar_.n_vertices].reshape(-1, k, 3).transpose(1, 0, 2)
 
     def transfer_meshes(self, shapes) -> list[Mesh]:
