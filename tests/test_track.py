@@ -83,3 +83,19 @@ def test_track_needs_first_frame_landmarks(ramp):
     with pytest.raises(ValueError, match="landmark entries"):
         track(template.mesh, [seq[0].mesh, seq[1].mesh], template.landmarks,
               [seq[0].landmarks])
+
+
+def test_track_without_later_landmarks_keeps_up_with_the_expression(ramp):
+    """Landmarks on frame 0 only: the carried-over landmarks are predicted at
+    their last velocity, so the fit does not lag behind the ramp."""
+    template, seq = ramp
+    result = track(template.mesh, [s.mesh for s in seq], template.landmarks,
+                   [seq[0].landmarks] + [None] * (len(seq) - 1),
+                   blendshapes=template.blendshapes)
+    assert not result.landmarks_given[1:].any()
+    names = result.shape_names
+    jaw = result.weights[:, names.index("jaw_open")]
+    assert jaw[-1] == pytest.approx(PEAK["jaw_open"], abs=0.1)
+    assert np.all(np.diff(jaw) > 0)
+    for scan, frame in zip(seq, result.frames):
+        assert seen_error(template, scan, frame.vertices).mean() < 1.0

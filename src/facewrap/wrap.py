@@ -88,6 +88,12 @@ class WrapSettings:
         or None: unbounded.  Not applied to PCA components.
     reject_boundary : bool
         Ignore correspondences on the scan's border (holes, crop).
+    landmark_scale : float
+        Multiplies the landmark weight of every ICP stage, the coarse pre-fit's
+        included: how much the landmarks are trusted.  :func:`facewrap.track.track`
+        uses 0.05 for frames whose landmarks are only carried over from the
+        previous frame, so they guard against gross failure without holding the
+        face where it was.
     """
     model: str = "auto"
     scale: bool = True
@@ -105,8 +111,11 @@ class WrapSettings:
     pca_components: int | None = None
     weight_range: tuple[float, ...] | None = (0.0, 1.0)
     reject_boundary: bool = True
+    landmark_scale: float = 1.0
 
     def __post_init__(self):
+        if not self.landmark_scale >= 0:
+            raise ValueError(f"landmark_scale must be >= 0, got {self.landmark_scale!r}")
         if self.weight_range is not None:
             r = tuple(float(x) for x in self.weight_range)
             if len(r) not in (0, 2) or (r and not r[0] < r[1]):
@@ -282,7 +291,7 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     elif s.model in NONRIGID_MODELS:
         w_init = None if initial is None else initial.weights
         fitted = _nonrigid_icp(template, V, T, tree, template_landmarks.subset(ia), dst,
-                               s, excluded, blendshapes, w_init)
+                               s, excluded, blendshapes, w_init, warm=initial is not None)
         V, history, weights, names, timings["model_setup"] = fitted
     # "model_setup" (graph, coarse pre-fit) and "icp" are disjoint parts of the run
     timings["warp" if s.model == "rbf" else "icp"] = (time.perf_counter() - t
@@ -365,7 +374,7 @@ def _stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:
 
 
 def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes,
-                  w_init=None):
+                  w_init=None, warm: bool = False):
     """Non-rigid ICP from the similarity-aligned template ``V``.
 
     Returns (vertices, history, blend weights or None, shape names, setup seconds).
@@ -409,9 +418,13 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
         if s.model == "hybrid" and w_init is not None and len(w_init) == deltas.shape[1]:
             p_init = BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.asarray(w_init))
         # the coarse pre-fit keeps its own stages, on a third of the vertices
-        # throughout (the main fit refines afterwards)
-        pre_stages = [replace(st, sample=min(st.sample, 0.3)) for st in
-                      default_schedule("blendshape" if s.model == "hybrid" else "rigid")]
+        # throughout (the main fit refines afterwards); warm-started (tracking),
+        # it skips the landmark-only stage: the start is already close
+        pre_stages = [replace(st, sample=min(st.sample, 0.3),
+                              landmark_weight=st.landmark_weight * s.landmark_scale)
+                      for st in default_schedule("blendshape" if s.model == "hybrid"
+                                                 else "rigid")
+                      if not (warm and st.data_weight == 0)]
         coarse = fit(pre, pre_stages, p_init)
         history += [dict(h, model="pre-" + ("blendshape" if s.model == "hybrid"
                                             else "rigid")) for h in coarse.history_]
@@ -422,7 +435,8 @@ def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendsh
             D = deltas.reshape(len(V), 3, -1)
             deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * len(V), -1)
             w0 = p0.w
-    stages = s.stages or default_schedule(s.model)
+    stages = [replace(st, landmark_weight=st.landmark_weight * s.landmark_scale)
+              for st in (s.stages or default_schedule(s.model))]
     groups = _stage_groups(stages, s.model in ("graph", "hybrid"))
     if s.model in ("graph", "hybrid"):
         graph = _template_graph(template, s.node_spacing * groups[0][0])
