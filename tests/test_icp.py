@@ -282,6 +282,16 @@ def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
     assert set(report["blend_weights"]) == set(template.blendshapes)
     assert report["iterations"] and "icp" in report["timings"]
     assert read_mesh(out).n_vertices == template.mesh.n_vertices
+    assert report["settings"]["weight_range"] == [0.0, 1.0]
+    # the weight range from the command line; a reversed one is one clear error
+    args = ["wrap", str(paths["template"]), str(paths["scan"]), "-o", str(out),
+            "--template-landmarks", str(paths["template_landmarks"]),
+            "--scan-landmarks", str(paths["scan_landmarks"]), "--model", "blendshape",
+            "--blendshapes", str(paths["blendshapes/blink"].parent), "--report", str(rep),
+            "-q"]
+    assert main(args + ["--unbounded-weights"]) == 0
+    assert json.loads(rep.read_text())["settings"]["weight_range"] is None
+    assert main(args + ["--weight-range", "1", "0"]) != 0
 
 
 def test_template_graph_is_cached_by_content(sample):

@@ -82,7 +82,9 @@ def wrap_settings_from_args(args) -> WrapSettings:
     return WrapSettings(model=args.model, kernel=args.kernel, smoothing=args.smoothing,
                         project=not args.no_project, max_distance=args.max_distance,
                         rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
-                        robust=args.robust, pca_components=args.pca_components)
+                        robust=args.robust, pca_components=args.pca_components,
+                        weight_range=(None if args.unbounded_weights
+                                      else tuple(args.weight_range)))
 
 
 def cmd_wrap(args) -> int:
@@ -164,6 +166,13 @@ def add_fit_options(p) -> None:
                    help="robust norm of the data term (default %(default)s)")
     p.add_argument("--pca-components", type=int, default=None,
                    help="fit this many PCA components of the blendshapes")
+    p.add_argument("--weight-range", type=float, nargs=2, metavar=("LO", "HI"),
+                   default=WrapSettings.weight_range,
+                   help="range of the blend weights (default 0 1, an expression "
+                        "rig's); see --unbounded-weights")
+    p.add_argument("--unbounded-weights", action="store_true",
+                   help="let blend weights take any value (identity or corrective "
+                        "shapes used with negative or > 1 weights)")
     p.add_argument("--kernel", default="biharmonic",
                    choices=["biharmonic", "thin_plate", "exponential", "gaussian"],
                    help="RBF kernel of the landmark warp")
