@@ -138,3 +138,24 @@ def test_cli_ict_face_onto_james_report(tmp_path):
     assert np.array_equal(fitted.face_uvs, face.face_uvs)
     assert np.array_equal(fitted.uvs, face.uvs)
     assert fitted.face_sizes.tolist() == face.face_sizes.tolist()
+
+
+def test_template_landmarks_as_points_are_snapped_to_the_surface(sample):
+    """Landmarks given as x, y, z points (MeshMonk's CSV) follow the template like
+    vertex landmarks; points far off the template are one clear error."""
+    from facewrap.landmarks import Landmarks, snap_to_surface
+    template, scan = sample
+    T = template.mesh
+    as_points = Landmarks.from_points(template.landmarks.positions(T.vertices, T.triangles)
+                                      + 1e-4, names=template.landmarks.names)
+    snapped, moved = snap_to_surface(as_points, T.vertices, T.triangles)
+    assert snapped.on_mesh and moved.max() < 1e-3
+    assert np.allclose(snapped.positions(T.vertices, T.triangles),
+                       template.landmarks.positions(T.vertices, T.triangles), atol=1e-3)
+    a = wrap(T, scan.mesh, template.landmarks, scan.landmarks, WrapSettings(model="rbf"))
+    b = wrap(T, scan.mesh, as_points, scan.landmarks, WrapSettings(model="rbf"))
+    assert np.abs(a.warped - b.warped).max() < 0.01          # before projection
+    far = Landmarks.from_points(as_points.points + [0.0, 0.0, 0.1 * T.scale()],
+                                names=template.landmarks.names)
+    with pytest.raises(ValueError, match="from the template's surface"):
+        wrap(T, scan.mesh, far, scan.landmarks, WrapSettings(model="rbf"))

@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Landmarks", "pair_landmarks", "IBUG68_NAMES"]
+__all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES"]
 
 
 def _names(prefix, count):
@@ -188,6 +188,40 @@ class Landmarks:
         kinds, counts = np.unique(self.kinds.astype(str), return_counts=True)
         what = ", ".join(f"{c} {k}" for k, c in zip(kinds, counts))
         return f"<Landmarks {len(self)}: {what}{', named' if self.names else ''}>"
+
+
+def snap_to_surface(landmarks: Landmarks, vertices, triangles
+                    ) -> tuple[Landmarks, np.ndarray]:
+    """Free-point landmarks moved to their closest surface points (triangle +
+    barycentric), so they follow the mesh when it deforms; vertex and surface
+    landmarks are kept.  Templates often come with landmarks as x, y, z points
+    (MeshMonk's CSV files).
+
+    Parameters
+    ----------
+    landmarks : Landmarks
+    vertices : (n, 3) float
+    triangles : (t, 3) int
+
+    Returns
+    -------
+    snapped : Landmarks
+        Same order and names.
+    distances : (k,) float64
+        How far each landmark moved (0 for those already on the mesh).
+    """
+    from .geometry import ClosestPointTree
+    free = ~((landmarks.vertex >= 0) | (landmarks.triangle >= 0))
+    dist = np.zeros(len(landmarks))
+    if not free.any():
+        return landmarks, dist
+    cp = ClosestPointTree(vertices, triangles).query(landmarks.points[free])
+    tri = np.array(landmarks.triangle)
+    bary = np.array(landmarks.barycentric)
+    points = np.array(landmarks.points)
+    tri[free], bary[free], points[free] = cp.triangles, cp.barycentric, np.nan
+    dist[free] = cp.distances
+    return Landmarks(landmarks.vertex, tri, bary, points, landmarks.names), dist
 
 
 def pair_landmarks(a: Landmarks, b: Landmarks) -> tuple[np.ndarray, np.ndarray]:

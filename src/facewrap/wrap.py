@@ -22,7 +22,7 @@ import numpy as np
 from .align import Similarity, rigid_icp, similarity_transform
 from .geometry import ClosestPointTree
 from .icp import NonRigidICP, Stage, default_schedule
-from .landmarks import Landmarks, pair_landmarks
+from .landmarks import Landmarks, pair_landmarks, snap_to_surface
 from .mesh import Mesh
 from .models.affine import AffineModel
 from .models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
@@ -247,6 +247,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         raise ValueError(f"model {s.model!r} needs blendshapes")
     timings = {}
     t0 = time.perf_counter()
+    if not template_landmarks.on_mesh:
+        template_landmarks = _snapped_template_landmarks(template, template_landmarks)
     ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
@@ -315,6 +317,25 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         metrics["projection"] = projection.summary()
     return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics,
                       settings=s, history=history, weights=weights, shape_names=names)
+
+
+#: template landmarks given as points may lie this far off the template's surface
+#: (fraction of its bounding-box diagonal) and still be snapped onto it
+SNAP_TOLERANCE = 0.02
+
+
+def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmarks:
+    """Template landmarks given as x, y, z points, moved onto the template's
+    surface so they follow it; an error names one that is far off (a point set
+    meant for another mesh or in other units)."""
+    snapped, moved = snap_to_surface(landmarks, template.vertices, template.triangles)
+    limit = SNAP_TOLERANCE * template.scale()
+    if (moved > limit).any():
+        i = int(np.argmax(moved))
+        raise ValueError(f"template landmark {landmarks.label(i)} lies {moved[i]:.4g} "
+                         f"from the template's surface (more than {limit:.4g}, 2 % of "
+                         "its size): landmarks for another mesh or in other units?")
+    return snapped
 
 
 def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
