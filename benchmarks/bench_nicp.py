@@ -121,10 +121,19 @@ def _cold_and_warm(case) -> dict:
 
 
 def run_peer(case, peer) -> dict:
-    import trimesh
-    V0, ia, dst = _prealign(case)
     c = time.process_time()
     t = time.perf_counter()
+    V = peer_vertices(case, peer)
+    total = time.perf_counter() - t
+    return {"method": peer, "time": total, "cpu": time.process_time() - c,
+            **_errors(V, case)}
+
+
+def peer_vertices(case, peer) -> np.ndarray:
+    """A peer's registration of ``case.template`` onto ``case.scan`` from facewrap's
+    landmark similarity (the peers' own alignment options differ)."""
+    import trimesh
+    V0, ia, dst = _prealign(case)
     src = trimesh.Trimesh(V0, case.template.triangles, process=False)
     tgt = trimesh.Trimesh(case.scan.vertices, case.scan.triangles, process=False)
     if peer == "trimesh nricp_amberg":
@@ -142,9 +151,7 @@ def run_peer(case, peer) -> dict:
                                       rigid_params={}).aligned_vertices
     else:
         raise ValueError(peer)
-    total = time.perf_counter() - t
-    return {"method": peer, "time": total, "cpu": time.process_time() - c,
-            **_errors(V, case)}
+    return np.asarray(V, dtype=np.float64)
 
 
 #: seconds a single method may run before it is stopped and reported as timed out

@@ -289,7 +289,7 @@ def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
             "--scan-landmarks", str(paths["scan_landmarks"]), "--model", "blendshape",
             "--blendshapes", str(paths["blendshapes/blink"].parent), "--report", str(rep),
             "-q"]
-    assert main(args + ["--unbounded-weights"]) == 0
+    assert main(args + ["--no-weight-range"]) == 0
     assert json.loads(rep.read_text())["settings"]["weight_range"] is None
     assert main(args + ["--weight-range", "1", "0"]) != 0
 

@@ -26,8 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .geometry import (ClosestPointTree, edges_of_polygons, uniform_laplacian,
-                       vertex_normals)
+from .geometry import (ClosestPointTree, edges_of_polygons, face_normals,
+                       uniform_laplacian, vertex_normals)
 from .mesh import Mesh
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
@@ -193,7 +193,8 @@ def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndar
 def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
                        normals=None, mask=None, max_distance: float | None = None,
                        max_normal_angle: float = 60.0, methods=("prism", "ray", "closest"),
-                       reject_boundary: bool = True, blend_order: int = 2) -> Projection:
+                       reject_boundary: bool = True, blend_order: int = 1,
+                       fold_angle: float = 60.0, fold_rounds: int = 4) -> Projection:
     """Move template vertices onto the scan along normals, blending the rest.
 
     Parameters
@@ -219,6 +220,10 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
         Do not land on triangles touching the scan's boundary (holes, borders).
     blend_order : {1, 2}
         Harmonic or biharmonic blending of unprojected vertices.
+    fold_angle : float
+        Degrees: a template triangle whose normal turns further than this from
+        its normal before projection un-projects its vertices (they follow the
+        blend), up to ``fold_rounds`` times; 0 rounds: no guard.
 
     Returns
     -------
@@ -281,10 +286,28 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     if reject_boundary:
         on_border = tree.boundary_triangles
         ok &= ~np.where(has, on_border[np.maximum(tri, 0)], False)
+    # Fold guard: on a coarse or faceted scan, neighbouring vertices can land on
+    # either side of a scan edge and turn a template triangle over.  Their
+    # vertices are not projected but follow the blend instead, until no triangle
+    # turns past ``fold_angle`` from where the fit left it.
+    T = template.triangles
+    n0 = face_normals(Vt, T)
+    for _ in range(fold_rounds + 1):
+        disp = smooth_extension(template, P - Vt, ok, order=blend_order)
+        out = Vt + disp
+        out[ok] = P[ok]  # exact landing points (no round-off from the blend)
+        if fold_rounds == 0:
+            break
+        n1 = face_normals(out, T)
+        turned = (np.einsum("ij,ij->i", n1, n0) < np.cos(np.radians(fold_angle))) \
+            & (np.abs(n0).sum(1) > 0)          # (degenerate triangles have no normal)
+        bad = np.zeros(n, dtype=bool)
+        bad[T[turned]] = True
+        bad &= ok
+        if not bad.any():
+            break
+        ok &= ~bad
     method[~ok] = METHOD_NONE
     tri[~ok] = -1
     bary[~ok] = 0.0
-    disp = smooth_extension(template, P - Vt, ok, order=blend_order)
-    out = Vt + disp
-    out[ok] = P[ok]  # exact landing points (no round-off from the blend)
     return Projection(out, ok, tri, bary, method, np.linalg.norm(out - Vt, axis=1))

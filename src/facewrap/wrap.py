@@ -67,7 +67,12 @@ class WrapSettings:
     max_normal_angle : float
         Degrees; larger differences between template and scan normals are rejected.
     blend_order : {1, 2}
-        Harmonic or biharmonic blending of unprojected vertices.
+        Harmonic (default) or biharmonic blending of the displacement of
+        vertices that are not projected.  Biharmonic is smoother where projected
+        and blended vertices meet but overshoots over large unprojected regions
+        (the parts of a template a scan does not cover): on menpo's james scan
+        its blend folded 229 template triangle pairs, the harmonic one 72
+        (with the projection's fold guard; the ICP result had 26).
     stages : list of Stage, optional
         The non-rigid ICP schedule (stiff to loose); None = the model's default
         (see :func:`facewrap.icp.default_schedule`).
@@ -103,7 +108,7 @@ class WrapSettings:
     project: bool = True
     max_distance: float | None = None
     max_normal_angle: float = 60.0
-    blend_order: int = 2
+    blend_order: int = 1
     stages: list[Stage] | None = None
     node_spacing: float = 0.05
     point_weight: float = 0.1

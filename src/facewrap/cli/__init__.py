@@ -83,7 +83,7 @@ def wrap_settings_from_args(args) -> WrapSettings:
                         project=not args.no_project, max_distance=args.max_distance,
                         rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
                         robust=args.robust, pca_components=args.pca_components,
-                        weight_range=(None if args.unbounded_weights
+                        weight_range=(None if args.no_weight_range
                                       else tuple(args.weight_range)))
 
 
@@ -169,8 +169,8 @@ def add_fit_options(p) -> None:
     p.add_argument("--weight-range", type=float, nargs=2, metavar=("LO", "HI"),
                    default=WrapSettings.weight_range,
                    help="range of the blend weights (default 0 1, an expression "
-                        "rig's); see --unbounded-weights")
-    p.add_argument("--unbounded-weights", action="store_true",
+                        "rig's); see --no-weight-range")
+    p.add_argument("--no-weight-range", action="store_true",
                    help="let blend weights take any value (identity or corrective "
                         "shapes used with negative or > 1 weights)")
     p.add_argument("--kernel", default="biharmonic",
