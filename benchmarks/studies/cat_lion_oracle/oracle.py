@@ -5,8 +5,7 @@ import numpy as np, scipy.sparse as sp
 from pathlib import Path
 from scipy.spatial import cKDTree
 from scipy.optimize import nnls
-from facewrap.datasets import load_sumner_pair
-from facewrap.align import similarity_transform
+from common import load, relative_errors
 from facewrap.geometry import face_normals
 from facewrap.solve import factorize
 from facewrap.transfer import DeformationTransfer, find_correspondence
@@ -14,21 +13,11 @@ from facewrap.transfer.gradients import gradient_operator
 from facewrap.transfer.transfer import source_gradient_blocks, pair_matrix, complete_pairs
 
 T0 = time.perf_counter()
-p = load_sumner_pair(Path(__file__).resolve().parents[4] / "shared" / "data" / "sumner2004" / "cat-lion" / "markers-cat-lion.yml")
-s, t = p.source, p.target
-S_ref, L_ref = s.reference, t.reference
-P = np.stack(s.poses); GT = np.stack(t.poses)
-k = len(P); n = L_ref.n_vertices; a = n - 1
-diag = L_ref.scale()
+p, s, t, S_ref, L_ref, P, GT, k, n, a, diag = load()
 print("anchor moves in GT:", np.abs(GT[:, a] - L_ref.vertices[a]).max())
 
 def errors(out):
-    raw, rig = [], []
-    for X, G in zip(out, GT):
-        raw.append(100 * np.linalg.norm(X - G, axis=1).mean() / diag)
-        R = similarity_transform(X, G, scale=False)
-        rig.append(100 * np.linalg.norm(R.apply(X) - G, axis=1).mean() / diag)
-    return np.array(raw), np.array(rig)
+    return relative_errors(out, GT, diag)
 
 rows = []
 def report(name, out, extra=""):
