@@ -4,11 +4,11 @@ ICT-FaceKit neutral (when ../shared/data is present)."""
 from __future__ import annotations
 
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.mesh import Mesh
 
@@ -25,22 +25,13 @@ def grid_mesh(n: int) -> Mesh:
     return Mesh(V, F, uvs=V[:, :2])
 
 
-def best_of(fn, repeat=2):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
-
-
 def run() -> dict:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         mesh = grid_mesh(710)  # 1,005,362 triangles
         path = Path(tmp) / "big.obj"
-        tw, _ = best_of(lambda: write_obj(path, mesh))
-        tr, back = best_of(lambda: read_obj(path))
+        tw, _ = best_of(lambda: write_obj(path, mesh), 2)
+        tr, back = best_of(lambda: read_obj(path), 2)
         assert np.array_equal(back.vertices, mesh.vertices)
         rows.append({"case": f"grid, {len(mesh.triangles):,} triangles, UVs "
                              f"({path.stat().st_size / 1e6:.0f} MB)",

@@ -11,11 +11,11 @@ import subprocess
 import sys
 import tempfile
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
 from facewrap.report import heatmap_figure, render_mesh
 from facewrap.sample import make_scan, make_template
 
@@ -35,15 +35,6 @@ def subdivide(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     T2 = np.concatenate([np.stack([a, m01, m20], 1), np.stack([m01, b, m12], 1),
                          np.stack([m20, m12, c], 1), np.stack([m01, m12, m20], 1)])
     return V2, T2
-
-
-def _best(fn, repeats=REPEATS) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 _VTK_SCRIPT = textwrap.dedent("""
@@ -109,16 +100,16 @@ def run() -> dict:
     for label, (V, T) in (("100k", (V1, T1)), ("1M", (Vb, Tb))):
         values = np.linalg.norm(V - V.mean(axis=0), axis=1)
         for view in ("front", "three_quarter", "side"):
-            s = _best(lambda: render_mesh((V, T), view=view, size=SIZE))
+            s = best_of(lambda: render_mesh((V, T), view=view, size=SIZE), REPEATS)[0]
             rows.append({"mesh": f"{len(T):,} triangles", "what": f"shaded, {view}",
                          "seconds": s})
-        s = _best(lambda: render_mesh((V, T), view="three_quarter", size=SIZE,
-                                      scalars=values))
+        s = best_of(lambda: render_mesh((V, T), view="three_quarter", size=SIZE,
+                                        scalars=values), REPEATS)[0]
         rows.append({"mesh": f"{len(T):,} triangles", "what": "heatmap, three_quarter",
                      "seconds": s})
         if label == "100k":
-            s = _best(lambda: heatmap_figure((V, T), values, title="distance",
-                                             size=(400, 480)), 2)
+            s = best_of(lambda: heatmap_figure((V, T), values, title="distance",
+                                               size=(400, 480)), 2)[0]
             rows.append({"mesh": f"{len(T):,} triangles",
                          "what": "heatmap figure: 3 views 400x480 + colour bar",
                          "seconds": s})

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from _timing import best_of
 from facewrap.align import similarity_transform
 from facewrap.geometry import face_areas, face_normals
 from facewrap.sample import make_scan, make_template
@@ -58,15 +59,6 @@ def _folds(X, V0, T) -> int:
     return int(np.sum(apart(X) & ~apart(V0)))
 
 
-def _best(f, repeats=3):
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        f()
-        best = min(best, time.perf_counter() - t)
-    return best
-
-
 def synthetic() -> dict:
     tpl = make_template(64)
     face, vmap = tpl.mesh.submesh(tpl.mesh.face_groups == 0)
@@ -79,7 +71,7 @@ def synthetic() -> dict:
     dt = DeformationTransfer().fit(face, scan.mesh, corr)
     fit = time.perf_counter() - t
     P = np.stack([v[vmap] for v in tpl.blendshapes.values()])
-    per = _best(lambda: dt.transfer(P)) / len(P)
+    per = best_of(lambda: dt.transfer(P))[0] / len(P)
     return {"case": f"sample face ({face.n_vertices:,} v, quads) → scan "
                     f"({scan.mesh.n_vertices:,} v, triangles)",
             "fit": fit, "per_pose": per, "poses": len(P)}
@@ -128,9 +120,9 @@ def horse_camel() -> dict:
     out = dt.transfer(np.stack(src.poses))
     t3 = time.perf_counter()
     unfolded = dt.repairs_["found"]
-    one = _best(lambda: dt.transfer(src.poses[3]))
+    one = best_of(lambda: dt.transfer(src.poses[3]))[0]
     dt.fix_flips = False
-    one_plain = _best(lambda: dt.transfer(src.poses[3]))
+    one_plain = best_of(lambda: dt.transfer(src.poses[3]))[0]
     folds_plain = [_folds(X, camel.vertices, camel.triangles)
                    for X in dt.transfer(np.stack(src.poses))]
     dt.fix_flips = True
@@ -299,7 +291,7 @@ def ict_to_oldman() -> dict:
     t3 = time.perf_counter()
     repairs = dt.repairs_
     dt.fix_flips = False
-    unrepaired = _best(lambda: dt.transfer(shapes), 1)
+    unrepaired = best_of(lambda: dt.transfer(shapes), 1)[0]
     dt.fix_flips = True
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "oldman_arkit.glb"

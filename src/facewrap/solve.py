@@ -133,64 +133,80 @@ DENSE_LIMIT = 2500
 BORDERED_FROM = 600
 
 
+#: unknowns per graph node: vertex rows whose columns come in whole runs of this
+#: many take the block-sparse Gram product
+_NODE_BLOCK = 6
+
+
+def _row_triples(S):
+    """``(vals (r, 3, q), cols (r, q))`` when the rows of ``S`` come in triples
+    sharing their ``q`` columns (the coordinates of a vertex or of a graph
+    edge), else None."""
+    R = S.shape[0]
+    q = np.diff(S.indptr)
+    if not (R and R % 3 == 0 and q[0] > 0 and (q == q[0]).all()):
+        return None
+    idx = S.indices.reshape(R // 3, 3, q[0])
+    if not (idx == idx[:, :1]).all():
+        return None
+    return S.data.reshape(R // 3, 3, q[0]), idx[:, 0, :]
+
+
+def _node_blocks(cols, P: int, b: int = _NODE_BLOCK):
+    """(r, k) block-column ids when every row's columns are ``k ≥ 2`` aligned
+    runs of ``b`` (a vertex skinned by k graph nodes), else None."""
+    q = cols.shape[1]
+    if P % b or q % b or q < 2 * b:
+        return None
+    runs = cols.reshape(len(cols), -1, b)
+    if not ((runs[..., :1] % b == 0).all() and (runs == runs[..., :1] + np.arange(b)).all()):
+        return None
+    return runs[..., 0] // b
+
+
 def _gram(S) -> np.ndarray:
     """Dense ``SᵀS`` of a sparse matrix.
 
     Jacobian rows come in triples (the three coordinates of a vertex, or of a
     graph edge) that share their columns; then ``SᵀS`` is a sum of small dense
     blocks, accumulated with one ``bincount`` — several times faster than a
-    sparse-sparse product.  Other matrices take the sparse product.
+    sparse-sparse product — or, for vertex rows spanning several graph nodes, a
+    block-sparse product (~2x faster again).  Other matrices take the sparse
+    product.
     """
     S = sp.csr_matrix(S)
-    R, P = S.shape
-    q = np.diff(S.indptr)
-    if R and R % 3 == 0 and q[0] > 0 and (q == q[0]).all():
-        idx = S.indices.reshape(R // 3, 3, q[0])
-        if (idx == idx[:, :1]).all():
-            cols = idx[:, 0, :]
-            vals = S.data.reshape(R // 3, 3, q[0])
-            for b in (6,):
-                # columns in aligned runs of b (a graph node's 6 unknowns): a
-                # block-sparse product, ~2x faster than the bincount below when
-                # rows span several blocks (vertex rows: 4 nodes)
-                if P % b == 0 and q[0] % b == 0 and q[0] >= 2 * b:
-                    runs = cols.reshape(len(cols), -1, b)
-                    if (runs[..., :1] % b == 0).all() and \
-                            (runs == runs[..., :1] + np.arange(b)).all():
-                        return _block_gram(vals, runs[..., 0] // b, b, P)
-            G = np.matmul(vals.transpose(0, 2, 1), vals)
-            flat = (cols[:, :, None] * P + cols[:, None, :]).ravel()
-            return np.bincount(flat, G.ravel(), minlength=P * P).reshape(P, P)
-    return (S.T @ S).toarray()
+    P = S.shape[1]
+    triples = _row_triples(S)
+    if triples is None:
+        return (S.T @ S).toarray()
+    vals, cols = triples
+    blocks = _node_blocks(cols, P)
+    if blocks is not None:
+        return _block_gram(vals, blocks, _NODE_BLOCK, P).toarray()
+    G = np.matmul(vals.transpose(0, 2, 1), vals)
+    flat = (cols[:, :, None] * P + cols[:, None, :]).ravel()
+    return np.bincount(flat, G.ravel(), minlength=P * P).reshape(P, P)
 
 
-def _block_gram(vals, blocks, b: int, P: int, dense: bool = True):
-    """``SᵀS`` for rows in triples whose columns are whole ``b``-blocks:
-    ``vals`` (r, 3, k·b), ``blocks`` (r, k) block-column ids.  Dense, or sparse
-    (BSR) with ``dense=False``."""
+def _block_gram(vals, blocks, b: int, P: int) -> sp.bsr_matrix:
+    """``SᵀS`` (BSR) for rows in triples whose columns are whole ``b``-blocks:
+    ``vals`` (r, 3, k·b), ``blocks`` (r, k) block-column ids."""
     r, k = blocks.shape
     # (block columns need not be sorted within a row: the product accumulates)
     data = vals.reshape(r, 3, k, b).transpose(0, 2, 1, 3)          # (r, k, 3, b)
     B = sp.bsr_matrix((data.reshape(r * k, 3, b), blocks.ravel(),
                        np.arange(0, r * k + 1, k)), shape=(3 * r, P))
-    G = B.T.tobsr(blocksize=(b, 3)) @ B
-    return G.toarray() if dense else G
+    return B.T.tobsr(blocksize=(b, 3)) @ B
 
 
 def _sparse_gram(S) -> sp.csr_matrix:
     """Sparse ``SᵀS``, by blocks where the rows allow it (see :func:`_gram`)."""
     S = sp.csr_matrix(S)
-    R, P = S.shape
-    q = np.diff(S.indptr)
-    b = 6
-    if R and R % 3 == 0 and P % b == 0 and q[0] >= 2 * b and q[0] % b == 0 \
-            and (q == q[0]).all():
-        idx = S.indices.reshape(R // 3, 3, q[0])
-        if (idx == idx[:, :1]).all():
-            runs = idx[:, 0, :].reshape(R // 3, -1, b)
-            if (runs[..., :1] % b == 0).all() and (runs == runs[..., :1] + np.arange(b)).all():
-                return _block_gram(S.data.reshape(R // 3, 3, q[0]), runs[..., 0] // b, b,
-                                   P, dense=False).tocsr()
+    triples = _row_triples(S)
+    if triples is not None:
+        blocks = _node_blocks(triples[1], S.shape[1])
+        if blocks is not None:
+            return _block_gram(triples[0], blocks, _NODE_BLOCK, S.shape[1]).tocsr()
     return (S.T.tocsr() @ S).tocsr()
 
 

@@ -338,8 +338,9 @@ def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmar
     if (moved > limit).any():
         i = int(np.argmax(moved))
         raise ValueError(f"template landmark {landmarks.label(i)} lies {moved[i]:.4g} "
-                         f"from the template's surface (more than {limit:.4g}, 2 % of "
-                         "its size): landmarks for another mesh or in other units?")
+                         f"from the template's surface (more than {limit:.4g}, "
+                         f"{100 * SNAP_TOLERANCE:g} % of its size): landmarks for another "
+                         "mesh or in other units?")
     return snapped
 
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
+
 from ..errors import InputError
 
-__all__ = ["read_file_bytes"]
+__all__ = ["read_file_bytes", "read_json"]
 
 
 def read_file_bytes(path, text: bool = False) -> bytes:
@@ -26,3 +28,13 @@ def read_file_bytes(path, text: bool = False) -> bytes:
     if text and b"\0" in data:
         raise InputError("binary data, not a text file", path)
     return data
+
+
+def read_json(path):
+    """A JSON file's content; :class:`InputError` naming the file (and line) when
+    it is missing, empty or not valid JSON."""
+    text = read_file_bytes(path, text=True).decode("utf-8", errors="replace")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None

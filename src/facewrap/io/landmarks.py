@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import InputError
 from ..landmarks import IBUG68_NAMES, Landmarks
 from .atomic import atomic_write
-from .files import read_file_bytes
+from .files import read_file_bytes, read_json
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
@@ -165,14 +165,6 @@ def write_points(path, points_or_landmarks, names=None) -> None:
         fh.write("\n".join(rows) + "\n")
 
 
-def _load_json(path):
-    text = _text(path)
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
-
-
 def read_ljson(path, ibug68: bool = True) -> Landmarks:
     """Read menpo LJSON (v1, v2, v3) landmarks.
 
@@ -184,7 +176,7 @@ def read_ljson(path, ibug68: bool = True) -> Landmarks:
     with any iBUG-68 landmark set.  A point that menpo marks missing (``null``) is
     an error: this reader never invents positions.
     """
-    d = _load_json(path)
+    d = read_json(path)
     if not isinstance(d, dict):
         raise InputError("LJSON must be an object", path)
     version = d.get("version", 1)
@@ -261,7 +253,7 @@ def _menpo_face_to_ibug68(lm: Landmarks) -> Landmarks:
 
 def read_landmarks_json(path) -> Landmarks:
     """Read the facewrap landmark JSON format (see the module docstring)."""
-    d = _load_json(path)
+    d = read_json(path)
     if not isinstance(d, dict) or d.get("format") != "facewrap.landmarks":
         raise InputError("not a facewrap landmark file (\"format\": "
                          "\"facewrap.landmarks\" missing)", path)
@@ -375,7 +367,7 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
     if ext in (".yml", ".yaml"):
         return _read_markers_yaml(path)
     if ext == ".json":
-        d = _load_json(path)
+        d = read_json(path)
         if not isinstance(d, dict) or d.get("format") != "facewrap.markers":
             raise InputError("not a facewrap marker file (\"format\": "
                              "\"facewrap.markers\" missing)", path)

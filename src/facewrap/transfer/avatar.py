@@ -47,7 +47,6 @@ indices) into the landmark list.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import dataclass
@@ -58,6 +57,7 @@ import scipy.sparse as sp
 from ..align import Similarity, similarity_transform
 from ..errors import InputError
 from ..geometry import vertex_normals
+from ..io.files import read_json
 from ..mesh import Mesh
 from ..solve import factorize
 from .correspondence import (_TETHER, Correspondence, CorrespondenceSettings,
@@ -177,11 +177,7 @@ def read_parts(path) -> tuple[FacePart, ...]:
     """
     if not os.path.isfile(path):
         raise InputError("no such file", path)
-    try:
-        with open(path, encoding="utf-8") as fh:
-            d = json.load(fh)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+    d = read_json(path)
     if not isinstance(d, dict) or d.get("format") != "facewrap.parts":
         raise InputError('not a facewrap parts file ("format": "facewrap.parts" '
                          "missing)", path)
