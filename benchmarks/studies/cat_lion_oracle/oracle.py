@@ -5,9 +5,8 @@ import numpy as np, scipy.sparse as sp
 from pathlib import Path
 from scipy.spatial import cKDTree
 from scipy.optimize import nnls
-from common import load, relative_errors
+from common import gradient_solver, load, relative_errors
 from facewrap.geometry import face_normals
-from facewrap.solve import factorize
 from facewrap.transfer import DeformationTransfer, find_correspondence
 from facewrap.transfer.gradients import gradient_operator
 from facewrap.transfer.transfer import source_gradient_blocks, pair_matrix, complete_pairs
@@ -39,24 +38,9 @@ lop = gradient_operator(L_ref.vertices, L_ref.triangles)
 Sg = source_gradient_blocks(sop, P)     # (k, ts, 9)
 Lg = source_gradient_blocks(lop, GT)    # (k, tl, 9)
 ts, tl = Sg.shape[1], Lg.shape[1]
-G = lop.matrix
-N = G.shape[1]
-free = np.ones(N, bool); free[a] = False
-fidx = np.flatnonzero(free)
 
 def make_solver(w):
-    H = (G.T @ sp.diags(np.repeat(w, 3)) @ G).tocsr()
-    Hff = H[fidx][:, fidx]
-    Hfa = np.asarray(H[fidx][:, [a]].todense()).ravel()
-    F = factorize(Hff)
-    xa = np.tile(L_ref.vertices[a], k)
-    def solve(B):  # B (k, tl, 9) -> (k, n, 3)
-        Bm = B.reshape(k, tl, 3, 3).transpose(1, 2, 0, 3).reshape(3 * tl, 3 * k)
-        rhs = G.T @ (np.repeat(w, 3)[:, None] * Bm)
-        rhs_f = rhs[fidx] - Hfa[:, None] * xa[None, :]
-        x = np.empty((N, 3 * k)); x[fidx] = F.solve(rhs_f); x[a] = xa
-        return x[:n].reshape(n, k, 3).transpose(1, 0, 2)
-    return solve
+    return gradient_solver(L_ref, a, k, w)
 
 solve = make_solver(np.ones(tl))
 
