@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from facewrap.align import Similarity, rigid_icp, similarity_transform
-from facewrap.models.rbf import RBFWarp
+from facewrap.models.rbf import RBFWarp, pull_to_landmarks
 
 
 def random_rotation(rng):
@@ -108,3 +108,42 @@ def test_rbf_with_few_landmarks_is_a_translation_and_chunks_agree():
 def test_rbf_rejects_bad_input(kwargs, C, D, msg):
     with pytest.raises(ValueError, match=msg):
         RBFWarp(**kwargs).fit(C, D)
+
+
+def test_rbf_without_affine_part_is_local():
+    rng = np.random.default_rng(3)
+    C = rng.normal(size=(12, 3))
+    D = rng.normal(size=(12, 3))
+    w = RBFWarp(kernel="gaussian", width=0.5, affine=False).fit(C, D)
+    assert np.allclose(w.displacement(C), D, atol=1e-8)      # interpolates
+    assert np.allclose(w.affine_, 0)
+    assert np.abs(w.displacement(np.array([[20.0, 0, 0]]))).max() < 1e-12   # vanishes
+    # with the affine part the same data moves a far point
+    assert np.abs(RBFWarp(kernel="gaussian", width=0.5).fit(C, D)
+                  .displacement(np.array([[20.0, 0, 0]]))).max() > 1e-3
+
+
+def test_pull_to_landmarks_shortens_offsets_by_the_tolerance():
+    rng = np.random.default_rng(4)
+    grid = np.stack(np.meshgrid(*[np.linspace(0, 1, 11)] * 2, indexing="ij"), -1)
+    P = np.column_stack([grid.reshape(-1, 2), np.zeros(121)])
+    lm = np.array([0, 10, 60, 110, 120, 33])        # corners, centre, one inside
+    targets = P[lm] + rng.normal(scale=0.01, size=(6, 3))
+    targets[2] = P[60] + [0.2, 0.0, 0.0]           # far off: gets pulled
+    tol = 0.05
+    moved, pulls = pull_to_landmarks(P, P[lm], targets, tol)
+    left = np.linalg.norm(moved[lm] - targets, axis=1)
+    within = np.linalg.norm(P[lm] - targets, axis=1) <= tol
+    assert np.allclose(pulls[within], 0) and np.allclose(moved[lm[within]], P[lm[within]])
+    assert np.isclose(pulls[2], 0.15) and np.isclose(left[2], tol)
+    assert np.allclose(moved[60] - P[60], [0.15, 0, 0])      # straight toward the target
+    # exact pins, and no pull at all
+    pinned, _ = pull_to_landmarks(P, P[lm], targets, 0.0)
+    assert np.allclose(pinned[lm], targets)
+    same, none = pull_to_landmarks(P, P[lm], targets, np.inf)
+    assert np.array_equal(same, P) and not none.any()
+    # two landmarks on one point share their pull (no singular system)
+    both, _ = pull_to_landmarks(P, P[[60, 60]], P[[60, 60]] + [[0.2, 0, 0], [0, 0.2, 0]], 0)
+    assert np.allclose(both[60] - P[60], [0.1, 0.1, 0])
+    with pytest.raises(ValueError, match="tolerance"):
+        pull_to_landmarks(P, P[lm], targets, -1.0)

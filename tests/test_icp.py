@@ -292,6 +292,13 @@ def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
     assert main(args + ["--no-weight-range"]) == 0
     assert json.loads(rep.read_text())["settings"]["weight_range"] is None
     assert main(args + ["--weight-range", "1", "0"]) != 0
+    # landmark pull: reported by default, can be off, a negative tolerance is an error
+    assert "landmark_pull" in report["metrics"]
+    assert main(args + ["--no-landmark-pull"]) == 0
+    off = json.loads(rep.read_text())
+    assert off["settings"]["landmark_pull"] is False
+    assert "landmark_pull" not in off["metrics"]
+    assert main(args + ["--landmark-tolerance", "-1"]) != 0
 
 
 def test_template_graph_is_cached_by_content(sample):

@@ -78,6 +78,10 @@ def test_job_to_toml_round_trips_every_value(tmp_path):
     p = tmp_path / "job.toml"
     p.write_text(job_to_toml(job, s, relative_to=tmp_path))
     assert load_job(p) == (job, s)
+    # settings switched off where their default is on come back off
+    off = WrapSettings(weight_range=None, landmark_pull=False, landmark_tolerance=0.0)
+    p.write_text(job_to_toml(job, off, relative_to=tmp_path))
+    assert load_job(p) == (job, off)
 
 
 @dataclasses.dataclass

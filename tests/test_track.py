@@ -99,3 +99,6 @@ def test_track_without_later_landmarks_keeps_up_with_the_expression(ramp):
     assert np.all(np.diff(jaw) > 0)
     for scan, frame in zip(seq, result.frames):
         assert seen_error(template, scan, frame.vertices).mean() < 1.0
+    # predicted landmarks guide the fit but never pull it (first frame: given ones)
+    assert "landmark_pull" in result.frames[0].metrics
+    assert not any("landmark_pull" in f.metrics for f in result.frames[1:])

@@ -578,6 +578,16 @@ def _placeholder(tp):
     return {bool: False, int: 0, float: 0.0, str: ""}.get(tp)
 
 
+def _switched_off(tp) -> str | None:
+    """TOML that reads back as None for a setting whose default is not None
+    (``WrapSettings`` maps an empty ``weight_range`` to None), or None if there is
+    none."""
+    tp, _ = _optional(tp)
+    if typing.get_origin(tp) in (tuple, list):
+        return "[]"
+    return None
+
+
 def _relative(value: str, folder: Path | None) -> str:
     if folder is None:
         return value
@@ -593,10 +603,12 @@ def _comment(text: str) -> list[str]:
 
 
 def _emit_table(lines: list, name: str, values: dict, types_: dict, docs: dict,
-                paths: set, folder: Path | None, choices: dict | None = None) -> list:
+                paths: set, folder: Path | None, choices: dict | None = None,
+                defaults: dict | None = None) -> list:
     """Scalar keys of one table; returns the (key, items) of array-of-table keys."""
     later = []
     choices = choices or {}
+    defaults = defaults or {}
     lines += ["", f"[{name}]"]
     for key, value in values.items():
         tp = types_[key]
@@ -609,6 +621,10 @@ def _emit_table(lines: list, name: str, values: dict, types_: dict, docs: dict,
         if key in choices:
             note += f" One of: {', '.join(map(str, choices[key]))}."
         lines += _comment(note.strip())
+        off = _switched_off(tp) if defaults.get(key) is not None else None
+        if value is None and off is not None:       # off, where the default is on
+            lines.append(f"{key} = {off}")
+            continue
         if value is None:
             example = _placeholder(tp)
             shown = "..." if example is None else _toml_value(example)
@@ -651,7 +667,7 @@ def job_to_toml(job: WrapJob, settings: WrapSettings | None = None,
     set_types, set_docs = settings_keys(), _attribute_docs(WrapSettings)
     values = {k: getattr(settings, k) for k in set_types}
     later = _emit_table(lines, "wrap", values, set_types, set_docs, set(), folder,
-                        _choices())
+                        _choices(), {f.name: f.default for f in dataclasses.fields(WrapSettings)})
     for key, items, cls in later:
         hints = _hints(cls)
         if items is None:

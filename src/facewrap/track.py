@@ -47,7 +47,8 @@ def tracking_schedule(model: str) -> list[Stage]:
     Where a frame has no landmarks of its own, :func:`track` also lowers every
     landmark weight (``WrapSettings.landmark_scale`` × 0.05): landmarks carried
     over from the previous frame would hold the face where it *was*, so they
-    only guard against gross failure and the scan surface drives the fit.
+    only guard against gross failure and the scan surface drives the fit; they
+    never pull the result (``WrapSettings.landmark_pull`` is off there).
     """
     return [st for st in default_schedule(model) if st.data_weight > 0]
 
@@ -141,9 +142,11 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
                 lm = _propagated_landmarks(previous, template_landmarks, tree,
                                            frames[-2] if len(frames) > 1 else None)
             model = previous.settings.model
+            # carried-over landmarks are predictions: they guide, they never pull
             s = replace(s0, model=model, stages=s0.stages or tracking_schedule(model),
                         landmark_scale=s0.landmark_scale * (1.0 if given[-1]
-                                                            else PROPAGATED_LANDMARKS))
+                                                            else PROPAGATED_LANDMARKS),
+                        landmark_pull=s0.landmark_pull and given[-1])
             result = wrap(template, scan, template_landmarks, lm, s, exclude=exclude,
                           blendshapes=blendshapes, scan_tree=tree, initial=previous)
         frames.append(result)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .align import Similarity, rigid_icp, similarity_transform
-from .geometry import ClosestPointTree
+from .geometry import ClosestPointTree, connected_components
 from .icp import NonRigidICP, Stage, default_schedule
 from .landmarks import Landmarks, pair_landmarks, snap_to_surface
 from .mesh import Mesh
@@ -29,7 +29,7 @@ from .models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
                                 blendshape_basis)
 from .models.graph import GraphModel, build_graph
 from .models.hybrid import HybridModel, HybridParams
-from .models.rbf import RBFWarp
+from .models.rbf import RBFWarp, pull_to_landmarks
 from .terms import landmark_rows
 from .project import Projection, project_to_surface
 
@@ -99,6 +99,22 @@ class WrapSettings:
         uses 0.05 for frames whose landmarks are only carried over from the
         previous frame, so they guard against gross failure without holding the
         face where it was.
+    landmark_pull : bool
+        After a non-rigid fit (not "rigid" or "rbf"), pull landmarks left farther
+        than ``landmark_tolerance`` from their targets to that distance, by a
+        local smooth displacement (:func:`~facewrap.models.rbf.pull_to_landmarks`)
+        before the projection.  The ICP's late stages weigh landmarks lightly,
+        since they are less accurate than the scan surface; on a real scan of
+        another identity (menpo's james, ICT template) that left them 1.43 mm
+        off on average, 3.7 mm at worst.  With the pull: 0.80 / 1.66 mm, and the
+        fit away from the borders 0.51 → 0.45 mm; on the ground-truth cases of
+        ``bench_nicp`` (landmarks with 0.5 mm noise) the hybrid's mean error
+        moved by at most 0.008 mm.
+    landmark_tolerance : float
+        How far a landmark may stay from its target, as a fraction of the
+        template's size (default 0.002, about 0.5 mm on a head); 0 keeps
+        landmarks exactly, which cost the ground-truth cases up to 0.18 mm:
+        pin only landmarks you trust.
     """
     model: str = "auto"
     scale: bool = True
@@ -117,10 +133,15 @@ class WrapSettings:
     weight_range: tuple[float, ...] | None = (0.0, 1.0)
     reject_boundary: bool = True
     landmark_scale: float = 1.0
+    landmark_pull: bool = True
+    landmark_tolerance: float = 0.002
 
     def __post_init__(self):
         if not self.landmark_scale >= 0:
             raise ValueError(f"landmark_scale must be >= 0, got {self.landmark_scale!r}")
+        if not (np.isfinite(self.landmark_tolerance) and self.landmark_tolerance >= 0):
+            raise ValueError("landmark_tolerance must be a finite number >= 0, got "
+                             f"{self.landmark_tolerance!r}")
         if self.weight_range is not None:
             r = tuple(float(x) for x in self.weight_range)
             if len(r) not in (0, 2) or (r and not r[0] < r[1]):
@@ -303,6 +324,12 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     # "model_setup" (graph, coarse pre-fit) and "icp" are disjoint parts of the run
     timings["warp" if s.model == "rbf" else "icp"] = (time.perf_counter() - t
                                                       - timings.get("model_setup", 0.0))
+    pull = None
+    if s.model in NONRIGID_MODELS and s.landmark_pull:
+        t = time.perf_counter()
+        V, pull = _pull_landmarks(template, V, template_landmarks.subset(ia), dst,
+                                  s.landmark_tolerance, excluded)
+        timings["landmark_pull"] = time.perf_counter() - t
 
     projection = None
     out = V
@@ -320,8 +347,29 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                           mask=~excluded)
     if projection is not None:
         metrics["projection"] = projection.summary()
+    if pull is not None:
+        metrics["landmark_pull"] = pull
     return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics,
                       settings=s, history=history, weights=weights, shape_names=names)
+
+
+def _pull_landmarks(template: Mesh, V, landmarks: Landmarks, targets, tolerance: float,
+                    excluded) -> tuple[np.ndarray, dict]:
+    """``WrapSettings.landmark_pull``: landmarks farther than ``tolerance`` (fraction
+    of the size of ``V``) from their targets are pulled to it.  Excluded islands
+    (eyeballs, teeth) move by their mean pull, so they keep their shape."""
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    moved, pulls = pull_to_landmarks(V, landmarks.positions(V, template.triangles),
+                                     targets, tolerance * size)
+    if excluded.any() and pulls.any():
+        T = template.triangles
+        island = connected_components(T[excluded[T].all(axis=1)], len(V))[excluded]
+        shift = moved[excluded] - V[excluded]
+        count = np.bincount(island)
+        mean = np.stack([np.bincount(island, shift[:, c]) for c in range(3)], 1)
+        moved[excluded] = V[excluded] + mean[island] / count[island, None]
+    return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
+                   "mean": float(pulls.mean()), "max": float(pulls.max())}
 
 
 #: template landmarks given as points may lie this far off the template's surface

@@ -84,7 +84,9 @@ def wrap_settings_from_args(args) -> WrapSettings:
                         rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
                         robust=args.robust, pca_components=args.pca_components,
                         weight_range=(None if args.no_weight_range
-                                      else tuple(args.weight_range)))
+                                      else tuple(args.weight_range)),
+                        landmark_pull=not args.no_landmark_pull,
+                        landmark_tolerance=args.landmark_tolerance)
 
 
 def cmd_wrap(args) -> int:
@@ -173,6 +175,13 @@ def add_fit_options(p) -> None:
     p.add_argument("--no-weight-range", action="store_true",
                    help="let blend weights take any value (identity or corrective "
                         "shapes used with negative or > 1 weights)")
+    p.add_argument("--landmark-tolerance", type=float,
+                   default=WrapSettings.landmark_tolerance, metavar="F",
+                   help="landmarks left farther than this from their targets after "
+                        "the fit (fraction of template size) are pulled to it; 0 keeps "
+                        "them exactly (default %(default)s)")
+    p.add_argument("--no-landmark-pull", action="store_true",
+                   help="leave the landmarks where the fit puts them")
     p.add_argument("--kernel", default="biharmonic",
                    choices=["biharmonic", "thin_plate", "exponential", "gaussian"],
                    help="RBF kernel of the landmark warp")

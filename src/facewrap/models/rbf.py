@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["RBFWarp", "rbf_kernel", "KERNELS"]
+__all__ = ["RBFWarp", "rbf_kernel", "pull_to_landmarks", "KERNELS"]
 
 KERNELS = ("biharmonic", "thin_plate", "exponential", "gaussian")
 
@@ -54,6 +54,11 @@ class RBFWarp:
         distance from a landmark to its nearest neighbour.
     chunk : int
         Points evaluated per block (bounds memory for large meshes).
+    affine : bool
+        Add the affine part ``M p + t`` (default).  Without it a decaying kernel
+        (Gaussian, exponential) gives a *local* warp that vanishes far from the
+        landmarks (:func:`pull_to_landmarks`); the kernel matrix alone must then
+        be invertible, which it is for these two kernels and distinct landmarks.
 
     Attributes
     ----------
@@ -74,11 +79,12 @@ class RBFWarp:
     """
 
     def __init__(self, kernel: str = "biharmonic", smoothing: float = 0.0,
-                 width: float | None = None, chunk: int = 65536):
+                 width: float | None = None, chunk: int = 65536, affine: bool = True):
         self.kernel = kernel
         self.smoothing = smoothing
         self.width = width
         self.chunk = chunk
+        self.affine = affine
 
     def fit(self, centers, displacements) -> "RBFWarp":
         """Solve for the warp that moves ``centers`` by ``displacements``.
@@ -118,7 +124,9 @@ class RBFWarp:
         # With fewer than 4 well-spread landmarks the affine part is not determined:
         # keep only the translation then.
         rank = np.linalg.matrix_rank(P - P.mean(axis=0)) + 1 if k > 1 else 1
-        if rank < 4:
+        if not self.affine:
+            P = np.zeros((k, 0))
+        elif rank < 4:
             P = np.ones((k, 1))
         m = P.shape[1]
         A = np.zeros((k + m, k + m))
@@ -133,7 +141,7 @@ class RBFWarp:
         affine = np.zeros((4, 3))
         if m == 4:
             affine[:] = sol[k:]
-        else:
+        elif m == 1:
             affine[3] = sol[k]
         self.affine_ = affine
         return self
@@ -158,3 +166,63 @@ class RBFWarp:
         """Warped points ``p + f(p)``."""
         X = np.asarray(points, dtype=np.float64)
         return X + self.displacement(X)
+
+
+def pull_to_landmarks(points, fitted, targets, tolerance: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Move points so that no landmark ends farther than ``tolerance`` from its target.
+
+    Each landmark's offset to its target is shortened by ``tolerance`` (a landmark
+    already within it does not move, and holds its surroundings in place); a
+    Gaussian RBF without affine part, as wide as the typical spacing of the
+    landmarks (the median distance to the nearest one), carries these pulls to the
+    points, so the correction stays local and vanishes far from the landmarks.
+    Landmarks at the same position are merged (their pulls averaged).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        What moves (a fitted template's vertices).
+    fitted : (k, 3) float
+        The landmarks' current positions (on the fitted template).
+    targets : (k, 3) float
+        Where they should be.
+    tolerance : float
+        How far a landmark may stay from its target (same units; 0 pins exactly).
+
+    Returns
+    -------
+    moved : (n, 3) float64
+    pulls : (k,) float64
+        How far each landmark was pulled (0 within the tolerance).
+
+    Examples
+    --------
+    >>> P = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5]])
+    >>> moved, pulls = pull_to_landmarks(P, P[:3], P[:3] + [[0.5, 0, 0], [0, 0, 0], [0, 0, 0]], 0.1)
+    >>> pulls.round(3).tolist(), moved[0].round(3).tolist(), moved[3].round(3).tolist()
+    ([0.4, 0.0, 0.0], [0.4, 0.0, 0.0], [5.0, 5.0, 5.0])
+    """
+    X = np.asarray(points, dtype=np.float64)
+    F = np.asarray(fitted, dtype=np.float64)
+    D = np.asarray(targets, dtype=np.float64) - F
+    if not tolerance >= 0:
+        raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
+    length = np.linalg.norm(D, axis=1)
+    keep = np.clip(1.0 - tolerance / np.maximum(length, 1e-300), 0.0, None)
+    D = D * keep[:, None]
+    pulls = length * keep
+    if len(F) == 0 or not np.any(pulls > 0):
+        return X.copy(), pulls
+    centers, group = np.unique(F, axis=0, return_inverse=True)
+    group = group.ravel()
+    counts = np.bincount(group, minlength=len(centers))
+    shifts = np.stack([np.bincount(group, D[:, c], len(centers)) for c in range(3)],
+                      axis=1) / counts[:, None]
+    if len(centers) > 1:
+        width = float(np.median(cKDTree(centers).query(centers, k=2)[0][:, 1]))
+    else:
+        width = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) * 0.1 or 1.0
+    warp = RBFWarp(kernel="gaussian", width=width, smoothing=1e-9, affine=False)
+    return warp.fit(centers, shifts).transform(X), pulls
+
