@@ -60,6 +60,33 @@ def test_gauss_newton_step_solves_the_linear_least_squares(method):
     assert np.allclose(delta, expected, atol=1e-5)
 
 
+def test_both_factor_back_ends_and_refactorize_solve_exactly():
+    """cholespy ("many" solves) and CHOLMOD ("few"), vectors and blocks; a
+    refactorisation on the same pattern reuses the analysis; indefinite matrices
+    still get a finite answer."""
+    from facewrap.solve import factorize, refactorize
+    rng = np.random.default_rng(5)
+    n = 60
+    L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    A = (L @ L + 0.1 * sp.identity(n)).tocsr()
+    B = rng.normal(size=(n, 4))
+    for solves, method in (("many", "cholesky"), ("few", "cholmod")):
+        f = factorize(A, solves=solves)
+        assert f.method == method
+        np.testing.assert_allclose(A @ f.solve(B), B, atol=1e-9)
+        np.testing.assert_allclose(A @ f.solve(B[:, 0]), B[:, 0], atol=1e-9)
+    f = factorize(A, solves="few")
+    A2 = (A + sp.diags(rng.uniform(0, 5, n))).tocsr()      # same pattern
+    g = refactorize(f, A2)
+    assert g is f and g.method == "cholmod"
+    np.testing.assert_allclose(A2 @ g.solve(B), B, atol=1e-9)
+    indefinite = sp.diags([1.0, -1.0, 2.0]).tocsr()
+    f = factorize(indefinite, solves="few")
+    assert f.method == "lu" and np.allclose(f.solve([1.0, 1.0, 1.0]), [1, -1, 0.5])
+    with pytest.raises(ValueError, match="solves"):
+        factorize(A, solves="some")
+
+
 def test_data_and_landmark_terms_match_their_definitions():
     rng = np.random.default_rng(1)
     V = rng.normal(size=(6, 3))

@@ -491,7 +491,7 @@ class _FlipRepair:
             A = (sp.csr_matrix((H_J.data[inside], cols[inside], indptr),
                                shape=(len(J), len(J))) + D.T @ sp.diags(c) @ D)
             x = x.copy()
-            x[J] = factorize(A, check=False).solve(b)
+            x[J] = factorize(A, check=False, solves="few").solve(b)
             bad = np.zeros(t, dtype=bool)
             bad[near] = flipped_triangles(x[:n], self.reference, self.triangles[near])
             bad &= ~follows(bad)
