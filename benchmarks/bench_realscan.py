@@ -90,14 +90,15 @@ def measures(V, case: Case) -> dict:
             "folds": _folds(V, case.template.vertices, T)}
 
 
-def run_facewrap(case: Case, model: str) -> dict:
+def run_facewrap(case: Case, model: str, pull: bool = True) -> dict:
     c = time.process_time()
     t = time.perf_counter()
     res = wrap(case.template, case.scan, case.landmarks, case.scan_landmarks,
-               WrapSettings(model=model),
+               WrapSettings(model=model, landmark_pull=pull),
                blendshapes=case.blendshapes if model == "hybrid" else None)
     total = time.perf_counter() - t
-    return {"method": f"facewrap {model}", "time": total,
+    return {"method": f"facewrap {model}" + ("" if pull else ", no landmark pull"),
+            "time": total,
             "cpu": time.process_time() - c, **measures(res.vertices, case),
             "unprojected": measures(res.warped, case)}
 
@@ -119,6 +120,9 @@ def run() -> dict:
     for case, models in found:
         rows = [nicp._safe(run_facewrap, case, m, method=f"facewrap {m}")
                 for m in models]
+        # what the landmark pull (WrapSettings.landmark_tolerance) changes
+        rows.append(nicp._safe(run_facewrap, case, models[-1], False,
+                               method=f"facewrap {models[-1]}, no landmark pull"))
         rows += [nicp._safe(run_peer, case, p, method=p) for p in nicp._peers_available()]
         out["cases"].append({"name": case.name, "template": case.template.n_vertices,
                              "scan": len(case.scan.triangles),
@@ -136,9 +140,11 @@ def markdown(r: dict) -> str:
          "template's landmarks on the result and the scan's. Flipped = triangles on "
          "the seen part whose normal turned past 90° from the (similarity-aligned) "
          "template's; folds = edge-adjacent triangle pairs facing apart that did not "
-         "in the template, anywhere. facewrap projects onto the scan at the end "
-         "(which makes its fit ~0 by construction); its ICP result before the "
-         "projection is in brackets.", ""]
+         "in the template, anywhere. facewrap pulls landmarks the fit left more "
+         "than 0.2 % of the template's size from their targets to that distance "
+         "(`WrapSettings.landmark_tolerance`; one row without), then projects onto "
+         "the scan (which makes its fit ~0 where the scan is clean); its result "
+         "before the projection is in brackets.", ""]
     for note in r.get("notes", []):
         L += [note, ""]
     for c in r["cases"]:
