@@ -106,10 +106,10 @@ class WrapSettings:
         before the projection.  The ICP's late stages weigh landmarks lightly,
         since they are less accurate than the scan surface; on a real scan of
         another identity (menpo's james, ICT template) that left them 1.43 mm
-        off on average, 3.7 mm at worst.  With the pull: 0.80 / 1.66 mm, and the
-        fit away from the borders 0.51 → 0.45 mm; on the ground-truth cases of
-        ``bench_nicp`` (landmarks with 0.5 mm noise) the hybrid's mean error
-        moved by at most 0.008 mm.
+        off on average, 3.7 mm at worst.  With the pull: 0.79 / 1.59 mm, and the
+        fit away from the borders 0.50 → 0.44 mm (``bench_realscan``); on the
+        ground-truth cases of ``bench_nicp`` (landmarks with 0.5 mm noise) the
+        hybrid's mean error moved by at most 0.01 mm.
     landmark_tolerance : float
         How far a landmark may stay from its target, as a fraction of the
         template's size (default 0.002, about 0.5 mm on a head); 0 keeps
