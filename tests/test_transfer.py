@@ -232,6 +232,41 @@ def test_bad_pose_shape_raises(pair):
 
 
 # -- CLI ----------------------------------------------------------------------------------
+def test_partner_ambiguity_finds_the_crease_and_not_rigid_motion(pair):
+    """Candidates agree under a rigid motion (ambiguity ~0) and disagree along a
+    crease (half the face hinged by 40°): target triangles there rank highest,
+    and the first marker hint lies on it."""
+    from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
+    face, scan, _, _, corr = pair
+    V = face.vertices
+    c = V.mean(axis=0)
+    R = _random_rotation(np.random.default_rng(7))
+    rigid = partner_ambiguity(corr, face, scan, (V - c) @ R.T + c)
+    assert np.nanmax(rigid) < 1e-6
+    angle = np.radians(40)
+    hinge = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0],
+                      [-np.sin(angle), 0, np.cos(angle)]])
+    folded = V.copy()
+    right = V[:, 0] > c[0]
+    folded[right] = (V[right] - c) @ hinge.T + c
+    amb = partner_ambiguity(corr, face, scan, folded, neighbours=8)
+    T = scan.triangles
+    x = scan.vertices[T].mean(axis=1)[:, 0] - c[0]
+    edge = np.median(np.linalg.norm(V[face.triangles[:, 0]] - V[face.triangles[:, 1]],
+                                    axis=1))
+    near, far = np.abs(x) < 1.5 * edge, np.abs(x) > 6 * edge
+    assert np.nanmean(amb[near]) > 20 * np.nanmean(amb[far])
+    summary = ambiguity_summary(amb, scan, count=5)
+    hints = summary["marker_hints"]
+    assert 1 <= len(hints) <= 5 and abs(scan.vertices[hints[0], 0] - c[0]) < 2 * edge
+    gaps = [np.linalg.norm(scan.vertices[a] - scan.vertices[b])
+            for i, a in enumerate(hints) for b in hints[i + 1:]]
+    assert min(gaps, default=np.inf) >= 0.05 * scan.scale() - 1e-9
+    assert summary["p90"] >= summary["median"] >= 0
+    with pytest.raises(ValueError, match="one value per target triangle"):
+        ambiguity_summary(amb[:-1], scan)
+
+
 def _run_cli(argv):
     from facewrap.cli.transfer import register
     p = argparse.ArgumentParser()
@@ -265,6 +300,11 @@ def test_cli_transfer_writes_objs_glb_report(pair, tmp_path):
     np.testing.assert_allclose(read_mesh(tmp_path / "out" / "jaw_open.obj").vertices,
                                first, atol=1e-5)
     assert isinstance(report["flip_repairs"], dict)
+    assert report["ambiguity"] is None                 # only when asked for
+    assert _run_cli(argv + ["--ambiguity"]) == 0
+    amb = json.loads((tmp_path / "r.json").read_text())["ambiguity"]
+    assert amb["marker_hints"] and all(0 <= v < scan.n_vertices
+                                       for v in amb["marker_hints"])
     # --no-fix-flips: the plain solve (equal here: nothing flips on the sample)
     assert _run_cli(argv + ["--no-fix-flips"]) == 0
     report = json.loads((tmp_path / "r.json").read_text())

@@ -103,6 +103,12 @@ def cmd_transfer(args) -> int:
         write_gltf_morphs(args.gltf, target, dict(zip(names, results)),
                           scale=args.gltf_scale)
     t4 = time.perf_counter()
+    ambiguity = None
+    if args.ambiguity:
+        from ..transfer.ambiguity import ambiguity_summary, partner_ambiguity
+        ambiguity = ambiguity_summary(partner_ambiguity(
+            corr, source, target, np.stack([shapes[k] for k in names])), target)
+    t5 = time.perf_counter()
     report = {
         "source": str(args.source_neutral), "target": str(args.target_neutral),
         "method": "landmark-guided" if args.landmark_guided else "deformation transfer",
@@ -110,8 +116,9 @@ def cmd_transfer(args) -> int:
         "correspondence": {"file": None if corr_path is None else str(corr_path),
                            "pairs": len(corr), **corr.stats},
         "flip_repairs": _repairs(getattr(model, "repairs_", None), names),
+        "ambiguity": ambiguity,
         "timings": {"read": t1 - t0, "fit": t2 - t1, "transfer": t3 - t2,
-                    "write": t4 - t3, "total": t4 - t0},
+                    "write": t4 - t3, "ambiguity": t5 - t4, "total": t5 - t0},
     }
     if args.report:
         from ..io.atomic import atomic_write
@@ -120,6 +127,10 @@ def cmd_transfer(args) -> int:
     if not args.quiet:
         print(f"wrote {len(names)} shapes to {out} ({report['method']}, "
               f"{len(corr)} triangle pairs, {report['timings']['total']:.2f} s)")
+        if ambiguity is not None:
+            print(f"partner ambiguity median {ambiguity['median']:.3g}, p90 "
+                  f"{ambiguity['p90']:.3g}; markers would help most near target "
+                  f"vertices {' '.join(map(str, ambiguity['marker_hints']))}")
     return 0
 
 
@@ -150,6 +161,11 @@ def register(subparsers) -> None:
     p.add_argument("--anchor", type=int, default=None,
                    help="target vertex kept in place (default: follow the markers' "
                         "centroid)")
+    p.add_argument("--ambiguity", action="store_true",
+                   help="also measure where the result depends on the correspondence "
+                        "(spread of the candidate partners' pose gradients) and name "
+                        "target vertices where more markers would help (report and "
+                        "output)")
     p.add_argument("--no-fix-flips", action="store_true",
                    help="keep triangles the transfer turns over (by default a pose "
                         "with new flipped triangles is re-solved locally until none "

@@ -16,6 +16,9 @@ Correspondence (:mod:`.correspondence`)
 Transfer (:mod:`.transfer`)
     :class:`DeformationTransfer` (unfolds the triangles it would flip, see
     ``fix_flips``), :func:`flipped_triangles`
+Partner ambiguity (:mod:`.ambiguity`)
+    :func:`partner_ambiguity` (where the result depends on the correspondence),
+    :func:`ambiguity_summary` (where more markers would help)
 Avatar blendshapes (:mod:`.avatar`)
     :class:`AvatarTransfer`, :class:`FacePart`, :data:`IBUG51_PARTS`,
     :func:`read_parts`, :data:`ONIZUKA_SCHEDULE`
@@ -26,6 +29,7 @@ from .gradients import (GradientOperator, deformation_gradients, fourth_vertices
 from .correspondence import (SUMNER_SCHEDULE, Correspondence, CorrespondenceSettings,
                              CorrespondenceStage, find_correspondence, match_triangles)
 from .transfer import DeformationTransfer, flipped_triangles
+from .ambiguity import ambiguity_summary, partner_ambiguity
 from .avatar import (IBUG51_PARTS, ONIZUKA_SCHEDULE, AvatarTransfer, FacePart,
                      read_parts)
 
@@ -33,6 +37,6 @@ __all__ = [
     "GradientOperator", "gradient_operator", "fourth_vertices", "deformation_gradients",
     "Correspondence", "CorrespondenceSettings", "CorrespondenceStage",
     "SUMNER_SCHEDULE", "find_correspondence", "match_triangles",
-    "DeformationTransfer", "flipped_triangles",
+    "DeformationTransfer", "flipped_triangles", "partner_ambiguity", "ambiguity_summary",
     "AvatarTransfer", "FacePart", "IBUG51_PARTS", "ONIZUKA_SCHEDULE", "read_parts",
 ]
