@@ -83,15 +83,11 @@ def refactorize(factor: Factor, A, *, check: bool = True) -> Factor:
     afresh with ``solves="few"``.
     """
     if factor.method == "cholmod":
-        from cvxopt import cholmod
         A = sp.csr_matrix(A, dtype=np.float64)
-        try:
-            cholmod.numeric(_lower_triangle(A), factor._solver)
-        except (ArithmeticError, ValueError):
-            pass
-        else:
-            if not check or _accurate(A, factor):
-                return factor
+        # refilled in place: ``factor`` now holds the factor of ``A``
+        if (_cholmod(A, analysed=factor._solver) is not None
+                and (not check or _accurate(A, factor))):
+            return factor
     return factorize(A, check=check, solves="few")
 
 
@@ -153,18 +149,19 @@ def factorize(A, *, check: bool = True, solves: str = "many") -> Factor:
     return Factor(n, "lu", lu)
 
 
-def _cholmod(A) -> Factor | None:
-    """CHOLMOD's supernodal Cholesky through cvxopt, or None (no cvxopt, or ``A``
-    not positive definite)."""
+def _cholmod(A, analysed=None) -> Factor | None:
+    """CHOLMOD's supernodal Cholesky through cvxopt, or None (no cvxopt, ``A`` not
+    positive definite, or not of the pattern ``analysed`` -- a factor's symbolic
+    analysis, refilled in place -- was made for)."""
     try:
         from cvxopt import cholmod
     except ImportError:  # pragma: no cover - cvxopt is a dependency
         return None
     M = _lower_triangle(A)
     try:
-        F = cholmod.symbolic(M)
+        F = cholmod.symbolic(M) if analysed is None else analysed
         cholmod.numeric(M, F)
-    except ArithmeticError:  # not positive definite
+    except (ArithmeticError, ValueError):  # not positive definite / other pattern
         return None
     return Factor(A.shape[0], "cholmod", F)
 

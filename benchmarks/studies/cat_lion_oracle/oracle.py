@@ -133,18 +133,14 @@ def combo(cands, convex, per_pose, lam=1e3):
                 out[j, i] = w @ Sg[j, c]
     return out
 
-for K in (8, 16, 32):
-    for convex in (True, False):
-        tt = time.perf_counter()
-        B = combo(NB[:, :K], convex, False)
-        report(f"3 {'convex' if convex else 'nonneg'} comb K={K}, shared over poses", solve(B),
-               f"grad res {gfit(B):.3f} ({time.perf_counter()-tt:.0f}s)")
-for K in (8, 16, 32):
-    for convex in (True, False):
-        tt = time.perf_counter()
-        B = combo(NB[:, :K], convex, True)
-        report(f"4 {'convex' if convex else 'nonneg'} comb K={K}, free per pose", solve(B),
-               f"grad res {gfit(B):.3f} ({time.perf_counter()-tt:.0f}s)")
+for per_pose, label in ((False, "3 {} comb K={}, shared over poses"),
+                        (True, "4 {} comb K={}, free per pose")):
+    for K in (8, 16, 32):
+        for convex in (True, False):
+            tt = time.perf_counter()
+            B = combo(NB[:, :K], convex, per_pose)
+            report(label.format("convex" if convex else "nonneg", K), solve(B),
+                   f"grad res {gfit(B):.3f} ({time.perf_counter()-tt:.0f}s)")
 
 np.save(str(Path(tempfile.gettempdir()) / "cat_lion_oracle_rows.npy"), np.array([(r[0], r[1].mean(), r[2].mean()) for r in rows], dtype=object), allow_pickle=True)
 print("total", time.perf_counter() - T0)
