@@ -37,9 +37,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _nicp_cases as cases  # noqa: E402
-from facewrap.align import similarity_transform  # noqa: E402
+from facewrap.wrapping.align import similarity_transform  # noqa: E402
 from facewrap.landmarks import pair_landmarks  # noqa: E402
-from facewrap.wrap import WrapSettings, wrap  # noqa: E402
+from facewrap.wrapping.stages import WrapSettings, wrap  # noqa: E402
 
 FACEWRAP_MODELS = ("rbf", "affine", "graph", "blendshape", "hybrid")
 PEERS = ("trimesh nricp_amberg", "trimesh nricp_sumner", "meshmonk pyramid")
@@ -66,7 +66,7 @@ def _prealign(case):
     src = case.landmarks.positions(case.template)[ia]
     dst = case.scan_landmarks.positions(case.scan)[ib]
     try:
-        from facewrap.wrap import _alignment_weights
+        from facewrap.wrapping.stages import _alignment_weights
         w = _alignment_weights(case.landmarks, ia)
     except Exception:          # private helper: fall back to equal weights
         w = None

@@ -14,10 +14,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from _timing import best_of
-from facewrap.align import similarity_transform
+from facewrap.wrapping.align import similarity_transform
 from facewrap.geometry import face_areas, face_normals
-from facewrap.sample import make_scan, make_template
-from facewrap.transfer import AvatarTransfer, DeformationTransfer, find_correspondence
+from facewrap.sample.face import make_scan, make_template
+from facewrap.avatar import AvatarTransfer
+from facewrap.transfer import DeformationTransfer, find_correspondence
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 IMAGES = Path(__file__).resolve().parents[1] / "docs" / "images"
@@ -66,7 +67,7 @@ def _new_flips(out, target, shapes, source, corr) -> int:
     """Flipped target triangles none of whose source partners flip in the source
     shape ``P``: flips the transfer made, not ones it copied (a lid rolling over
     the eye, lips pressed through each other turn source triangles past 90° too)."""
-    from facewrap.transfer.transfer import complete_pairs, pair_matrix
+    from facewrap.transfer.deformation import complete_pairs, pair_matrix
     pairs, _ = complete_pairs(pair_matrix(corr), target.triangles)
     n0 = face_normals(target.vertices, target.triangles)
     s0 = face_normals(source.vertices, source.triangles)
@@ -142,7 +143,7 @@ def _ambiguity_check(s, t, corr, out) -> dict:
     from scipy.stats import spearmanr
     from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
     from facewrap.transfer.gradients import gradient_operator
-    from facewrap.transfer.transfer import source_gradient_blocks
+    from facewrap.transfer.deformation import source_gradient_blocks
     L = t.reference
     t0 = time.perf_counter()
     amb = partner_ambiguity(corr, s.reference, L, np.stack(s.poses))

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from facewrap.align import Similarity, rigid_icp, similarity_transform
-from facewrap.models.rbf import RBFWarp, pull_to_landmarks
+from facewrap.wrapping.align import Similarity, rigid_icp, similarity_transform
+from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
 
 
 def random_rotation(rng):

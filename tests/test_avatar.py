@@ -7,14 +7,14 @@ import pytest
 from scipy.spatial import cKDTree
 
 from conftest import needs_data, DATA
-from facewrap.align import Similarity
+from facewrap.wrapping.align import Similarity
 from facewrap.errors import InputError
 from facewrap.geometry import face_normals, vertex_normals
-from facewrap.sample import make_scan, make_template
-from facewrap.transfer import (IBUG51_PARTS, AvatarTransfer, FacePart,
-                               flipped_triangles, read_parts)
-from facewrap.transfer.avatar import part_frame, part_motions
-from facewrap.transfer.transfer import complete_pairs, pair_matrix
+from facewrap.sample.face import make_scan, make_template
+from facewrap.avatar import IBUG51_PARTS, AvatarTransfer, FacePart, read_parts
+from facewrap.transfer import flipped_triangles
+from facewrap.avatar.shapes import part_frame, part_motions
+from facewrap.transfer.deformation import complete_pairs, pair_matrix
 
 R90 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])   # 90° about y
 MOVE = Similarity(R90, np.array([100.0, -20, 3]), 2.5)

@@ -1,4 +1,4 @@
-"""Batches (facewrap.batch): manifests, process pool, Dask, resume after kill -9,
+"""Batches (facewrap.batch.runner): manifests, process pool, Dask, resume after kill -9,
 determinism across engines."""
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from facewrap.batch import (done_record_path, read_manifest, run_batch, run_one,
+from facewrap.batch.runner import (done_record_path, read_manifest, run_batch, run_one,
                             _run_pool)
 from facewrap.errors import InputError
-from facewrap.icp import Stage
+from facewrap.wrapping.icp.engine import Stage
 from facewrap.io import read_mesh
 from conftest import facewrap
 
@@ -31,7 +31,7 @@ def batch_command() -> list[str]:
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     """Template, three scans (s0..s2) and a shared job file (RBF model: fast)."""
-    from facewrap.sample import make_scan, make_template, write_sample
+    from facewrap.sample.face import make_scan, make_template, write_sample
     root = tmp_path_factory.mktemp("batch")
     tpl = make_template(24)
     for i in range(N_SCANS):

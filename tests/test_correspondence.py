@@ -9,8 +9,8 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from facewrap.geometry import ClosestPointTree, vertex_normals
-from facewrap.sample import make_scan, make_template
-from facewrap.solve import factorize
+from facewrap.sample.face import make_scan, make_template
+from facewrap.solve.factor import factorize
 from facewrap.transfer.correspondence import (_TETHER, SUMNER_SCHEDULE, CorrespondenceStage,
                                               _FreeSystem, _nearest_compatible, _pcg,
                                               closest_valid_points, deform_toward,
@@ -87,9 +87,9 @@ def test_deform_toward_equals_reference_solve(normalised_pair, schedule, backend
     """Both ways of solving the steps give the same deformed vertices (to 1e-6) as
     a fresh factorisation of every step: CHOLMOD refactorisations on one symbolic
     analysis, or (cholespy only) reused factors preconditioning CG."""
-    import facewrap.solve
+    import facewrap.solve.factor
     if backend == "cholespy":
-        monkeypatch.setattr(facewrap.solve, "_cholmod", lambda A: None)
+        monkeypatch.setattr(facewrap.solve.factor, "_cholmod", lambda A: None)
     mV, mT, fV, fT, ids, points = normalised_pair
     got, stats = deform_toward(mV, mT, fV, fT, ids, points, schedule)
     want = _reference_deform(mV, mT, fV, fT, ids, points, schedule)

@@ -26,8 +26,8 @@ def grid(n=11, size=10.0):
 
 @pytest.fixture(scope="module")
 def sample():
-    from facewrap.sample import make_scan, make_template
-    from facewrap.wrap import WrapSettings, wrap
+    from facewrap.sample.face import make_scan, make_template
+    from facewrap.wrapping.stages import WrapSettings, wrap
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=40, texture_size=8)
     res = wrap(tpl.mesh, scan.mesh, tpl.landmarks, scan.landmarks,
@@ -72,7 +72,7 @@ def test_points_beyond_the_border_are_not_covered():
 
 
 def test_fit_summary_matches_wrap_fit_metrics(sample):
-    from facewrap.wrap import fit_metrics
+    from facewrap.wrapping.stages import fit_metrics
     tpl, scan, res = sample
     tree = ClosestPointTree(scan.mesh.vertices, scan.mesh.triangles)
     mask = np.ones(tpl.mesh.n_vertices, bool)
@@ -216,7 +216,7 @@ def files(sample, tmp_path_factory):
 
 
 def test_cli_writes_json_and_heatmap(files, capsys):
-    from facewrap.texture import load_image
+    from facewrap.texture.bake import load_image
     d = files
     rc = _cli(["evaluate", str(d / "fit.obj"), str(d / "scan.obj"),
                "--ground-truth", str(d / "gt.npy"), "--reference", str(d / "template.obj"),

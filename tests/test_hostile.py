@@ -49,7 +49,7 @@ class Base:
     """Sample files (template 24, scan 40) and the result of the untouched job."""
 
     def __init__(self, folder: Path):
-        from facewrap.sample import make_scan, make_template, write_sample
+        from facewrap.sample.face import make_scan, make_template, write_sample
         self.template_mesh = make_template(24)
         scan = make_scan(self.template_mesh, resolution=40, texture_size=16)
         self.paths = write_sample(folder, self.template_mesh, scan)
@@ -624,7 +624,7 @@ def scan_collapsed(ctx):
 @case("geometry", "a million-triangle scan (slow; see benchmarks/bench_memory.py)", "ok",
       check=fits_like_base, slow=True)
 def scan_million_triangles(ctx):
-    from facewrap.sample import make_scan
+    from facewrap.sample.face import make_scan
     scan = make_scan(ctx.base.template_mesh, resolution=1000, texture_size=8)
     p = ctx.mesh("scan.obj", scan.mesh.vertices, scan.mesh.triangles)
     lm = ctx.points("scan_landmarks.txt", scan.landmarks.points)
@@ -687,7 +687,7 @@ def test_hostile_input(c, base, tmp_path, capsys):
     else:
         assert not warned, warned
     fitted = read_mesh(ctx.out)
-    from facewrap.pipeline import load_job
+    from facewrap.jobs.jobfile import load_job
     template = read_mesh(load_job(ctx.dir / "job.toml")[0].template)
     assert np.array_equal(fitted.face_indices, template.face_indices)
     assert np.isfinite(fitted.vertices).all()
@@ -810,7 +810,7 @@ def test_fuzz_marker_readers(case_):
 @given(_mutations(b"scan,scan_landmarks,output,smoothing,name\n"
                   b"a.obj,a.txt,out/a.obj,0.5,first\nb.ply,b.txt,out/b.ply,,\n"))
 def test_fuzz_manifest_reader(data):
-    from facewrap.batch import read_manifest
+    from facewrap.batch.runner import read_manifest
     _read_or_input_error(read_manifest, data, ".csv")
 
 

@@ -8,11 +8,11 @@ import pytest
 import scipy.sparse as sp
 
 from facewrap.geometry import ClosestPointTree
-from facewrap.icp import NonRigidICP, Stage, default_schedule, find_correspondences
-from facewrap.solve import gauss_newton_step
-from facewrap.terms import (BlockJacobian, landmark_rows, landmark_term, point_to_plane,
+from facewrap.wrapping.icp.engine import NonRigidICP, Stage, default_schedule, find_correspondences
+from facewrap.solve.factor import gauss_newton_step
+from facewrap.wrapping.icp.terms import (BlockJacobian, landmark_rows, landmark_term, point_to_plane,
                             point_to_point, robust_weights)
-from facewrap.wrap import WrapSettings, wrap
+from facewrap.wrapping.stages import WrapSettings, wrap
 
 
 def grid(n=21, size=2.0, z=0.0):
@@ -64,7 +64,7 @@ def test_both_factor_back_ends_and_refactorize_solve_exactly():
     """cholespy ("many" solves) and CHOLMOD ("few"), vectors and blocks; a
     refactorisation on the same pattern reuses the analysis; indefinite matrices
     still get a finite answer."""
-    from facewrap.solve import factorize, refactorize
+    from facewrap.solve.factor import factorize, refactorize
     rng = np.random.default_rng(5)
     n = 60
     L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
@@ -134,7 +134,7 @@ def test_correspondences_reject_far_flipped_and_border_points():
 
 
 def test_graph_icp_bends_a_sheet_onto_a_cylinder():
-    from facewrap.models.graph import GraphModel, build_graph
+    from facewrap.wrapping.models.graph import GraphModel, build_graph
     V, T = grid(25, 1.0)
     # the scan: a cylinder of radius 1 around the y axis, below the sheet's centre
     a = np.linspace(-0.8, 0.8, 61)
@@ -179,7 +179,7 @@ def test_gram_and_bordered_step_match_the_plain_products():
     """The block-sparse Gram of vertex rows (4 node blocks per vertex, columns
     unsorted as the skinning gives them) and the Schur-complement solve equal
     ``SᵀS`` and the dense solve."""
-    from facewrap.solve import _bordered_step, _dense_step, _gram, _sparse_gram
+    from facewrap.solve.factor import _bordered_step, _dense_step, _gram, _sparse_gram
     rng = np.random.default_rng(2)
     n, m, k = 300, 30, 4
     nodes = np.stack([rng.choice(m, k, replace=False) for _ in range(n)])
@@ -202,7 +202,7 @@ def test_gram_and_bordered_step_match_the_plain_products():
 # -- wraps on the built-in sample, ground truth known --------------------------------
 @pytest.fixture(scope="module")
 def sample():
-    from facewrap.sample import make_scan, make_template
+    from facewrap.sample.face import make_scan, make_template
     template = make_template(resolution=40)
     scan = make_scan(template, resolution=60)
     tree = ClosestPointTree(scan.mesh.vertices, scan.mesh.triangles)
@@ -295,7 +295,7 @@ def test_excluded_eyeballs_follow_the_face(sample):
 def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
     from facewrap.cli import main
     from facewrap.io import read_mesh
-    from facewrap.sample import write_sample
+    from facewrap.sample.face import write_sample
     template, scan, _ = sample
     paths = write_sample(tmp_path / "in", template, scan)
     out, rep = tmp_path / "fit.obj", tmp_path / "r.json"
@@ -331,7 +331,7 @@ def test_cli_wrap_with_blendshapes_defaults_to_hybrid(sample, tmp_path):
 def test_template_graph_is_cached_by_content(sample):
     """Batch jobs read the template afresh: an equal mesh reuses the graph, a
     changed one (or another spacing) gets its own."""
-    from facewrap.wrap import _template_graph
+    from facewrap.wrapping.stages import _template_graph
     template = sample[0].mesh
     again = template.with_vertices(template.vertices.copy())
     assert again is not template

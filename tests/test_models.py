@@ -4,18 +4,18 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from facewrap.models.affine import AffineModel
-from facewrap.models.base import rotation_exp, skew
-from facewrap.models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
+from facewrap.wrapping.models.affine import AffineModel
+from facewrap.wrapping.models.base import rotation_exp, skew
+from facewrap.wrapping.models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
                                         blendshape_basis)
-from facewrap.models.graph import GraphModel, GraphParams, build_graph
-from facewrap.models.hybrid import HybridModel, HybridParams
-from facewrap.terms import BlockJacobian
+from facewrap.wrapping.models.graph import GraphModel, GraphParams, build_graph
+from facewrap.wrapping.models.hybrid import HybridModel, HybridParams
+from facewrap.wrapping.icp.terms import BlockJacobian
 
 
 @pytest.fixture(scope="module")
 def face():
-    from facewrap.sample import make_template
+    from facewrap.sample.face import make_template
     t = make_template(resolution=24)
     V = t.mesh.vertices
     c = V.mean(0)
@@ -202,7 +202,7 @@ def test_block_jacobian_algebra():
 
 
 def test_nearest_rotations_remove_scale_shear_and_reflection():
-    from facewrap.models.base import nearest_rotations
+    from facewrap.wrapping.models.base import nearest_rotations
     rng = np.random.default_rng(4)
     R = rotation_exp(rng.normal(size=(6, 3)))
     assert np.allclose(nearest_rotations(R * rng.uniform(0.5, 2, (6, 1, 1))), R)
@@ -221,7 +221,7 @@ def test_coarse_to_fine_resampling_keeps_the_deformation(face):
     """A fine graph continuing a coarse one translates each node where the coarse
     graph moved it; a rigid motion carries over exactly, a smooth bend closely;
     the hybrid keeps its weights."""
-    from facewrap.models.base import nearest_rotations
+    from facewrap.wrapping.models.base import nearest_rotations
     _, base, D, _, fine = face
     t = face[0]
     coarse = build_graph(base, t.mesh.triangles, spacing=0.16)
@@ -277,7 +277,7 @@ def test_weight_bounds_penalty_and_its_jacobian(face):
     """Weights outside [0, 1] are penalised by how far they are out; inside,
     nothing changes; the Jacobians (with the penalty active) match finite
     differences."""
-    from facewrap.models.blendshape import bound_violation
+    from facewrap.wrapping.models.blendshape import bound_violation
     _, base, D, _, graph = face
     rng = np.random.default_rng(8)
     w = np.linspace(-0.5, 1.5, D.shape[1])           # some below, some above

@@ -1,4 +1,4 @@
-"""Job files (facewrap.pipeline) and ``facewrap run``."""
+"""Job files (facewrap.jobs.jobfile) and ``facewrap run``."""
 
 from __future__ import annotations
 
@@ -13,18 +13,18 @@ import pytest
 from hypothesis import given, settings as hsettings, strategies as st
 
 from facewrap.errors import InputError
-from facewrap.icp import Stage
+from facewrap.wrapping.icp.engine import Stage
 from facewrap.io import read_mesh
-from facewrap.jobs import WrapJob
-from facewrap.pipeline import (_toml_string, job_to_toml, load_job, read_job_tables,
+from facewrap.jobs.wrap_job import WrapJob
+from facewrap.jobs.jobfile import (_toml_string, job_to_toml, load_job, read_job_tables,
                                settings_keys, write_job)
-from facewrap.wrap import WrapSettings
+from facewrap.wrapping.stages import WrapSettings
 from conftest import facewrap
 
 
 @pytest.fixture(scope="module")
 def sample(tmp_path_factory) -> dict:
-    from facewrap.sample import make_scan, make_template, write_sample
+    from facewrap.sample.face import make_scan, make_template, write_sample
     tpl = make_template(24)
     folder = tmp_path_factory.mktemp("sample")
     return write_sample(folder, tpl, make_scan(tpl, resolution=40, texture_size=16))
@@ -98,7 +98,7 @@ class Grown(WrapSettings):
 
 
 def test_new_settings_become_keys_by_introspection(tmp_path):
-    with mock.patch("facewrap.pipeline.WrapSettings", Grown):
+    with mock.patch("facewrap.jobs.jobfile.WrapSettings", Grown):
         p = write(tmp_path / "j.toml", '[wrap]\nnew_knob = 2\nnames = ["a", "b"]\n'
                                        '[wrap.inner]\nradius = 3\n')
         _, values = read_job_tables(p)
@@ -112,7 +112,7 @@ def test_new_settings_become_keys_by_introspection(tmp_path):
 
 def test_every_wrap_option_has_a_key():
     from facewrap.cli import build_parser
-    from facewrap.pipeline import job_keys
+    from facewrap.jobs.jobfile import job_keys
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     keys = set(job_keys()) | set(settings_keys())

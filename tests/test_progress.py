@@ -137,13 +137,13 @@ def test_log_lines_plain_off_terminal_and_no_duplicates():
     out = io.StringIO()
     for _ in range(3):  # configuring again replaces the handler
         configure_logging(1, stream=out)
-    log = logging.getLogger("facewrap.wrap")
+    log = logging.getLogger("facewrap.wrapping.stages")
     log.info("fitting %d vertices", 10)
     log.debug("hidden at -v")
     assert out.getvalue() == "INFO: fitting 10 vertices\n"
     configure_logging(2, stream=out)
     log.debug("shown at -vv")
-    assert out.getvalue().rstrip().endswith("DEBUG facewrap.wrap: shown at -vv")
+    assert out.getvalue().rstrip().endswith("DEBUG facewrap.wrapping.stages: shown at -vv")
 
 
 def test_foreign_handlers_are_kept():

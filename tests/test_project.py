@@ -3,7 +3,7 @@ import pytest
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.project import METHOD_PRISM, project_to_surface, smooth_extension
+from facewrap.wrapping.projection import METHOD_PRISM, project_to_surface, smooth_extension
 
 
 def grid(n, size=1.0, z=lambda x, y: 0 * x, jitter=0.0, seed=0, quads=True):

@@ -193,7 +193,7 @@ class Browser:
 @pytest.fixture(scope="module")
 def sample():
     """Small sample template and scan, a stand-in 'result' and its error."""
-    from facewrap.sample import make_scan, make_template
+    from facewrap.sample.face import make_scan, make_template
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=24, texture_size=16)
     M = scan.transform
@@ -350,9 +350,9 @@ def test_vendored_files_present():
 # ---------------------------------------------------------------------------------
 def test_cli_report_from_wrap_run(tmp_path):
     from facewrap.cli.report import register
-    from facewrap.jobs import WrapJob, run_wrap_job
-    from facewrap.sample import make_scan, make_template, write_sample
-    from facewrap.wrap import WrapSettings
+    from facewrap.jobs.wrap_job import WrapJob, run_wrap_job
+    from facewrap.sample.face import make_scan, make_template, write_sample
+    from facewrap.wrapping.stages import WrapSettings
     tpl = make_template(24)
     paths = write_sample(tmp_path / "in", tpl, make_scan(tpl, resolution=24,
                                                         texture_size=64))

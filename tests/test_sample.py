@@ -7,9 +7,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from facewrap import sample
+from facewrap.sample import face as sample
 from facewrap.landmarks import IBUG68_NAMES
-from facewrap.sample import (EXPRESSIONS, LANDMARK_NAMES, make_scan, make_sequence,
+from facewrap.sample.face import (EXPRESSIONS, LANDMARK_NAMES, make_scan, make_sequence,
                              make_template, write_sample)
 
 

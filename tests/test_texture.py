@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.texture import (bake_texture, cylindrical_uvs, interpolate_images,
+from facewrap.texture.bake import (bake_texture, cylindrical_uvs, interpolate_images,
                               load_image, rasterize_uv, sample_image, save_png,
                               scan_uvs_at, transfer_uvs)
 
@@ -335,7 +335,7 @@ def test_png_round_trip_and_image_errors(tmp_path):
 
 
 def test_rasterize_in_small_chunks_gives_the_same_raster(monkeypatch):
-    import facewrap.texture as texture
+    import facewrap.texture.bake as texture
     mesh = grid(5, jitter=0.3)
     whole = rasterize_uv(mesh, 40)
     monkeypatch.setattr(texture, "_CHUNK_TEXELS", 7)

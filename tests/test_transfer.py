@@ -13,7 +13,7 @@ from conftest import needs_data, DATA
 from facewrap.errors import InputError
 from facewrap.geometry import closest_points, face_normals
 from facewrap.io import read_mesh, write_obj
-from facewrap.sample import make_scan, make_template
+from facewrap.sample.face import make_scan, make_template
 from facewrap.transfer import (Correspondence, CorrespondenceSettings,
                                CorrespondenceStage, DeformationTransfer,
                                deformation_gradients, find_correspondence,
@@ -21,7 +21,7 @@ from facewrap.transfer import (Correspondence, CorrespondenceSettings,
                                match_triangles)
 from facewrap.transfer.gradients import (adjacent_triangle_pairs,
                                          triangle_smoothness_operator)
-from facewrap.transfer.transfer import complete_pairs, pair_matrix
+from facewrap.transfer.deformation import complete_pairs, pair_matrix
 
 
 def _random_rotation(rng):
@@ -348,7 +348,7 @@ def test_cat_to_lion_against_sumners_result():
 def test_precomputed_rhs_map_matches_gradient_blocks(pair):
     """The one sparse right-hand-side map equals Gₜᵀ applied to the summed source
     gradient blocks (the textbook assembly), for a stack of poses and one by one."""
-    from facewrap.transfer.transfer import extend_poses, source_gradient_blocks
+    from facewrap.transfer.deformation import extend_poses, source_gradient_blocks
     face, scan, _, shapes, corr = pair
     dt = DeformationTransfer(anchor=0).fit(face, scan, corr)
     P = np.stack(list(shapes.values())[:3])
@@ -417,7 +417,7 @@ def test_flipped_triangles_against_face_normals():
 
 
 def test_nearest_proper_unfolds_in_the_rest_plane():
-    from facewrap.transfer.transfer import _nearest_proper
+    from facewrap.transfer.deformation import _nearest_proper
     basis = np.tile(np.array([[1.0, 0], [0, 1], [0, 0]]), (3, 1, 1))   # rest plane xy
     F = np.array([[[1.0, 0], [0, -0.5], [0, 0.3]],      # mirrored: flipped
                   [[1.0, 0], [0, 0.01], [0, 0.2]],      # collapsed, not flipped

@@ -5,20 +5,20 @@ The public API, grouped (see ``docs/architecture.md`` for how data flows):
 
 * mesh model and files: :class:`Mesh`, :func:`read_mesh`, :func:`write_mesh`
 * landmarks: :class:`Landmarks`, :func:`read_landmarks`, :func:`pair_landmarks`
-* built-in sample: :mod:`facewrap.sample`; real data sets: :mod:`facewrap.datasets`
+* built-in sample: :mod:`facewrap.sample.face`; real data sets: :mod:`facewrap.datasets`
 * geometry queries: :mod:`facewrap.geometry`
 * wrapping a template onto a scan: :func:`wrap`, :class:`WrapSettings`
-* textures and sequences: :mod:`facewrap.texture`, :mod:`facewrap.animation`
+* textures and sequences: :mod:`facewrap.texture.bake`, :mod:`facewrap.animation`
 """
 
 __version__ = "0.1.0"
 
-from .errors import InputError
-from .mesh import Mesh
-from .landmarks import IBUG68_NAMES, Landmarks, pair_landmarks
-from .io import read_mesh, write_mesh
-from .io.landmarks import read_landmarks, read_markers
-from .wrap import WrapResult, WrapSettings, wrap
+from facewrap.errors import InputError
+from facewrap.mesh import Mesh
+from facewrap.landmarks import IBUG68_NAMES, Landmarks, pair_landmarks
+from facewrap.io import read_mesh, write_mesh
+from facewrap.io.landmarks import read_landmarks, read_markers
+from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
 
 __all__ = [
     "__version__", "InputError",

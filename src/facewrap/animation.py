@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.atomic import atomic_write
-from .io.obj import write_obj
-from .geometry._checks import as_points
-from .mesh import Mesh
-from .texture import interpolate_images, save_png
+from facewrap.io.atomic import atomic_write
+from facewrap.io.obj import write_obj
+from facewrap.geometry.checks import as_points
+from facewrap.mesh import Mesh
+from facewrap.texture.bake import interpolate_images, save_png
 
 __all__ = ["interpolate_vertices", "interpolate_textures", "write_obj_sequence"]
 
@@ -73,7 +73,7 @@ def interpolate_vertices(start, end, frames: int) -> np.ndarray:
 def interpolate_textures(a, b, frames: int) -> np.ndarray:
     """Linear in-betweens of two texture images, both ends included.
 
-    Frame ``k`` is :func:`~facewrap.texture.interpolate_images` ``(a, b, k / (frames
+    Frame ``k`` is :func:`~facewrap.texture.bake.interpolate_images` ``(a, b, k / (frames
     - 1))``.
 
     Parameters

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .io.dispatch import read_mesh
-from .io.landmarks import read_markers
-from .io.obj import read_obj, read_obj_vertices
-from .landmarks import IBUG68_NAMES, Landmarks
-from .mesh import Mesh
+from facewrap.errors import InputError
+from facewrap.io.dispatch import read_mesh
+from facewrap.io.landmarks import read_markers
+from facewrap.io.obj import read_obj, read_obj_vertices
+from facewrap.landmarks import IBUG68_NAMES, Landmarks
+from facewrap.mesh import Mesh
 
 __all__ = ["ICTFaceKit", "ICT_PARTS", "load_shape_folder", "PoseSet", "load_pose_set",
            "load_sumner_pair", "expand_ict_facekit", "cache_dir"]

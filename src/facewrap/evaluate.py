@@ -27,11 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .align import similarity_transform
-from .geometry import ClosestPointTree
-from .geometry._checks import as_points, as_triangles, as_vertices
-from .geometry.normals import _cross_columns, _edge_vectors
-from .landmarks import Landmarks, pair_landmarks
+from facewrap.wrapping.align import similarity_transform
+from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.checks import as_points, as_triangles, as_vertices
+from facewrap.geometry.normals import _cross_columns, _edge_vectors
+from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "CorrespondenceErrors",
            "TriangleQuality", "Evaluation", "surface_distances", "landmark_errors",
@@ -507,7 +507,7 @@ class Evaluation:
         """All statistics as a JSON-able dict (floats, ints, str, None, dicts).
 
         Keys: ``fit_*`` (result → scan: mean, median, p95, max, rms, coverage, as
-        :func:`facewrap.wrap.fit_metrics` names them), ``scan_to_result_*``,
+        :func:`facewrap.wrapping.stages.fit_metrics` names them), ``scan_to_result_*``,
         ``landmark_*``, ``correspondence_*`` and ``triangles_*``.
         """
         out = {"vertices": int(self.n_vertices)}

@@ -248,7 +248,7 @@ def configure_logging(verbosity: int = 0, *, stream=None) -> logging.Logger:
     >>> import io
     >>> out = io.StringIO()
     >>> log = configure_logging(1, stream=out)
-    >>> logging.getLogger("facewrap.wrap").info("fitting %d vertices", 7434)
+    >>> logging.getLogger("facewrap.wrapping.stages").info("fitting %d vertices", 7434)
     >>> out.getvalue()
     'INFO: fitting 7434 vertices\\n'
     >>> _ = configure_logging(0)

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap.align import similarity_transform
+from facewrap.wrapping.align import similarity_transform
 from facewrap.datasets import load_sumner_pair
 
 MARKERS = (Path(__file__).resolve().parents[4] / "shared" / "data" / "sumner2004" /
@@ -39,7 +39,7 @@ def gradient_solver(L_ref, anchor, k, row_weight=None):
     each lion triangle's term (a triangle with c equal pairs weighs c).
     """
     import scipy.sparse as sp
-    from facewrap.solve import factorize
+    from facewrap.solve.factor import factorize
     from facewrap.transfer.gradients import gradient_operator
     G = gradient_operator(L_ref.vertices, L_ref.triangles).matrix.tocsr()
     tl, N, n = len(L_ref.triangles), G.shape[1], L_ref.n_vertices

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
-from ..errors import InputError
-from ..wrap import MODELS, WrapSettings
+from facewrap import __version__
+from facewrap.errors import InputError
+from facewrap.wrapping.stages import MODELS, WrapSettings
 
 __all__ = ["main", "build_parser"]
 
@@ -28,8 +28,8 @@ _COMMAND_MODULES = ("track", "transfer", "evaluate", "report", "run", "batch")
 
 def cmd_info(args) -> int:
     """Print a summary of a mesh (and its landmarks)."""
-    from ..geometry import boundary_loops, connected_components
-    from ..io import read_mesh
+    from facewrap.geometry import boundary_loops, connected_components
+    from facewrap.io import read_mesh
     mesh = read_mesh(args.mesh)
     sizes, counts = np.unique(mesh.face_sizes, return_counts=True)
     lo, hi = mesh.bounding_box()
@@ -58,7 +58,7 @@ def cmd_info(args) -> int:
 
 def cmd_convert(args) -> int:
     """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
-    from ..io import read_mesh, write_mesh
+    from facewrap.io import read_mesh, write_mesh
     write_mesh(args.output, read_mesh(args.input))
     print(args.output)
     return 0
@@ -66,7 +66,7 @@ def cmd_convert(args) -> int:
 
 def cmd_sample(args) -> int:
     """Write the built-in synthetic template and scan to a folder."""
-    from ..sample import make_scan, make_template, write_sample
+    from facewrap.sample.face import make_scan, make_template, write_sample
     template = make_template()
     scan = make_scan(template)
     out = Path(args.out)
@@ -91,7 +91,7 @@ def wrap_settings_from_args(args) -> WrapSettings:
 
 def cmd_wrap(args) -> int:
     """Fit the template to the scan and write the template-topology result."""
-    from ..jobs import WrapJob
+    from facewrap.jobs.wrap_job import WrapJob
     job = WrapJob(template=args.template, scan=args.scan,
                   template_landmarks=args.template_landmarks,
                   scan_landmarks=args.scan_landmarks, output=args.output,
@@ -106,7 +106,7 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
     """Run a wrap job for the command line: input warnings as one
     ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
     import warnings
-    from ..jobs import InputWarning, run_wrap_job
+    from facewrap.jobs.wrap_job import InputWarning, run_wrap_job
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
         report = run_wrap_job(job, settings)
@@ -124,8 +124,8 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
 
 def cmd_animate(args) -> int:
     """Frames between two fitted meshes of one topology, as an OBJ sequence."""
-    from ..animation import interpolate_textures, interpolate_vertices, write_obj_sequence
-    from ..io import read_mesh
+    from facewrap.animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+    from facewrap.io import read_mesh
     start, end = read_mesh(args.start), read_mesh(args.end)
     if (start.n_vertices != end.n_vertices
             or not np.array_equal(start.face_indices, end.face_indices)):
@@ -134,7 +134,7 @@ def cmd_animate(args) -> int:
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     textures = None
     if args.textures:
-        from ..texture import load_image
+        from facewrap.texture.bake import load_image
         a, b = (load_image(p) for p in args.textures)
         if a.shape != b.shape:
             raise InputError(f"image size {b.shape[:2]} differs from "
@@ -147,7 +147,7 @@ def cmd_animate(args) -> int:
 
 def cmd_demo(args) -> int:
     """Run the main job on the built-in sample and say where the outputs are."""
-    from ..demo import run_demo
+    from facewrap.cli.demo import run_demo
     return run_demo(Path(args.out), verbose=not args.quiet)
 
 
@@ -258,7 +258,7 @@ def main(argv=None) -> int:
     """Entry point of the ``facewrap`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    from ..progress import configure_logging
+    from facewrap.progress import configure_logging
     # progress bars draw only on a terminal; logs go to standard error
     configure_logging(args.log_verbose - args.log_quiet
                       - (1 if getattr(args, "quiet", False) else 0))

@@ -1,7 +1,7 @@
 """``facewrap report RUN.json -o DIR``: the HTML page of a finished wrap run.
 
 Reads the JSON report that ``facewrap wrap --report`` writes (see
-:func:`facewrap.jobs.run_wrap_job`), the meshes it names (template, scan, output)
+:func:`facewrap.jobs.wrap_job.run_wrap_job`), the meshes it names (template, scan, output)
 and, when the run had them, its blendshape folder and baked texture, and writes
 ``DIR/index.html`` with :func:`facewrap.report.html.write_html_report`:
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from facewrap.errors import InputError
 
 __all__ = ["register", "cmd_report", "build_report_page"]
 
@@ -77,7 +77,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
     Parameters
     ----------
     report_path : path
-        JSON written by ``facewrap wrap --report`` (:func:`~facewrap.jobs.run_wrap_job`).
+        JSON written by ``facewrap wrap --report`` (:func:`~facewrap.jobs.wrap_job.run_wrap_job`).
     out_dir : path
         Folder for ``index.html`` (created).
     images : sequence of path
@@ -100,9 +100,9 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
     InputError
         If the report or a file it names is missing or malformed.
     """
-    from ..geometry import ClosestPointTree
-    from ..io import read_mesh
-    from ..report.html import write_html_report
+    from facewrap.geometry import ClosestPointTree
+    from facewrap.io import read_mesh
+    from facewrap.report.html import write_html_report
 
     report_path = Path(report_path)
     run = _load_run(report_path)
@@ -125,7 +125,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
 
     blendshapes = None
     if job.get("blendshapes"):
-        from ..datasets import load_shape_folder
+        from facewrap.datasets import load_shape_folder
         folder = Path(job["blendshapes"])
         if not folder.is_dir() and (report_path.parent / folder).is_dir():
             folder = report_path.parent / folder

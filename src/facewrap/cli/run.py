@@ -1,6 +1,6 @@
 """``facewrap run JOB.toml``: run the wrap a job file describes (parsing only).
 
-The job file format is :mod:`facewrap.pipeline`'s; ``--write-template`` writes a
+The job file format is :mod:`facewrap.jobs.jobfile`'s; ``--write-template`` writes a
 commented job file with every key to start from, ``--dry-run`` checks a job file
 and its inputs and prints the job as resolved (absolute paths, every setting)
 without writing anything.
@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import os
 
-from ..errors import InputError
+from facewrap.errors import InputError
 
 __all__ = ["register", "cmd_run"]
 
 
 def cmd_run(args) -> int:
     """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
-    from ..jobs import job_inputs
-    from ..pipeline import job_to_toml, load_job, write_job
+    from facewrap.jobs.wrap_job import job_inputs
+    from facewrap.jobs.jobfile import job_to_toml, load_job, write_job
     if args.write_template:
         if os.path.exists(args.job) and not args.force:
             raise InputError("already exists (use --force to replace it)", args.job)
@@ -34,7 +34,7 @@ def cmd_run(args) -> int:
         print(job_to_toml(job, settings, header=f"{args.job}, resolved (dry run: "
                                                 "nothing written)"), end="")
         return 0
-    from . import run_wrap_job_verbosely
+    from facewrap.cli import run_wrap_job_verbosely
     run_wrap_job_verbosely(job, settings, quiet=args.quiet)
     return 0
 

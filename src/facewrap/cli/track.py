@@ -2,14 +2,14 @@
 
 Outputs in ``OUT``: ``frame_0000.obj``… in the template's exact topology,
 ``weights.csv`` (blend weights per frame) and ``track.json`` (fit and landmark
-errors over time, iterations, seconds).  See :mod:`facewrap.track`.
+errors over time, iterations, seconds).  See :mod:`facewrap.wrapping.track`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
+from facewrap.errors import InputError
 
 __all__ = ["register", "cmd_track"]
 
@@ -33,11 +33,11 @@ def _scan_paths(items) -> list[Path]:
 
 def cmd_track(args) -> int:
     """Track the template through the scans and write the sequence."""
-    from ..io import read_mesh
-    from ..io.landmarks import read_vertex_indices
-    from ..jobs import read_mesh_landmarks
-    from ..track import track, write_track_outputs
-    from .__init__ import wrap_settings_from_args
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_vertex_indices
+    from facewrap.jobs.wrap_job import read_mesh_landmarks
+    from facewrap.wrapping.track import track, write_track_outputs
+    from facewrap.cli.__init__ import wrap_settings_from_args
     template = read_mesh(args.template)
     scans = _scan_paths(args.scans)
     if len(args.scan_landmarks) not in (1, len(scans)):
@@ -55,15 +55,15 @@ def cmd_track(args) -> int:
     lms += [None] * (len(meshes) - len(lms))
     shapes = None
     if args.blendshapes:
-        from ..datasets import load_shape_folder
+        from facewrap.datasets import load_shape_folder
         shapes = load_shape_folder(args.blendshapes, template, exclude=())
     exclude = None
     if args.exclude:
         exclude = read_vertex_indices(args.exclude, n_vertices=template.n_vertices).vertex
 
-    from ..progress import progress
+    from facewrap.progress import progress
     import logging
-    log = logging.getLogger("facewrap.track")
+    log = logging.getLogger("facewrap.wrapping.track")
 
     with progress(len(meshes), "tracking") as bar:
         def say(i, result):
@@ -85,7 +85,7 @@ def cmd_track(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``track`` to the ``facewrap`` subcommands."""
-    from .__init__ import add_fit_options
+    from facewrap.cli.__init__ import add_fit_options
     p = subparsers.add_parser(
         "track", help="register a sequence of scans (4D), each frame from the last")
     p.add_argument("template", help="template mesh (OBJ/PLY)")

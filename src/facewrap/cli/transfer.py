@@ -19,9 +19,9 @@ __all__ = ["register", "cmd_transfer"]
 
 def _read_shapes(items, reference):
     """name -> (n, 3) from a folder or OBJ files (InputError names a bad file)."""
-    from ..datasets import load_shape_folder
-    from ..errors import InputError
-    from ..io.obj import read_obj_vertices
+    from facewrap.datasets import load_shape_folder
+    from facewrap.errors import InputError
+    from facewrap.io.obj import read_obj_vertices
     shapes = {}
     for item in items:
         p = Path(item)
@@ -46,13 +46,13 @@ def _repairs(repairs, names) -> dict:
 
 def cmd_transfer(args) -> int:
     """Transfer source shapes onto the target; write OBJs (+ GLB, report)."""
-    from ..io import read_mesh
-    from ..io.landmarks import read_markers
-    from ..io.obj import write_obj
-    from ..transfer import (AvatarTransfer, Correspondence, DeformationTransfer,
-                            find_correspondence, read_parts)
-    from ..transfer.correspondence import check_markers
-    from ..transfer.avatar import IBUG51_PARTS
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_markers
+    from facewrap.io.obj import write_obj
+    from facewrap.avatar import AvatarTransfer, read_parts
+    from facewrap.transfer import Correspondence, DeformationTransfer, find_correspondence
+    from facewrap.transfer.correspondence import check_markers
+    from facewrap.avatar.shapes import IBUG51_PARTS
     t0 = time.perf_counter()
     source = read_mesh(args.source_neutral)
     target = read_mesh(args.target_neutral)
@@ -77,7 +77,7 @@ def cmd_transfer(args) -> int:
                                        markers_path=args.markers)
         anchor = "markers" if args.anchor is None else args.anchor
         if args.anchor is not None and not 0 <= args.anchor < target.n_vertices:
-            from ..errors import InputError
+            from facewrap.errors import InputError
             raise InputError(f"--anchor {args.anchor} out of range (target has "
                              f"{target.n_vertices} vertices)", args.target_neutral)
         model = DeformationTransfer(anchor=anchor, fix_flips=not args.no_fix_flips
@@ -98,14 +98,14 @@ def cmd_transfer(args) -> int:
         write_obj(path, target.with_vertices(X))
         written.append(str(path))
     if args.gltf:
-        from ..io.gltf import write_gltf_morphs
+        from facewrap.io.gltf import write_gltf_morphs
         Path(args.gltf).parent.mkdir(parents=True, exist_ok=True)
         write_gltf_morphs(args.gltf, target, dict(zip(names, results)),
                           scale=args.gltf_scale)
     t4 = time.perf_counter()
     ambiguity = None
     if args.ambiguity:
-        from ..transfer.ambiguity import ambiguity_summary, partner_ambiguity
+        from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
         ambiguity = ambiguity_summary(partner_ambiguity(
             corr, source, target, np.stack([shapes[k] for k in names])), target)
     t5 = time.perf_counter()
@@ -121,7 +121,7 @@ def cmd_transfer(args) -> int:
                     "write": t4 - t3, "ambiguity": t5 - t4, "total": t5 - t0},
     }
     if args.report:
-        from ..io.atomic import atomic_write
+        from facewrap.io.atomic import atomic_write
         with atomic_write(args.report, "w") as fh:
             json.dump(report, fh, indent=1)
     if not args.quiet:

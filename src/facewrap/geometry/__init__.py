@@ -21,14 +21,14 @@ Sampling (:mod:`.sampling`)
     :func:`poisson_disk_vertices`
 """
 
-from .closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
-from .normals import face_areas, face_normals, vertex_normals
-from .adjacency import (
+from facewrap.geometry.closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
+from facewrap.geometry.normals import face_areas, face_normals, vertex_normals
+from facewrap.geometry.adjacency import (
     boundary_edges, boundary_loops, boundary_vertices, connected_components, edges,
     edges_of_polygons, triangle_adjacency, vertex_adjacency,
 )
-from .laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
-from .sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
+from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
+from facewrap.geometry.sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
 
 __all__ = [
     # closest points and rays

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from ._checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
+from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
 
 __all__ = [
     "edges", "edges_of_polygons", "vertex_adjacency", "triangle_adjacency",

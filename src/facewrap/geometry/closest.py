@@ -28,9 +28,9 @@ from typing import NamedTuple
 import igl
 import numpy as np
 
-from ._checks import as_points, as_triangles, as_vertices
-from .adjacency import triangle_adjacency
-from .normals import _cross_rows, _normalize_rows, _vertex_normals
+from facewrap.geometry.checks import as_points, as_triangles, as_vertices
+from facewrap.geometry.adjacency import triangle_adjacency
+from facewrap.geometry.normals import _cross_rows, _normalize_rows, _vertex_normals
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 

@@ -15,9 +15,9 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import as_count, as_triangles, as_triangles_or_edges, as_vertices
-from .adjacency import _adjacency, _edges_from
-from .normals import _column_norms, _cross_columns, _edge_vectors
+from facewrap.geometry.checks import as_count, as_triangles, as_triangles_or_edges, as_vertices
+from facewrap.geometry.adjacency import _adjacency, _edges_from
+from facewrap.geometry.normals import _column_norms, _cross_columns, _edge_vectors
 
 __all__ = ["cotangent_laplacian", "uniform_laplacian", "mass_matrix"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import as_triangles, as_vertices
+from facewrap.geometry.checks import as_triangles, as_vertices
 
 __all__ = ["face_normals", "face_areas", "vertex_normals"]
 

@@ -12,8 +12,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._checks import as_count, as_triangles, as_vertices
-from .normals import _face_areas
+from facewrap.geometry.checks import as_count, as_triangles, as_vertices
+from facewrap.geometry.normals import _face_areas
 
 __all__ = ["sample_surface", "farthest_point_sampling", "poisson_disk_vertices"]
 

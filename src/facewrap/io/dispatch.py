@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import os
 
-from ..errors import InputError
-from ..mesh import Mesh
+from facewrap.errors import InputError
+from facewrap.mesh import Mesh
 
 __all__ = ["read_mesh", "write_mesh"]
 
@@ -29,9 +29,9 @@ def read_mesh(path) -> Mesh:
     if not os.path.isfile(path):
         raise InputError("no such file", path)
     if ext == ".obj":
-        from .obj import read_obj
+        from facewrap.io.obj import read_obj
         return read_obj(path)
-    from .ply import read_ply
+    from facewrap.io.ply import read_ply
     return read_ply(path)
 
 
@@ -42,8 +42,8 @@ def write_mesh(path, mesh: Mesh) -> None:
         raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
                          "use .obj or .ply", path)
     if ext == ".obj":
-        from .obj import write_obj
+        from facewrap.io.obj import write_obj
         write_obj(path, mesh)
     else:
-        from .ply import write_ply
+        from facewrap.io.ply import write_ply
         write_ply(path, mesh)

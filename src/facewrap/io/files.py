@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from ..errors import InputError
+from facewrap.errors import InputError
 
 __all__ = ["read_file_bytes", "read_json"]
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..mesh import Mesh
-from .atomic import atomic_write
+from facewrap.errors import InputError
+from facewrap.mesh import Mesh
+from facewrap.io.atomic import atomic_write
 
 __all__ = ["write_gltf_morphs", "read_gltf_morphs", "GltfMorphs"]
 

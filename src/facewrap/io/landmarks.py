@@ -38,10 +38,10 @@ import re
 
 import numpy as np
 
-from ..errors import InputError
-from ..landmarks import IBUG68_NAMES, Landmarks
-from .atomic import atomic_write
-from .files import read_file_bytes, read_json
+from facewrap.errors import InputError
+from facewrap.landmarks import IBUG68_NAMES, Landmarks
+from facewrap.io.atomic import atomic_write
+from facewrap.io.files import read_file_bytes, read_json
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",

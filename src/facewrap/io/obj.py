@@ -17,10 +17,10 @@ import warnings
 
 import numpy as np
 
-from ..errors import InputError
-from ..mesh import Mesh
-from .atomic import atomic_write
-from .files import read_file_bytes
+from facewrap.errors import InputError
+from facewrap.mesh import Mesh
+from facewrap.io.atomic import atomic_write
+from facewrap.io.files import read_file_bytes
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 

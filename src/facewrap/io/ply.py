@@ -40,10 +40,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-from .files import read_file_bytes
-from ..mesh import Mesh
-from .atomic import atomic_write
+from facewrap.errors import InputError
+from facewrap.io.files import read_file_bytes
+from facewrap.mesh import Mesh
+from facewrap.io.atomic import atomic_write
 
 __all__ = ["read_ply", "write_ply"]
 

@@ -11,11 +11,11 @@ Figures (:mod:`.figures`): text, colour bars, grids
     :func:`image_grid`, :func:`blendshape_sheet`, :func:`colorbar`,
     :func:`nice_ticks`, :func:`robust_clim`
 Files
-    :func:`save_png` (atomic PNG writer of :mod:`facewrap.texture`)
+    :func:`save_png` (atomic PNG writer of :mod:`facewrap.texture.bake`)
 
 Examples
 --------
->>> from facewrap.sample import make_template
+>>> from facewrap.sample.face import make_template
 >>> tpl = make_template(24)
 >>> img = heatmap_figure(tpl.mesh, tpl.mesh.vertices[:, 2], units="mm",
 ...                      title="depth", size=(120, 140))
@@ -23,10 +23,10 @@ Examples
 ('uint8', 3)
 """
 
-from ..texture import save_png
-from .figures import (blendshape_sheet, colorbar, heatmap_figure, image_grid,
+from facewrap.texture.bake import save_png
+from facewrap.report.figures import (blendshape_sheet, colorbar, heatmap_figure, image_grid,
                       nice_ticks, render_views, robust_clim, side_by_side)
-from .render import (COLORMAPS, VIEWS, Raster, apply_colormap, colormap,
+from facewrap.report.render import (COLORMAPS, VIEWS, Raster, apply_colormap, colormap,
                      fit_pixel_size, frame_from_axes, rasterize, render_mesh,
                      view_rotation)
 

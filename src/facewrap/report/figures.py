@@ -9,7 +9,7 @@ Rendering itself is :mod:`facewrap.report.render`'s job; text is drawn with
 Pillow's built-in FreeType font (no font file, no system package).
 
 All figures are ``(H, W, 3)`` uint8 RGB arrays; write them with
-:func:`facewrap.texture.save_png`.
+:func:`facewrap.texture.bake.save_png`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .render import (_clim, _color, _size, apply_colormap, colormap, fit_pixel_size,
+from facewrap.report.render import (_clim, _color, _size, apply_colormap, colormap, fit_pixel_size,
                      mesh_arrays, render_mesh)
 
 __all__ = ["nice_ticks", "robust_clim", "colorbar", "render_views", "heatmap_figure",
@@ -303,7 +303,7 @@ def render_views(meshes, views=_DEFAULT_VIEWS, *, size=(400, 480), margin=0.06,
 
 
 def _joint_center(arrays, view, frame) -> np.ndarray:
-    from .render import view_rotation
+    from facewrap.report.render import view_rotation
     R = view_rotation(view, frame)
     lo = np.min([(V @ R.T).min(axis=0) for V, _ in arrays], axis=0)
     hi = np.max([(V @ R.T).max(axis=0) for V, _ in arrays], axis=0)

@@ -463,7 +463,7 @@ def write_html_report(folder, *, title: str = "facewrap report",
     data = {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry,
             "view": {"up": up, "front": front, "initial": initial_view}}
 
-    from .. import __version__
+    from facewrap import __version__
     created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
     e = html.escape
     parts = [f'<header class="top"><div><h1>{e(title)}</h1><div class="sub">'
@@ -499,7 +499,7 @@ def write_html_report(folder, *, title: str = "facewrap report",
             f"</head><body><main class=\"page\">{''.join(parts)}</main>\n{scripts}"
             "</body></html>\n")
 
-    from ..io.atomic import atomic_write
+    from facewrap.io.atomic import atomic_write
     out = Path(os.fspath(folder))
     out.mkdir(parents=True, exist_ok=True)
     path = out / filename

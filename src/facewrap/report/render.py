@@ -30,9 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry._checks import as_triangles, as_vertices
-from ..geometry.normals import _face_normals, _vertex_normals
-from ..texture import _chunks  # the UV rasteriser's work splitter
+from facewrap.geometry.checks import as_triangles, as_vertices
+from facewrap.geometry.normals import _face_normals, _vertex_normals
+from facewrap.texture.bake import _chunks  # the UV rasteriser's work splitter
 
 __all__ = ["VIEWS", "COLORMAPS", "view_rotation", "frame_from_axes", "rasterize",
            "Raster", "colormap", "apply_colormap", "render_mesh", "fit_pixel_size",

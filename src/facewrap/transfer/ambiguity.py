@@ -25,10 +25,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..mesh import Mesh
-from .correspondence import Correspondence, _centroids_normals
-from .gradients import gradient_operator
-from .transfer import as_pose_stack, source_gradient_blocks
+from facewrap.mesh import Mesh
+from facewrap.transfer.correspondence import Correspondence, _centroids_normals
+from facewrap.transfer.gradients import gradient_operator
+from facewrap.transfer.deformation import as_pose_stack, source_gradient_blocks
 
 __all__ = ["partner_ambiguity", "ambiguity_summary"]
 
@@ -61,7 +61,7 @@ def partner_ambiguity(correspondence: Correspondence, source: Mesh, target: Mesh
 
     Examples
     --------
-    >>> from facewrap.sample import make_template
+    >>> from facewrap.sample.face import make_template
     >>> from facewrap.transfer import find_correspondence
     >>> face = make_template(resolution=24).mesh
     >>> corr = find_correspondence(face, face, (np.arange(0, 500, 50),) * 2)

@@ -35,12 +35,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..align import Similarity, similarity_transform
-from ..errors import InputError
-from ..geometry import ClosestPointTree, face_normals, vertex_normals
-from ..mesh import Mesh
-from ..solve import factorize, refactorize
-from .gradients import adjacent_triangle_pairs, gradient_operator, \
+from facewrap.wrapping.align import Similarity, similarity_transform
+from facewrap.errors import InputError
+from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
+from facewrap.mesh import Mesh
+from facewrap.solve.factor import factorize, refactorize
+from facewrap.transfer.gradients import adjacent_triangle_pairs, gradient_operator, \
     triangle_smoothness_operator
 
 __all__ = ["CorrespondenceStage", "SUMNER_SCHEDULE", "CorrespondenceSettings",
@@ -207,7 +207,7 @@ class Correspondence:
 
     def save(self, path) -> None:
         """Write to an ``.npz`` file (atomically)."""
-        from ..io.atomic import atomic_write
+        from facewrap.io.atomic import atomic_write
         import json
         with atomic_write(path, "wb") as fh:
             np.savez_compressed(
@@ -319,7 +319,7 @@ def untethered_vertices(T, n: int, fixed_ids) -> np.ndarray:
     Their translation is free in every gradient energy; callers add a tiny pull
     toward their rest positions (so an eyeball turns about its own centre).
     """
-    from ..geometry import connected_components
+    from facewrap.geometry import connected_components
     comp = connected_components(T, n)
     has = np.zeros(int(comp.max()) + 1 if n else 0, dtype=bool)
     has[comp[np.asarray(fixed_ids, dtype=np.int64)]] = True

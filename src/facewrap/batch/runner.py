@@ -1,12 +1,12 @@
 """Batches: many wrap jobs from a manifest, in parallel, resumable after a crash.
 
-A **manifest** lists the jobs; a shared **job file** (:mod:`facewrap.pipeline`)
+A **manifest** lists the jobs; a shared **job file** (:mod:`facewrap.jobs.jobfile`)
 holds what they have in common (template, landmarks, settings).
 
 * CSV: a header row, then one job per row.  Columns ``scan``, ``scan_landmarks``,
   ``output`` (unless the job file gives them), and optionally ``name``, ``job`` (a
-  job file for this row), any other :class:`~facewrap.jobs.WrapJob` field and any
-  scalar :class:`~facewrap.wrap.WrapSettings` field (``smoothing``, or
+  job file for this row), any other :class:`~facewrap.jobs.wrap_job.WrapJob` field and any
+  scalar :class:`~facewrap.wrapping.stages.WrapSettings` field (``smoothing``, or
   ``wrap.smoothing``).  An empty cell means "not overridden"; lines starting with
   ``#`` are comments.
 * TOML: optional ``version = 1`` and ``job = "shared.toml"``, then one ``[[jobs]]``
@@ -46,13 +46,13 @@ import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from . import __version__
-from .errors import InputError
-from .jobs import InputWarning, WrapJob, check_job_paths, job_inputs, job_outputs
-from .pipeline import (_hints, _Where, _job_values, _read_toml, _require_job, _resolve,
+from facewrap import __version__
+from facewrap.errors import InputError
+from facewrap.jobs.wrap_job import InputWarning, WrapJob, check_job_paths, job_inputs, job_outputs
+from facewrap.jobs.jobfile import (_hints, _Where, _job_values, _read_toml, _require_job, _resolve,
                        _settings_values, job_keys, parse_text, read_job_tables,
                        settings_from_dict, settings_keys)
-from .wrap import WrapSettings
+from facewrap.wrapping.stages import WrapSettings
 
 __all__ = ["BatchJob", "BatchResult", "read_manifest", "run_one", "run_batch",
            "fingerprint", "done_record_path", "read_done_record", "write_summary",
@@ -280,7 +280,7 @@ def read_manifest(path, job_file=None) -> list[BatchJob]:
     InputError
         Naming the manifest or job file and line.
     """
-    from .io.files import read_file_bytes
+    from facewrap.io.files import read_file_bytes
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext == ".toml":
@@ -424,7 +424,7 @@ def _record_matches(rec: dict | None, fp: dict) -> bool:
 
 
 def _write_done_record(job: WrapJob, fp: dict, report: dict, seconds: float) -> None:
-    from .io.atomic import atomic_write
+    from facewrap.io.atomic import atomic_write
     outputs = {}
     for p in job_outputs(job):
         outputs[p] = {**_stat(p), "sha256": _sha256(p)}
@@ -497,7 +497,7 @@ def run_one(bj: BatchJob) -> dict:
         _remove_stale(bj.job)
         for out in job_outputs(bj.job):
             os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
-        from .jobs import run_wrap_job
+        from facewrap.jobs.wrap_job import run_wrap_job
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", InputWarning)  # they are in the report
             report = run_wrap_job(bj.job, bj.settings)
@@ -564,7 +564,7 @@ def _pool_context():
     import multiprocessing
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["facewrap.batch", "facewrap.jobs", "facewrap.wrap"])
+        ctx.set_forkserver_preload(["facewrap.batch.runner", "facewrap.jobs.wrap_job", "facewrap.wrapping.stages"])
         return ctx
     return multiprocessing.get_context("spawn")
 
@@ -722,7 +722,7 @@ def write_summary(stem, rows: list[dict], meta: dict | None = None) -> tuple[str
     The CSV has :data:`SUMMARY_COLUMNS` and one column per fit metric; the JSON
     holds ``meta``, status counts and the full rows.
     """
-    from .io.atomic import atomic_write
+    from facewrap.io.atomic import atomic_write
     stem = os.fspath(stem)
     os.makedirs(os.path.dirname(os.path.abspath(stem)), exist_ok=True)
     counts = {s: sum(r["status"] == s for r in rows) for s in (DONE, SKIPPED, FAILED,
@@ -739,7 +739,7 @@ def write_summary(stem, rows: list[dict], meta: dict | None = None) -> tuple[str
     with atomic_write(csv_path, "w", encoding="utf-8", newline="") as fh:
         fh.write(buf.getvalue())
     with atomic_write(json_path, "w", encoding="utf-8") as fh:
-        json.dump({"format": "facewrap.batch-summary", "version": 1, **(meta or {}),
+        json.dump({"format": "facewrap.batch.runner-summary", "version": 1, **(meta or {}),
                    "counts": counts, "jobs": rows}, fh, indent=1)
     return csv_path, json_path
 

@@ -1,9 +1,9 @@
 """Energy terms of non-rigid ICP, each as (residual, Jacobian) — SPEC §2.1.
 
 Every term is a function of the model's vertex Jacobian ``Jv`` (sparse
-(3n, P), see :mod:`facewrap.models.base`) and returns the residual vector ``r``
+(3n, P), see :mod:`facewrap.wrapping.models.base`) and returns the residual vector ``r``
 and its Jacobian ``J`` (sparse (len(r), P)), *unweighted*; the solver
-(:func:`facewrap.solve.gauss_newton_step`) weights and sums them.  Small pieces
+(:func:`facewrap.solve.factor.gauss_newton_step`) weights and sums them.  Small pieces
 so each can be tested alone against finite differences.
 """
 
@@ -60,7 +60,7 @@ class BlockJacobian:
         When the three rows of each triple share their columns (vertex rows of
         the graph Jacobian do), the product is done on the stored values, which
         keeps that structure (and its explicit zeros) for the fast Gram product
-        in :func:`facewrap.solve.gauss_newton_step`.
+        in :func:`facewrap.solve.factor.gauss_newton_step`.
         """
         M = np.asarray(M, dtype=np.float64)
         k = len(M)

@@ -19,19 +19,19 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .align import Similarity, rigid_icp, similarity_transform
-from .geometry import ClosestPointTree, connected_components
-from .icp import NonRigidICP, Stage, default_schedule
-from .landmarks import Landmarks, pair_landmarks, snap_to_surface
-from .mesh import Mesh
-from .models.affine import AffineModel
-from .models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
+from facewrap.wrapping.align import Similarity, rigid_icp, similarity_transform
+from facewrap.geometry import ClosestPointTree, connected_components
+from facewrap.wrapping.icp.engine import NonRigidICP, Stage, default_schedule
+from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
+from facewrap.mesh import Mesh
+from facewrap.wrapping.models.affine import AffineModel
+from facewrap.wrapping.models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
                                 blendshape_basis)
-from .models.graph import GraphModel, build_graph
-from .models.hybrid import HybridModel, HybridParams
-from .models.rbf import RBFWarp, pull_to_landmarks
-from .terms import landmark_rows
-from .project import Projection, project_to_surface
+from facewrap.wrapping.models.graph import GraphModel, build_graph
+from facewrap.wrapping.models.hybrid import HybridModel, HybridParams
+from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
+from facewrap.wrapping.icp.terms import landmark_rows
+from facewrap.wrapping.projection import Projection, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
 
@@ -58,7 +58,7 @@ class WrapSettings:
     rigid_refine : bool
         Refine the similarity with trimmed point-to-plane ICP (good when landmarks
         are few or noisy; off by default because expressions bias it).
-    kernel, smoothing : see :class:`~facewrap.models.rbf.RBFWarp`.
+    kernel, smoothing : see :class:`~facewrap.wrapping.warp.RBFWarp`.
     project : bool
         Move vertices onto the scan at the end (SPEC §1.3).
     max_distance : float, optional
@@ -75,7 +75,7 @@ class WrapSettings:
         (with the projection's fold guard; the ICP result had 26).
     stages : list of Stage, optional
         The non-rigid ICP schedule (stiff to loose); None = the model's default
-        (see :func:`facewrap.icp.default_schedule`).
+        (see :func:`facewrap.wrapping.icp.engine.default_schedule`).
     node_spacing : float, optional
         Deformation-graph node spacing as a fraction of the template's bounding
         box diagonal (default 0.05: ~200 nodes on a face).
@@ -95,14 +95,14 @@ class WrapSettings:
         Ignore correspondences on the scan's border (holes, crop).
     landmark_scale : float
         Multiplies the landmark weight of every ICP stage, the coarse pre-fit's
-        included: how much the landmarks are trusted.  :func:`facewrap.track.track`
+        included: how much the landmarks are trusted.  :func:`facewrap.wrapping.track.track`
         uses 0.05 for frames whose landmarks are only carried over from the
         previous frame, so they guard against gross failure without holding the
         face where it was.
     landmark_pull : bool
         After a non-rigid fit (not "rigid" or "rbf"), pull landmarks left farther
         than ``landmark_tolerance`` from their targets to that distance, by a
-        local smooth displacement (:func:`~facewrap.models.rbf.pull_to_landmarks`)
+        local smooth displacement (:func:`~facewrap.wrapping.warp.pull_to_landmarks`)
         before the projection.  The ICP's late stages weigh landmarks lightly,
         since they are less accurate than the scan surface; on a real scan of
         another identity (menpo's james, ICT template) that left them 1.43 mm

@@ -1,8 +1,8 @@
 """A wrap job from files to files: what ``facewrap wrap``, job files and batches run.
 
 :class:`WrapJob` names the inputs and outputs of one registration (paths only);
-:func:`run_wrap_job` reads and checks the inputs, runs :func:`facewrap.wrap.wrap`
-with a :class:`~facewrap.wrap.WrapSettings`, and writes the outputs atomically
+:func:`run_wrap_job` reads and checks the inputs, runs :func:`facewrap.wrapping.stages.wrap`
+with a :class:`~facewrap.wrapping.stages.WrapSettings`, and writes the outputs atomically
 (mesh, optional baked texture, optional JSON report).  Every input problem is an
 :class:`~facewrap.errors.InputError` naming the file, raised before anything is
 written; inputs are only read.
@@ -15,7 +15,7 @@ triangle soups) are merged before fitting, so they do not read as holes.
 
 Each :class:`WrapJob` field says in its ``metadata`` which job-file table it
 belongs to (``"inputs"`` or ``"outputs"``) and whether it is a path; job files
-(:mod:`facewrap.pipeline`) and batches (:mod:`facewrap.batch`) derive their keys
+(:mod:`facewrap.jobs.jobfile`) and batches (:mod:`facewrap.batch.runner`) derive their keys
 from that, so a new field here is a new key there.
 """
 
@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .wrap import WrapSettings
+from facewrap.errors import InputError
+from facewrap.wrapping.stages import WrapSettings
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -165,7 +165,7 @@ def _survey(mesh, path, what: str, pieces: bool = True) -> list[str]:
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
     teeth are separate pieces by design).
     """
-    from .geometry import connected_components
+    from facewrap.geometry import connected_components
     out = []
     T = mesh.triangles
     V = mesh.vertices
@@ -209,8 +209,8 @@ def _weld(mesh, landmarks, path):
     Triangle count and order, UVs and normals per corner are kept, so triangle ids
     of surface landmarks and texture baking are unaffected.
     """
-    from .landmarks import Landmarks
-    from .mesh import Mesh
+    from facewrap.landmarks import Landmarks
+    from facewrap.mesh import Mesh
     first, inverse = _duplicate_map(mesh.vertices)
     dupes = mesh.n_vertices - len(first)
     if dupes == 0:
@@ -272,7 +272,7 @@ def read_mesh_landmarks(path, mesh, kind: str = "auto"):
     InputError
         Naming ``path`` when a vertex or triangle id is outside ``mesh``.
     """
-    from .io.landmarks import read_landmarks
+    from facewrap.io.landmarks import read_landmarks
     landmarks = read_landmarks(path, kind=kind)
     try:
         landmarks.check(mesh.n_vertices, len(mesh.triangles))
@@ -299,9 +299,9 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         with zero area, landmark counts that differ, landmarks in a line or off the
         scan, indices out of range.
     """
-    from .geometry import ClosestPointTree
-    from .io import read_mesh
-    from .io.landmarks import read_vertex_indices
+    from facewrap.geometry import ClosestPointTree
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_vertex_indices
     notes: list[str] = []
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
@@ -343,12 +343,12 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         exclude = read_vertex_indices(job.exclude, n_vertices=template.n_vertices).vertex
     shapes = None
     if job.blendshapes:
-        from .datasets import load_shape_folder
+        from facewrap.datasets import load_shape_folder
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
     image = None
     if job.texture:
-        from .texture import load_image
+        from facewrap.texture.bake import load_image
         if scan.uvs is None:
             raise InputError("the scan has no texture coordinates to bake from", job.scan)
         if template.uvs is None:
@@ -366,9 +366,9 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     never leaves a half-written file).  The report's ``"warnings"`` lists the
     legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
     """
-    from .io import write_mesh
-    from .io.atomic import atomic_write
-    from .wrap import wrap
+    from facewrap.io import write_mesh
+    from facewrap.io.atomic import atomic_write
+    from facewrap.wrapping.stages import wrap
     settings = settings or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
@@ -400,7 +400,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
     if inputs["texture"] is not None:
-        from .texture import bake_texture, save_png
+        from facewrap.texture.bake import bake_texture, save_png
         t = time.perf_counter()
         baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
                              size=job.texture_size)

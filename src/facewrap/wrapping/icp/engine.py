@@ -1,6 +1,6 @@
 """The one registration engine: correspondences → deformation solve → repeat.
 
-Non-rigid ICP (SPEC §2.1) for any :class:`~facewrap.models.base.DeformationModel`:
+Non-rigid ICP (SPEC §2.1) for any :class:`~facewrap.wrapping.models.base.DeformationModel`:
 
 1. **Correspondences**: the closest scan point of every template vertex that is
    fitted (one AABB query for all), rejected when too far, when the normals
@@ -20,8 +20,8 @@ Non-rigid ICP (SPEC §2.1) for any :class:`~facewrap.models.base.DeformationMode
 The engine works in a normalised frame (template centred, unit bounding-box
 diagonal), so weights and tolerances mean the same on a face in mm, cm or m;
 the scan's :class:`~facewrap.geometry.ClosestPointTree` stays in the scan's
-units.  Every term is a plain function in :mod:`facewrap.terms`; the linear
-algebra is :func:`facewrap.solve.gauss_newton_step`.
+units.  Every term is a plain function in :mod:`facewrap.wrapping.icp.terms`; the linear
+algebra is :func:`facewrap.solve.factor.gauss_newton_step`.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .geometry import ClosestPointTree, vertex_normals
-from .solve import gauss_newton_step
-from .terms import landmark_term, point_and_plane, robust_weights
+from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.solve.factor import gauss_newton_step
+from facewrap.wrapping.icp.terms import landmark_term, point_and_plane, robust_weights
 
 __all__ = ["Stage", "default_schedule", "NonRigidICP", "Correspondences",
            "find_correspondences"]

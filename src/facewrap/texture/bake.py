@@ -29,10 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .errors import InputError
-from .io.atomic import atomic_write
-from .geometry._checks import as_points
-from .mesh import Mesh
+from facewrap.errors import InputError
+from facewrap.io.atomic import atomic_write
+from facewrap.geometry.checks import as_points
+from facewrap.mesh import Mesh
 
 __all__ = [
     "UVRaster", "BakeResult",
@@ -268,7 +268,7 @@ def transfer_uvs(scan: Mesh, points_or_closest, mask=None, *, vertices=None,
             raise ValueError(f"projection barycentric must have shape ({n}, 3), "
                              f"got {bary.shape}")
     else:
-        from .geometry import ClosestPointTree  # geometry imports igl: load on use
+        from facewrap.geometry import ClosestPointTree  # geometry imports igl: load on use
         P = as_points(points_or_closest, "points_or_closest")
         if tree is None:
             tree = ClosestPointTree(scan.vertices, scan.triangles)
@@ -565,7 +565,7 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
         raise ValueError(f"padding must be a non-negative int, got {padding!r}")
     max_distance = (0.05 * template.scale() if max_distance is None
                     else _non_negative(max_distance, "max_distance"))
-    from .geometry import ClosestPointTree  # geometry imports igl: load on use
+    from facewrap.geometry import ClosestPointTree  # geometry imports igl: load on use
     if tree is None:
         tree = ClosestPointTree(scan.vertices, scan.triangles)
     elif (tree.triangles.shape != scan.triangles.shape

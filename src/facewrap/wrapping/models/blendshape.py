@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..terms import BlockJacobian
-from .base import DeformationModel, cross_matrix_blocks, rotation_exp
+from facewrap.wrapping.icp.terms import BlockJacobian
+from facewrap.wrapping.models.base import DeformationModel, cross_matrix_blocks, rotation_exp
 
 __all__ = ["BlendshapeParams", "BlendshapeModel", "RigidModel", "blendshape_basis"]
 

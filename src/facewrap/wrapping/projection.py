@@ -26,9 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .geometry import (ClosestPointTree, edges_of_polygons, face_normals,
+from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
                        uniform_laplacian, vertex_normals)
-from .mesh import Mesh
+from facewrap.mesh import Mesh
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]

@@ -23,7 +23,7 @@ A job file has three tables (and an optional ``version = 1``)::
     stiffness = 1.0
 
 The keys are not listed here: they are the fields of
-:class:`~facewrap.jobs.WrapJob` and :class:`~facewrap.wrap.WrapSettings`, found
+:class:`~facewrap.jobs.wrap_job.WrapJob` and :class:`~facewrap.wrapping.stages.WrapSettings`, found
 by introspection (:func:`dataclasses.fields`, :func:`typing.get_type_hints`), so
 a new setting is a new key without touching this module.  Unknown keys and values
 of the wrong type are :class:`~facewrap.errors.InputError` naming the file, the
@@ -49,9 +49,9 @@ import types
 import typing
 from pathlib import Path
 
-from .errors import InputError
-from .jobs import WrapJob, check_job_paths
-from .wrap import WrapSettings
+from facewrap.errors import InputError
+from facewrap.jobs.wrap_job import WrapJob, check_job_paths
+from facewrap.wrapping.stages import WrapSettings
 
 __all__ = ["load_job", "write_job", "job_to_toml", "read_job_tables", "job_keys",
            "settings_keys", "convert_value", "parse_text", "settings_from_dict",
@@ -122,7 +122,7 @@ def _choices() -> dict[str, tuple]:
     """
     import argparse
     try:
-        from .cli import build_parser
+        from facewrap.cli import build_parser
         parser = build_parser()
     except ImportError:  # a CLI being rebuilt must not break job files
         return {}
@@ -330,7 +330,7 @@ def _find_line(text: str, table: str, key: str | None, index: int | None = None
 
 
 def _read_toml(path) -> tuple[dict, str]:
-    from .io.files import read_file_bytes
+    from facewrap.io.files import read_file_bytes
     data = read_file_bytes(path, text=True)
     try:
         text = data.decode("utf-8")
@@ -709,7 +709,7 @@ def write_job(path, job: WrapJob | None = None, settings: WrapSettings | None = 
     settings : WrapSettings, optional
         Default ``WrapSettings()``.
     """
-    from .io.atomic import atomic_write
+    from facewrap.io.atomic import atomic_write
     folder = Path(os.path.abspath(path)).parent
     folder.mkdir(parents=True, exist_ok=True)
     job = job or _template_job(folder)

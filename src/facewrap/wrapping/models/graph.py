@@ -20,7 +20,7 @@ nodes so they follow smoothly.
 
 The functions :func:`graph_vertices`, :func:`graph_jacobian` and
 :func:`graph_smoothness` take the undeformed positions as an argument so the
-hybrid model (:mod:`facewrap.models.hybrid`) reuses them on blended positions.
+hybrid model (:mod:`facewrap.wrapping.models.hybrid`) reuses them on blended positions.
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ from scipy.sparse.csgraph import connected_components as _components
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from ..geometry import edges as mesh_edges
-from ..geometry import poisson_disk_vertices
-from .base import DeformationModel, cross_matrix_blocks, nearest_rotations, rotation_exp
+from facewrap.geometry import edges as mesh_edges
+from facewrap.geometry import poisson_disk_vertices
+from facewrap.wrapping.models.base import DeformationModel, cross_matrix_blocks, nearest_rotations, rotation_exp
 
 __all__ = ["DeformationGraph", "GraphParams", "GraphModel", "build_graph",
            "graph_vertices", "graph_jacobian", "graph_smoothness", "resample_params"]

@@ -33,12 +33,12 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from ..geometry import vertex_adjacency
-from ..geometry._checks import as_triangles, as_vertices
-from ..mesh import Mesh
-from ..solve import factorize
-from .correspondence import _TETHER, Correspondence, untethered_vertices
-from .gradients import (GradientOperator, _fourth_offsets, _typical_edge,
+from facewrap.geometry import vertex_adjacency
+from facewrap.geometry.checks import as_triangles, as_vertices
+from facewrap.mesh import Mesh
+from facewrap.solve.factor import factorize
+from facewrap.transfer.correspondence import _TETHER, Correspondence, untethered_vertices
+from facewrap.transfer.gradients import (GradientOperator, _fourth_offsets, _typical_edge,
                         adjacent_triangle_pairs, gradient_operator)
 
 __all__ = ["DeformationTransfer", "pair_matrix", "complete_pairs",
@@ -555,7 +555,7 @@ class DeformationTransfer:
     source_ : Mesh
     target_ : Mesh
     correspondence_ : Correspondence
-    factor_ : facewrap.solve.Factor
+    factor_ : facewrap.solve.factor.Factor
         The factored normal matrix (target vertices; fourth vertices and the
         anchor eliminated exactly).
     timings_ : dict
@@ -571,7 +571,7 @@ class DeformationTransfer:
     A source pose that is a rigid motion moves the target rigidly:
 
     >>> from facewrap.transfer import find_correspondence
-    >>> from facewrap.sample import make_template
+    >>> from facewrap.sample.face import make_template
     >>> full = make_template(20).mesh
     >>> mesh, _ = full.submesh(full.face_groups == 0)     # the face, one component
     >>> corr = find_correspondence(mesh, mesh, [[0, 0], [50, 50], [99, 99]])

@@ -21,9 +21,9 @@ __all__ = ["run_demo"]
 
 def run_demo(out: Path, verbose: bool = True) -> int:
     """Run the demo into folder ``out``; returns the exit status."""
-    from .cli import main
-    from .io import read_mesh
-    from .sample import make_scan, make_template, write_sample
+    from facewrap.cli import main
+    from facewrap.io import read_mesh
+    from facewrap.sample.face import make_scan, make_template, write_sample
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -31,8 +31,8 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     scan = make_scan(template)
     paths = write_sample(out / "input", template, scan)
     # the eyeballs are not on a scan (closed lids cover them): they follow the face
-    from .io.landmarks import write_vertex_indices
-    from .landmarks import Landmarks
+    from facewrap.io.landmarks import write_vertex_indices
+    from facewrap.landmarks import Landmarks
     exclude = out / "input" / "exclude_eyeballs.txt"
     write_vertex_indices(exclude, Landmarks.from_vertices(np.concatenate(
         [template.parts["eyeball_left"], template.parts["eyeball_right"]])))
@@ -52,7 +52,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
         return status
     # ground truth is known for the sample: how far is each vertex from where it
     # truly belongs on the scan?
-    from .geometry import ClosestPointTree
+    from facewrap.geometry import ClosestPointTree
     fitted = read_mesh(wrapped).vertices
     face = template.parts["face"]
     err = np.linalg.norm(fitted[face] - scan.ground_truth[face], axis=1)
@@ -67,7 +67,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
         stats[name] = {"vertices": int(len(e)), "mean": float(e.mean()),
                        "p95": float(np.percentile(e, 95)), "max": float(e.max())}
     data["ground_truth_error_mm"] = stats
-    from .io.atomic import atomic_write
+    from facewrap.io.atomic import atomic_write
     with atomic_write(report, "w") as fh:
         json.dump(data, fh, indent=1)
     pictures = _pictures(out, template, scan, fitted, face, seen, err)
@@ -91,8 +91,8 @@ def run_demo(out: Path, verbose: bool = True) -> int:
 
 def _pictures(out: Path, template, scan, fitted, face, seen, err) -> list[Path]:
     """Ground-truth error heatmap and scan / result side by side (PNG files)."""
-    from .report import heatmap_figure, render_views, save_png, side_by_side
-    from .report.render import frame_from_axes
+    from facewrap.report import heatmap_figure, render_views, save_png, side_by_side
+    from facewrap.report.render import frame_from_axes
     # the scan was moved by a random similarity: look at both from the face's
     # front, i.e. the template's +z and +y turned by that similarity
     A = np.asarray(scan.transform)[:3, :3]

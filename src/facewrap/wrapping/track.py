@@ -1,6 +1,6 @@
 """4D tracking: register a sequence of scans of one performer, frame after frame.
 
-Frame 0 is a normal :func:`~facewrap.wrap.wrap` (it needs landmarks).  Every
+Frame 0 is a normal :func:`~facewrap.wrapping.stages.wrap` (it needs landmarks).  Every
 later frame starts from the previous result: its similarity replaces the
 landmark alignment and its blend weights start the fit (see
 :func:`tracking_schedule`).  Where a frame has no landmarks of its own, the
@@ -8,7 +8,7 @@ fitted landmark positions of the previous frames, moved on at their last
 velocity and onto the new scan (closest points), stand in for them with a
 small weight (:data:`PROPAGATED_LANDMARKS`).
 
-:func:`track` returns a :class:`TrackResult` with one :class:`~facewrap.wrap.WrapResult`
+:func:`track` returns a :class:`TrackResult` with one :class:`~facewrap.wrapping.stages.WrapResult`
 per frame, the per-frame blend weights and the fit over time;
 :func:`write_track_outputs` writes the numbered OBJ sequence, the weights as
 CSV and a JSON report.
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .geometry import ClosestPointTree
-from .icp import Stage, default_schedule
-from .landmarks import Landmarks
-from .mesh import Mesh
-from .wrap import WrapResult, WrapSettings, wrap
+from facewrap.geometry import ClosestPointTree
+from facewrap.wrapping.icp.engine import Stage, default_schedule
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
+from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
 
 __all__ = ["TrackResult", "track", "tracking_schedule", "write_track_outputs"]
 
@@ -165,8 +165,8 @@ def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
 
     Each file is written atomically.  Returns the paths written.
     """
-    from .io import write_mesh
-    from .io.atomic import atomic_write
+    from facewrap.io import write_mesh
+    from facewrap.io.atomic import atomic_write
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     width = max(4, len(str(len(result.frames) - 1)))

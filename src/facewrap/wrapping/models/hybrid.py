@@ -27,10 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..terms import BlockJacobian
-from .base import DeformationModel
-from .blendshape import bound_violation
-from .graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
+from facewrap.wrapping.icp.terms import BlockJacobian
+from facewrap.wrapping.models.base import DeformationModel
+from facewrap.wrapping.models.blendshape import bound_violation
+from facewrap.wrapping.models.graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
                     graph_vertices, resample_params)
 
 __all__ = ["HybridParams", "HybridModel"]
@@ -52,11 +52,11 @@ class HybridModel(DeformationModel):
         Neutral positions (the aligned template).
     deltas : (3n, K) float64
         Blendshape deltas in ``base``'s frame
-        (:func:`~facewrap.models.blendshape.blendshape_basis`).
+        (:func:`~facewrap.wrapping.models.blendshape.blendshape_basis`).
     graph : DeformationGraph
 
     Increment order: [graph (6m), δw (K)]; Jacobians are
-    :class:`~facewrap.terms.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
+    :class:`~facewrap.wrapping.icp.terms.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
     per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
     """
 

@@ -54,18 +54,18 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..align import Similarity, similarity_transform
-from ..errors import InputError
-from ..geometry import vertex_normals
-from ..io.files import read_json
-from ..mesh import Mesh
-from ..solve import factorize
-from .correspondence import (_TETHER, Correspondence, CorrespondenceSettings,
+from facewrap.wrapping.align import Similarity, similarity_transform
+from facewrap.errors import InputError
+from facewrap.geometry import vertex_normals
+from facewrap.io.files import read_json
+from facewrap.mesh import Mesh
+from facewrap.solve.factor import factorize
+from facewrap.transfer.correspondence import (_TETHER, Correspondence, CorrespondenceSettings,
                              CorrespondenceStage, check_markers, find_correspondence,
                              untethered_vertices)
-from .gradients import adjacent_triangle_pairs, gradient_operator, \
+from facewrap.transfer.gradients import adjacent_triangle_pairs, gradient_operator, \
     triangle_smoothness_operator
-from .transfer import DeformationTransfer, _FlipRepair, as_pose_stack, complete_pairs, \
+from facewrap.transfer.deformation import DeformationTransfer, _FlipRepair, as_pose_stack, complete_pairs, \
     pair_matrix, source_gradient_blocks
 
 __all__ = ["FacePart", "IBUG51_PARTS", "read_parts", "ONIZUKA_SCHEDULE",
@@ -345,12 +345,12 @@ class AvatarTransfer:
     Attributes
     ----------
     correspondence_ : Correspondence
-    alignment_ : facewrap.align.Similarity
+    alignment_ : facewrap.wrapping.align.Similarity
         Avatar → source frame (bounding-box scale, rotation, translation).
     motions_ : (K, 3, 3) float64
         Per-part landmark motion maps.
     parts_info_ : list of dict
-    factor_ : facewrap.solve.Factor
+    factor_ : facewrap.solve.factor.Factor
     timings_ : dict
     repairs_ : dict of (k,) int64 arrays
         Set by each :meth:`transfer` with ``fix_flips``: per shape ``found`` (new

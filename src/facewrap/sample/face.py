@@ -60,10 +60,10 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.spatial import Delaunay, cKDTree
 
-from .geometry.normals import vertex_normals
-from .io.atomic import atomic_write
-from .landmarks import IBUG68_NAMES, Landmarks
-from .mesh import Mesh
+from facewrap.geometry.normals import vertex_normals
+from facewrap.io.atomic import atomic_write
+from facewrap.landmarks import IBUG68_NAMES, Landmarks
+from facewrap.mesh import Mesh
 
 __all__ = ["EXPRESSIONS", "LANDMARK_NAMES", "SampleTemplate", "SampleScan",
            "make_template", "make_scan", "make_sequence", "write_sample"]
@@ -1330,8 +1330,8 @@ def write_sample(folder, template: SampleTemplate | None = None,
 
     from PIL import Image
 
-    from .io.landmarks import write_points, write_vertex_indices
-    from .io.obj import write_obj
+    from facewrap.io.landmarks import write_points, write_vertex_indices
+    from facewrap.io.obj import write_obj
 
     folder = Path(os.fspath(folder))
     (folder / "blendshapes").mkdir(parents=True, exist_ok=True)

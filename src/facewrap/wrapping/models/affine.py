@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..geometry import edges as mesh_edges
-from .base import DeformationModel
+from facewrap.geometry import edges as mesh_edges
+from facewrap.wrapping.models.base import DeformationModel
 
 __all__ = ["AffineModel"]
 

@@ -5,6 +5,6 @@ Each model is a small estimator (settings in ``__init__``, ``fit`` returns
 displacements (SPEC §1.2).
 """
 
-from .rbf import RBFWarp, rbf_kernel
+from facewrap.wrapping.warp import RBFWarp, rbf_kernel
 
 __all__ = ["RBFWarp", "rbf_kernel"]

@@ -1,0 +1,1 @@
+"""The built-in sample: a procedural face template and scans with ground truth."""

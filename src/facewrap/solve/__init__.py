@@ -1,0 +1,1 @@
+"""Linear algebra shared by wrapping, transfer and avatar: factorisations, normal equations."""

@@ -1,0 +1,1 @@
+"""Non-rigid ICP: the one registration engine, its stage schedule and energy terms."""
