@@ -10,8 +10,9 @@ import scipy.sparse as sp
 from facewrap.geometry import ClosestPointTree
 from facewrap.wrapping.icp.engine import NonRigidICP, Stage, default_schedule, find_correspondences
 from facewrap.solve.factor import gauss_newton_step
-from facewrap.wrapping.icp.terms import (BlockJacobian, landmark_rows, landmark_term, point_to_plane,
-                            point_to_point, robust_weights)
+from facewrap.solve.block_jacobian import BlockJacobian
+from facewrap.wrapping.icp.terms import (landmark_rows, landmark_term, point_to_plane,
+                                         point_to_point, robust_weights)
 from facewrap.wrapping.stages import WrapSettings, wrap
 
 

@@ -10,7 +10,7 @@ from facewrap.wrapping.models.blendshape import (BlendshapeModel, BlendshapePara
                                         blendshape_basis)
 from facewrap.wrapping.models.graph import GraphModel, GraphParams, build_graph
 from facewrap.wrapping.models.hybrid import HybridModel, HybridParams
-from facewrap.wrapping.icp.terms import BlockJacobian
+from facewrap.solve.block_jacobian import BlockJacobian
 
 
 @pytest.fixture(scope="module")

@@ -427,7 +427,7 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
     -------
     delta : (P,) float64
     """
-    from facewrap.wrapping.icp.terms import BlockJacobian
+    from facewrap.solve.block_jacobian import BlockJacobian
     S_rows, D_rows, b_rows = [], [], []
     for weight, r, J, rw in terms:
         J = BlockJacobian.of(J)
