@@ -37,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _nicp_cases as cases  # noqa: E402
-from facewrap.wrapping.align import similarity_transform  # noqa: E402
+from facewrap.geometry.similarity import similarity_transform  # noqa: E402
 from facewrap.landmarks import pair_landmarks  # noqa: E402
 from facewrap.wrapping.stages import WrapSettings, wrap  # noqa: E402
 

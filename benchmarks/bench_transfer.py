@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from _timing import best_of
-from facewrap.wrapping.align import similarity_transform
+from facewrap.geometry.similarity import similarity_transform
 from facewrap.geometry import face_areas, face_normals
 from facewrap.sample.face import make_scan, make_template
 from facewrap.avatar import AvatarTransfer

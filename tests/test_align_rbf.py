@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from facewrap.wrapping.align import Similarity, rigid_icp, similarity_transform
+from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
 
 

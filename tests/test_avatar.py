@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from conftest import needs_data, DATA
-from facewrap.wrapping.align import Similarity
+from facewrap.geometry.similarity import Similarity
 from facewrap.errors import InputError
 from facewrap.geometry import face_normals, vertex_normals
 from facewrap.sample.face import make_scan, make_template

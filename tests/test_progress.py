@@ -8,7 +8,7 @@ import logging
 
 import pytest
 
-from facewrap import progress as P
+import facewrap.progress as P
 from facewrap.progress import configure_logging, progress, progress_enabled
 
 

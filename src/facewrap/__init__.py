@@ -11,7 +11,7 @@ The public API, grouped (see ``docs/architecture.md`` for how data flows):
 * textures and sequences: :mod:`facewrap.texture.bake`, :mod:`facewrap.animation`
 """
 
-__version__ = "0.1.0"
+from facewrap.version import __version__
 
 from facewrap.errors import InputError
 from facewrap.mesh import Mesh

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.wrapping.align import similarity_transform
+from facewrap.geometry.similarity import similarity_transform
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.checks import as_points, as_triangles, as_vertices
 from facewrap.geometry.normals import _cross_columns, _edge_vectors

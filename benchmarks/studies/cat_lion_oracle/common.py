@@ -3,7 +3,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap.wrapping.align import similarity_transform
+from facewrap.geometry.similarity import similarity_transform
 from facewrap.datasets import load_sumner_pair
 
 MARKERS = (Path(__file__).resolve().parents[4] / "shared" / "data" / "sumner2004" /

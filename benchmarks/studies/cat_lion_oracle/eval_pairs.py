@@ -3,7 +3,7 @@ import sys, dataclasses
 import numpy as np
 from pathlib import Path
 from facewrap.datasets import load_sumner_pair
-from facewrap.wrapping.align import similarity_transform
+from facewrap.geometry.similarity import similarity_transform
 from facewrap.transfer import DeformationTransfer, find_correspondence
 p = load_sumner_pair(Path(__file__).resolve().parents[4] / "shared" / "data" / "sumner2004" / "cat-lion" / "markers-cat-lion.yml")
 s, t = p.source, p.target

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.wrapping.align import Similarity, similarity_transform
+from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.errors import InputError
 from facewrap.geometry import vertex_normals
 from facewrap.io.files import read_json

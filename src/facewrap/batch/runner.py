@@ -46,7 +46,7 @@ import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from facewrap import __version__
+from facewrap.version import __version__
 from facewrap.errors import InputError
 from facewrap.jobs.wrap_job import InputWarning, WrapJob, check_job_paths, job_inputs, job_outputs
 from facewrap.jobs.jobfile import (_hints, _Where, _job_values, _read_toml, _require_job, _resolve,

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap import __version__
+from facewrap.version import __version__
 from facewrap.errors import InputError
 from facewrap.wrapping.stages import MODELS, WrapSettings
 

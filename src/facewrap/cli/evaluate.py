@@ -61,7 +61,7 @@ def _read_mask(path, n):
 
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
-    from facewrap.wrapping.align import similarity_transform
+    from facewrap.geometry.similarity import similarity_transform
     from facewrap.report import frame_from_axes
     try:
         F = frame_from_axes(args.up, args.front)

@@ -16,6 +16,10 @@ Connectivity (:mod:`.adjacency`)
     :func:`boundary_loops`, :func:`connected_components`
 Laplacians (:mod:`.laplacian`), positive semi-definite
     :func:`cotangent_laplacian`, :func:`uniform_laplacian`, :func:`mass_matrix`
+Similarity transforms (:mod:`.similarity`)
+    :class:`Similarity`, :func:`similarity_transform` (Umeyama)
+Triangles that turned (:mod:`.quality`)
+    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`
 Sampling (:mod:`.sampling`)
     :func:`sample_surface`, :func:`farthest_point_sampling`,
     :func:`poisson_disk_vertices`
@@ -28,6 +32,8 @@ from facewrap.geometry.adjacency import (
     edges_of_polygons, triangle_adjacency, vertex_adjacency,
 )
 from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
+from facewrap.geometry.quality import flipped_triangles, turned, turned_triangles
+from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.geometry.sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
 
 __all__ = [
@@ -40,6 +46,8 @@ __all__ = [
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
     # Laplacians
     "cotangent_laplacian", "uniform_laplacian", "mass_matrix",
+    # similarity transforms, turned triangles
+    "Similarity", "similarity_transform", "turned", "turned_triangles", "flipped_triangles",
     # sampling
     "sample_surface", "farthest_point_sampling", "poisson_disk_vertices",
 ]

@@ -463,7 +463,7 @@ def write_html_report(folder, *, title: str = "facewrap report",
     data = {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry,
             "view": {"up": up, "front": front, "initial": initial_view}}
 
-    from facewrap import __version__
+    from facewrap.version import __version__
     created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
     e = html.escape
     parts = [f'<header class="top"><div><h1>{e(title)}</h1><div class="sub">'

@@ -1,1 +1,16 @@
-"""Linear algebra shared by wrapping, transfer and avatar: factorisations, normal equations."""
+"""Linear algebra shared by wrapping, transfer and avatar.
+
+Factorisations (:mod:`.factor`)
+    :func:`factorize` (checked sparse Cholesky, LU fallback), :func:`refactorize`,
+    :class:`Factor`, :func:`solve_spd`
+Normal equations (:mod:`.factor`)
+    :func:`gauss_newton_step` (stacked weighted terms, damped)
+Jacobians (:mod:`.block_jacobian`)
+    :class:`BlockJacobian` (sparse graph columns beside dense blend columns)
+"""
+
+from facewrap.solve.block_jacobian import BlockJacobian
+from facewrap.solve.factor import Factor, factorize, gauss_newton_step, refactorize, solve_spd
+
+__all__ = ["Factor", "factorize", "refactorize", "solve_spd", "gauss_newton_step",
+           "BlockJacobian"]

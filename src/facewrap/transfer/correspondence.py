@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from facewrap.wrapping.align import Similarity, similarity_transform
+from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
 from facewrap.mesh import Mesh

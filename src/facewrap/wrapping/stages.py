@@ -19,7 +19,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from facewrap.wrapping.align import Similarity, rigid_icp, similarity_transform
+from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.wrapping.align import rigid_icp
 from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.wrapping.icp.engine import NonRigidICP, Stage, default_schedule
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface

@@ -1,0 +1,123 @@
+"""Similarity transforms: rotation, translation and uniform scale.
+
+:func:`similarity_transform` solves for the best similarity between paired points
+in closed form (Umeyama 1991, weighted); :class:`Similarity` applies, inverts and
+composes one.  Wrapping aligns a template by it; transfer and avatar align their
+reference meshes by it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Similarity", "similarity_transform"]
+
+
+@dataclass(frozen=True)
+class Similarity:
+    """``x -> scale * rotation @ x + translation``.
+
+    Attributes
+    ----------
+    rotation : (3, 3) float64, orthonormal with determinant +1
+    translation : (3,) float64
+    scale : float
+    """
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale: float = 1.0
+
+    def apply(self, points) -> np.ndarray:
+        """Transform (k, 3) points."""
+        P = np.asarray(points, dtype=np.float64)
+        return self.scale * P @ self.rotation.T + self.translation
+
+    def apply_vectors(self, vectors) -> np.ndarray:
+        """Rotate (k, 3) directions (normals): no scale, no translation."""
+        return np.asarray(vectors, dtype=np.float64) @ self.rotation.T
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) homogeneous matrix."""
+        M = np.eye(4)
+        M[:3, :3] = self.scale * self.rotation
+        M[:3, 3] = self.translation
+        return M
+
+    def inverse(self) -> "Similarity":
+        Rt = self.rotation.T
+        return Similarity(Rt, -(Rt @ self.translation) / self.scale, 1.0 / self.scale)
+
+    def compose(self, first: "Similarity") -> "Similarity":
+        """The transform applying ``first`` and then ``self``."""
+        return Similarity(self.rotation @ first.rotation,
+                          self.scale * self.rotation @ first.translation + self.translation,
+                          self.scale * first.scale)
+
+    @classmethod
+    def from_matrix(cls, M) -> "Similarity":
+        """From a (4, 4) similarity matrix (rotation * uniform scale + translation)."""
+        M = np.asarray(M, dtype=np.float64)
+        if M.shape != (4, 4):
+            raise ValueError(f"matrix must be (4, 4), got {M.shape}")
+        A = M[:3, :3]
+        s = np.cbrt(np.linalg.det(A))
+        if not np.isfinite(s) or s <= 0:
+            raise ValueError("matrix is not a proper similarity (det <= 0)")
+        R = A / s
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6):
+            raise ValueError("matrix is not a similarity (rotation part not orthonormal)")
+        return cls(R, M[:3, 3].copy(), float(s))
+
+
+def similarity_transform(source, target, weights=None, scale: bool = True) -> Similarity:
+    """Least-squares similarity mapping ``source`` onto ``target`` (Umeyama 1991).
+
+    Parameters
+    ----------
+    source, target : (k, 3) float
+        Paired points, k >= 3 not collinear (k >= 1 gives a translation only).
+    weights : (k,) float, optional
+        Non-negative pair weights.
+    scale : bool
+        Estimate a uniform scale (else rigid).
+
+    Returns
+    -------
+    Similarity
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> P = rng.normal(size=(10, 3))
+    >>> R = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.]])
+    >>> T = similarity_transform(P, 2 * P @ R.T + [1, 2, 3])
+    >>> round(T.scale, 6), np.allclose(T.rotation, R), np.allclose(T.translation, [1, 2, 3])
+    (2.0, True, True)
+    """
+    X = np.asarray(source, dtype=np.float64)
+    Y = np.asarray(target, dtype=np.float64)
+    if X.shape != Y.shape or X.ndim != 2 or X.shape[1] != 3:
+        raise ValueError(f"source and target must both be (k, 3), got {X.shape} "
+                         f"and {Y.shape}")
+    if len(X) == 0:
+        raise ValueError("need at least one point pair")
+    w = np.ones(len(X)) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != (len(X),) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be (k,) non-negative with a positive sum")
+    w = w / w.sum()
+    mx, my = w @ X, w @ Y
+    Xc, Yc = X - mx, Y - my
+    if len(X) < 3:
+        return Similarity(np.eye(3), my - mx, 1.0)
+    cov = (Yc * w[:, None]).T @ Xc
+    U, S, Vt = np.linalg.svd(cov)
+    D = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        D[2, 2] = -1.0  # reflection -> closest proper rotation
+    R = U @ D @ Vt
+    var_x = float(w @ (Xc ** 2).sum(axis=1))
+    s = float(np.trace(np.diag(S) @ D) / var_x) if scale and var_x > 0 else 1.0
+    return Similarity(R, my - s * R @ mx, s)
