@@ -179,7 +179,7 @@ def ict_case(name: str, identity: str, expression: dict, *, n_triangles: int = 6
 def sample_case() -> Case:
     """The built-in sample (jaw open, eyes shut, smile; noise, holes, crop), its
     template restricted to the face/head skin (eyeballs dropped for every method)."""
-    from facewrap.sample.face import make_scan, make_template
+    from facewrap.sample import make_scan, make_template
     tpl = make_template()
     scan = make_scan(tpl)
     face = tpl.parts["face"]

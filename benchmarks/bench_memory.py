@@ -15,7 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from facewrap.sample.face import make_scan, make_template, write_sample
+from facewrap.sample import make_scan, make_template, write_sample
 
 #: Models measured: the RBF warp, and the default (non-rigid ICP) when it runs.
 MODELS = ("rbf", "auto")

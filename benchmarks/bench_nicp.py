@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _nicp_cases as cases  # noqa: E402
 from facewrap.geometry.similarity import similarity_transform  # noqa: E402
 from facewrap.landmarks import pair_landmarks  # noqa: E402
-from facewrap.wrapping.stages import WrapSettings, wrap  # noqa: E402
+from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
 
 FACEWRAP_MODELS = ("rbf", "affine", "graph", "blendshape", "hybrid")
 PEERS = ("trimesh nricp_amberg", "trimesh nricp_sumner", "meshmonk pyramid")

@@ -29,8 +29,8 @@ from _nicp_cases import Case  # noqa: E402
 from facewrap.evaluate import surface_distances, triangle_quality  # noqa: E402
 from facewrap.geometry import face_normals  # noqa: E402
 from facewrap.landmarks import pair_landmarks, snap_to_surface  # noqa: E402
-from facewrap.transfer.gradients import adjacent_triangle_pairs  # noqa: E402
-from facewrap.wrapping.stages import WrapSettings, wrap  # noqa: E402
+from facewrap.transfer import adjacent_triangle_pairs  # noqa: E402
+from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 

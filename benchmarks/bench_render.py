@@ -17,7 +17,7 @@ import numpy as np
 
 from _timing import best_of
 from facewrap.report import heatmap_figure, render_mesh
-from facewrap.sample.face import make_scan, make_template
+from facewrap.sample import make_scan, make_template
 
 SIZE = (800, 800)
 REPEATS = 3

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from _timing import best_of
 from facewrap.geometry.similarity import similarity_transform
 from facewrap.geometry import face_areas, face_normals
-from facewrap.sample.face import make_scan, make_template
+from facewrap.sample import make_scan, make_template
 from facewrap.avatar import AvatarTransfer
 from facewrap.transfer import DeformationTransfer, find_correspondence
 
@@ -67,7 +67,7 @@ def _new_flips(out, target, shapes, source, corr) -> int:
     """Flipped target triangles none of whose source partners flip in the source
     shape ``P``: flips the transfer made, not ones it copied (a lid rolling over
     the eye, lips pressed through each other turn source triangles past 90° too)."""
-    from facewrap.transfer.deformation import complete_pairs, pair_matrix
+    from facewrap.transfer import complete_pairs, pair_matrix
     pairs, _ = complete_pairs(pair_matrix(corr), target.triangles)
     n0 = face_normals(target.vertices, target.triangles)
     s0 = face_normals(source.vertices, source.triangles)
@@ -82,7 +82,7 @@ def _new_flips(out, target, shapes, source, corr) -> int:
 def _folds(X, V0, T) -> int:
     """Edge-adjacent triangle pairs facing apart (dot < 0) in X but not in V0: folds,
     a rotation-independent flip count for whole-body poses."""
-    from facewrap.transfer.gradients import adjacent_triangle_pairs
+    from facewrap.transfer import adjacent_triangle_pairs
     pairs = adjacent_triangle_pairs(T)
     def apart(P):
         n = face_normals(P, T)
@@ -141,9 +141,9 @@ def _ambiguity_check(s, t, corr, out) -> dict:
     marker hints lie in the lower flanks and belly (the study's five worst regions:
     within 0.08 of their centres, lion units)."""
     from scipy.stats import spearmanr
-    from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
-    from facewrap.transfer.gradients import gradient_operator
-    from facewrap.transfer.deformation import source_gradient_blocks
+    from facewrap.transfer import ambiguity_summary, partner_ambiguity
+    from facewrap.transfer import gradient_operator
+    from facewrap.transfer import source_gradient_blocks
     L = t.reference
     t0 = time.perf_counter()
     amb = partner_ambiguity(corr, s.reference, L, np.stack(s.poses))

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap.sample.face import make_scan, make_template
-from facewrap.wrapping.stages import WrapSettings, wrap
+from facewrap.sample import make_scan, make_template
+from facewrap.wrapping import WrapSettings, wrap
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -49,7 +49,7 @@ def run() -> dict:
         total = time.perf_counter() - t
         m = res.metrics
         # picture for the docs: james's texture baked into ICT's UV layout
-        from facewrap.texture.bake import bake_texture, load_image, save_png
+        from facewrap.texture import bake_texture, load_image, save_png
         t = time.perf_counter()
         baked = bake_texture(res.mesh, james, load_image(DATA / "scans/james/james.jpg"),
                              size=1024)

@@ -18,7 +18,7 @@ from facewrap.mesh import Mesh
 from facewrap.landmarks import IBUG68_NAMES, Landmarks, pair_landmarks
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_markers
-from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
+from facewrap.wrapping import WrapResult, WrapSettings, wrap
 
 __all__ = [
     "__version__", "InputError",

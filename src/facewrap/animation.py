@@ -18,7 +18,7 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.obj import write_obj
 from facewrap.geometry.checks import as_points
 from facewrap.mesh import Mesh
-from facewrap.texture.bake import interpolate_images, save_png
+from facewrap.texture import interpolate_images, save_png
 
 __all__ = ["interpolate_vertices", "interpolate_textures", "write_obj_sequence"]
 

@@ -39,8 +39,8 @@ def gradient_solver(L_ref, anchor, k, row_weight=None):
     each lion triangle's term (a triangle with c equal pairs weighs c).
     """
     import scipy.sparse as sp
-    from facewrap.solve.factor import factorize
-    from facewrap.transfer.gradients import gradient_operator
+    from facewrap.solve import factorize
+    from facewrap.transfer import gradient_operator
     G = gradient_operator(L_ref.vertices, L_ref.triangles).matrix.tocsr()
     tl, N, n = len(L_ref.triangles), G.shape[1], L_ref.n_vertices
     w = np.ones(tl) if row_weight is None else np.asarray(row_weight, float)

@@ -8,8 +8,8 @@ from scipy.optimize import nnls
 from common import gradient_solver, load, relative_errors
 from facewrap.geometry import face_normals
 from facewrap.transfer import DeformationTransfer, find_correspondence
-from facewrap.transfer.gradients import gradient_operator
-from facewrap.transfer.deformation import source_gradient_blocks, pair_matrix, complete_pairs
+from facewrap.transfer import gradient_operator
+from facewrap.transfer import source_gradient_blocks, pair_matrix, complete_pairs
 
 T0 = time.perf_counter()
 p, s, t, S_ref, L_ref, P, GT, k, n, a, diag = load()

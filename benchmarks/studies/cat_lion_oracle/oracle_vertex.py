@@ -10,10 +10,10 @@ from pathlib import Path
 from scipy.spatial import cKDTree
 from scipy.optimize import minimize
 from common import load, relative_errors
-from facewrap.solve.factor import factorize
+from facewrap.solve import factorize
 from facewrap.transfer import find_correspondence
-from facewrap.transfer.gradients import gradient_operator
-from facewrap.transfer.deformation import source_gradient_blocks
+from facewrap.transfer import gradient_operator
+from facewrap.transfer import source_gradient_blocks
 
 p, s, t, S_ref, L_ref, P, GT, k, n, a, diag = load()
 

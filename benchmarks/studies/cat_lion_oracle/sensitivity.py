@@ -22,9 +22,9 @@ from scipy.spatial import cKDTree
 from common import gradient_solver, load, relative_errors
 from facewrap.geometry import face_normals
 from facewrap.transfer import find_correspondence
-from facewrap.transfer.correspondence import SUMNER_SCHEDULE, CorrespondenceSettings
-from facewrap.transfer.gradients import gradient_operator
-from facewrap.transfer.deformation import source_gradient_blocks
+from facewrap.transfer import SUMNER_SCHEDULE, CorrespondenceSettings
+from facewrap.transfer import gradient_operator
+from facewrap.transfer import source_gradient_blocks
 
 p, s, t, S_ref, L_ref, P, GT, k, n, a, diag = load()
 Sg = source_gradient_blocks(gradient_operator(S_ref.vertices, S_ref.triangles), P)

@@ -59,12 +59,11 @@ from facewrap.errors import InputError
 from facewrap.geometry import vertex_normals
 from facewrap.io.files import read_json
 from facewrap.mesh import Mesh
-from facewrap.solve.factor import factorize
+from facewrap.solve import factorize
 from facewrap.transfer.correspondence import (_TETHER, Correspondence, CorrespondenceSettings,
                              CorrespondenceStage, check_markers, find_correspondence,
                              untethered_vertices)
-from facewrap.transfer.gradients import adjacent_triangle_pairs, gradient_operator, \
-    triangle_smoothness_operator
+from facewrap.transfer import adjacent_triangle_pairs, gradient_operator, triangle_smoothness_operator
 from facewrap.transfer.deformation import DeformationTransfer, _FlipRepair, as_pose_stack, complete_pairs, \
     pair_matrix, source_gradient_blocks
 

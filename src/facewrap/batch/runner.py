@@ -48,11 +48,11 @@ from pathlib import Path
 
 from facewrap.version import __version__
 from facewrap.errors import InputError
-from facewrap.jobs.wrap_job import InputWarning, WrapJob, check_job_paths, job_inputs, job_outputs
+from facewrap.jobs import InputWarning, WrapJob, check_job_paths, job_inputs, job_outputs
 from facewrap.jobs.jobfile import (_hints, _Where, _job_values, _read_toml, _require_job, _resolve,
                        _settings_values, job_keys, parse_text, read_job_tables,
                        settings_from_dict, settings_keys)
-from facewrap.wrapping.stages import WrapSettings
+from facewrap.wrapping import WrapSettings
 
 __all__ = ["BatchJob", "BatchResult", "read_manifest", "run_one", "run_batch",
            "fingerprint", "done_record_path", "read_done_record", "write_summary",
@@ -497,7 +497,7 @@ def run_one(bj: BatchJob) -> dict:
         _remove_stale(bj.job)
         for out in job_outputs(bj.job):
             os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
-        from facewrap.jobs.wrap_job import run_wrap_job
+        from facewrap.jobs import run_wrap_job
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", InputWarning)  # they are in the report
             report = run_wrap_job(bj.job, bj.settings)

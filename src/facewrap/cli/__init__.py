@@ -18,7 +18,7 @@ import numpy as np
 
 from facewrap.version import __version__
 from facewrap.errors import InputError
-from facewrap.wrapping.stages import MODELS, WrapSettings
+from facewrap.wrapping import MODELS, WrapSettings
 
 __all__ = ["main", "build_parser"]
 
@@ -66,7 +66,7 @@ def cmd_convert(args) -> int:
 
 def cmd_sample(args) -> int:
     """Write the built-in synthetic template and scan to a folder."""
-    from facewrap.sample.face import make_scan, make_template, write_sample
+    from facewrap.sample import make_scan, make_template, write_sample
     template = make_template()
     scan = make_scan(template)
     out = Path(args.out)
@@ -91,7 +91,7 @@ def wrap_settings_from_args(args) -> WrapSettings:
 
 def cmd_wrap(args) -> int:
     """Fit the template to the scan and write the template-topology result."""
-    from facewrap.jobs.wrap_job import WrapJob
+    from facewrap.jobs import WrapJob
     job = WrapJob(template=args.template, scan=args.scan,
                   template_landmarks=args.template_landmarks,
                   scan_landmarks=args.scan_landmarks, output=args.output,
@@ -106,7 +106,7 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
     """Run a wrap job for the command line: input warnings as one
     ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
     import warnings
-    from facewrap.jobs.wrap_job import InputWarning, run_wrap_job
+    from facewrap.jobs import InputWarning, run_wrap_job
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
         report = run_wrap_job(job, settings)
@@ -134,7 +134,7 @@ def cmd_animate(args) -> int:
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     textures = None
     if args.textures:
-        from facewrap.texture.bake import load_image
+        from facewrap.texture import load_image
         a, b = (load_image(p) for p in args.textures)
         if a.shape != b.shape:
             raise InputError(f"image size {b.shape[:2]} differs from "

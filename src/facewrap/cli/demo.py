@@ -23,7 +23,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     """Run the demo into folder ``out``; returns the exit status."""
     from facewrap.cli import main
     from facewrap.io import read_mesh
-    from facewrap.sample.face import make_scan, make_template, write_sample
+    from facewrap.sample import make_scan, make_template, write_sample
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -92,7 +92,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
 def _pictures(out: Path, template, scan, fitted, face, seen, err) -> list[Path]:
     """Ground-truth error heatmap and scan / result side by side (PNG files)."""
     from facewrap.report import heatmap_figure, render_views, save_png, side_by_side
-    from facewrap.report.render import frame_from_axes
+    from facewrap.report import frame_from_axes
     # the scan was moved by a random similarity: look at both from the face's
     # front, i.e. the template's +z and +y turned by that similarity
     A = np.asarray(scan.transform)[:3, :3]

@@ -102,7 +102,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
     """
     from facewrap.geometry import ClosestPointTree
     from facewrap.io import read_mesh
-    from facewrap.report.html import write_html_report
+    from facewrap.report import write_html_report
 
     report_path = Path(report_path)
     run = _load_run(report_path)

@@ -17,8 +17,8 @@ __all__ = ["register", "cmd_run"]
 
 def cmd_run(args) -> int:
     """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
-    from facewrap.jobs.wrap_job import job_inputs
-    from facewrap.jobs.jobfile import job_to_toml, load_job, write_job
+    from facewrap.jobs import job_inputs
+    from facewrap.jobs import job_to_toml, load_job, write_job
     if args.write_template:
         if os.path.exists(args.job) and not args.force:
             raise InputError("already exists (use --force to replace it)", args.job)

@@ -35,8 +35,8 @@ def cmd_track(args) -> int:
     """Track the template through the scans and write the sequence."""
     from facewrap.io import read_mesh
     from facewrap.io.landmarks import read_vertex_indices
-    from facewrap.jobs.wrap_job import read_mesh_landmarks
-    from facewrap.wrapping.track import track, write_track_outputs
+    from facewrap.jobs import read_mesh_landmarks
+    from facewrap.wrapping import track, write_track_outputs
     from facewrap.cli.__init__ import wrap_settings_from_args
     template = read_mesh(args.template)
     scans = _scan_paths(args.scans)

@@ -51,8 +51,8 @@ def cmd_transfer(args) -> int:
     from facewrap.io.obj import write_obj
     from facewrap.avatar import AvatarTransfer, read_parts
     from facewrap.transfer import Correspondence, DeformationTransfer, find_correspondence
-    from facewrap.transfer.correspondence import check_markers
-    from facewrap.avatar.shapes import IBUG51_PARTS
+    from facewrap.transfer import check_markers
+    from facewrap.avatar import IBUG51_PARTS
     t0 = time.perf_counter()
     source = read_mesh(args.source_neutral)
     target = read_mesh(args.target_neutral)
@@ -105,7 +105,7 @@ def cmd_transfer(args) -> int:
     t4 = time.perf_counter()
     ambiguity = None
     if args.ambiguity:
-        from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
+        from facewrap.transfer import ambiguity_summary, partner_ambiguity
         ambiguity = ambiguity_summary(partner_ambiguity(
             corr, source, target, np.stack([shapes[k] for k in names])), target)
     t5 = time.perf_counter()

@@ -51,7 +51,7 @@ from pathlib import Path
 
 from facewrap.errors import InputError
 from facewrap.jobs.wrap_job import WrapJob, check_job_paths
-from facewrap.wrapping.stages import WrapSettings
+from facewrap.wrapping import WrapSettings
 
 __all__ = ["load_job", "write_job", "job_to_toml", "read_job_tables", "job_keys",
            "settings_keys", "convert_value", "parse_text", "settings_from_dict",

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.wrapping.stages import WrapSettings
+from facewrap.wrapping import WrapSettings
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -348,7 +348,7 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
     image = None
     if job.texture:
-        from facewrap.texture.bake import load_image
+        from facewrap.texture import load_image
         if scan.uvs is None:
             raise InputError("the scan has no texture coordinates to bake from", job.scan)
         if template.uvs is None:
@@ -368,7 +368,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     """
     from facewrap.io import write_mesh
     from facewrap.io.atomic import atomic_write
-    from facewrap.wrapping.stages import wrap
+    from facewrap.wrapping import wrap
     settings = settings or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
@@ -400,7 +400,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
     if inputs["texture"] is not None:
-        from facewrap.texture.bake import bake_texture, save_png
+        from facewrap.texture import bake_texture, save_png
         t = time.perf_counter()
         baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
                              size=job.texture_size)

@@ -23,12 +23,14 @@ Examples
 ('uint8', 3)
 """
 
-from facewrap.texture.bake import save_png
+from facewrap.texture import save_png
 from facewrap.report.figures import (blendshape_sheet, colorbar, heatmap_figure, image_grid,
                       nice_ticks, render_views, robust_clim, side_by_side)
 from facewrap.report.render import (COLORMAPS, VIEWS, Raster, apply_colormap, colormap,
                      fit_pixel_size, frame_from_axes, rasterize, render_mesh,
                      view_rotation)
+
+from facewrap.report.html import write_html_report
 
 __all__ = [
     # rendering
@@ -41,4 +43,5 @@ __all__ = [
     "colorbar", "nice_ticks", "robust_clim",
     # files
     "save_png",
+    "write_html_report",
 ]

@@ -27,9 +27,14 @@ from facewrap.transfer.correspondence import (SUMNER_SCHEDULE, Correspondence, C
 from facewrap.transfer.deformation import DeformationTransfer, flipped_triangles
 from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
 
+from facewrap.transfer.correspondence import check_markers
+from facewrap.transfer.deformation import complete_pairs, pair_matrix, source_gradient_blocks
+from facewrap.transfer.gradients import adjacent_triangle_pairs, triangle_smoothness_operator
+
 __all__ = [
     "GradientOperator", "gradient_operator", "fourth_vertices", "deformation_gradients",
     "Correspondence", "CorrespondenceSettings", "CorrespondenceStage",
     "SUMNER_SCHEDULE", "find_correspondence", "match_triangles",
     "DeformationTransfer", "flipped_triangles", "partner_ambiguity", "ambiguity_summary",
+    "check_markers", "complete_pairs", "pair_matrix", "source_gradient_blocks", "adjacent_triangle_pairs", "triangle_smoothness_operator",
 ]

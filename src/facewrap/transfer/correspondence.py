@@ -39,7 +39,7 @@ from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
 from facewrap.mesh import Mesh
-from facewrap.solve.factor import factorize, refactorize
+from facewrap.solve import factorize, refactorize
 from facewrap.transfer.gradients import adjacent_triangle_pairs, gradient_operator, \
     triangle_smoothness_operator
 

@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from facewrap.geometry import vertex_adjacency
 from facewrap.geometry.checks import as_triangles, as_vertices
 from facewrap.mesh import Mesh
-from facewrap.solve.factor import factorize
+from facewrap.solve import factorize
 from facewrap.transfer.correspondence import _TETHER, Correspondence, untethered_vertices
 from facewrap.transfer.gradients import (GradientOperator, _fourth_offsets, _typical_edge,
                         adjacent_triangle_pairs, gradient_operator)

@@ -14,4 +14,9 @@ The stages, in the order data flows through them:
 
 from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
 
-__all__ = ["wrap", "WrapSettings", "WrapResult"]
+from facewrap.wrapping.stages import MODELS
+from facewrap.wrapping.track import track, write_track_outputs
+
+__all__ = ["wrap", "WrapSettings", "WrapResult",
+    "MODELS", "track", "write_track_outputs",
+]

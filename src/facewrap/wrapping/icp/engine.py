@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.geometry import ClosestPointTree, vertex_normals
-from facewrap.solve.factor import gauss_newton_step
+from facewrap.solve import gauss_newton_step
 from facewrap.wrapping.icp.terms import landmark_term, point_and_plane, robust_weights
 
 __all__ = ["Stage", "default_schedule", "NonRigidICP", "Correspondences",

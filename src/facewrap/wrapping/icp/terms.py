@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.solve.block_jacobian import BlockJacobian
+from facewrap.solve import BlockJacobian
 
 __all__ = ["point_to_point", "point_to_plane", "point_and_plane",
            "landmark_term",

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from facewrap.solve.block_jacobian import BlockJacobian
+from facewrap.solve import BlockJacobian
 from facewrap.wrapping.models.base import DeformationModel, cross_matrix_blocks, rotation_exp
 
 __all__ = ["BlendshapeParams", "BlendshapeModel", "RigidModel", "blendshape_basis"]

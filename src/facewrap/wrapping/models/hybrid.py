@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.solve.block_jacobian import BlockJacobian
+from facewrap.solve import BlockJacobian
 from facewrap.wrapping.models.base import DeformationModel
 from facewrap.wrapping.models.blendshape import bound_violation
 from facewrap.wrapping.models.graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
