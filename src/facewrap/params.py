@@ -36,7 +36,9 @@ import math
 from dataclasses import dataclass, fields
 from numbers import Integral, Real
 
-__all__ = ["Constraint", "Options", "Interval", "Flag", "NoneAllowed", "Pair",
+import numpy as np
+
+__all__ = ["Constraint", "Options", "Interval", "Flag", "NoneAllowed", "Empty", "Pair",
            "Instances", "validate", "choices_of", "invalid_examples"]
 
 
@@ -149,7 +151,7 @@ class Flag(Constraint):
     """
 
     def holds(self, value) -> bool:
-        return isinstance(value, bool)
+        return isinstance(value, (bool, np.bool_))
 
     def describe(self) -> str:
         return "True or False"
@@ -167,6 +169,17 @@ class NoneAllowed(Constraint):
 
     def describe(self) -> str:
         return "None"
+
+
+@dataclass(frozen=True)
+class Empty(Constraint):
+    """An empty tuple or list (e.g. "no bounds" where ``None`` means "the default")."""
+
+    def holds(self, value) -> bool:
+        return isinstance(value, (tuple, list)) and len(value) == 0
+
+    def describe(self) -> str:
+        return "empty"
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,10 @@ from facewrap.wrapping.models.blendshape import (BlendshapeModel, BlendshapePara
                                 blendshape_basis)
 from facewrap.wrapping.models.graph import GraphModel, build_graph
 from facewrap.wrapping.models.hybrid import HybridModel, HybridParams
-from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
-from facewrap.wrapping.icp.terms import landmark_rows
+from facewrap.params import (Empty, Flag, Instances, Interval, NoneAllowed, Options, Pair,
+                             validate)
+from facewrap.wrapping.warp import KERNELS, RBFWarp, pull_to_landmarks
+from facewrap.wrapping.icp.terms import ROBUST_NORMS, landmark_rows
 from facewrap.wrapping.projection import Projection, project_to_surface
 
 __all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
@@ -137,17 +139,34 @@ class WrapSettings:
     landmark_pull: bool = True
     landmark_tolerance: float = 0.002
 
+    #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
+    #: the CLI and job files take their choices from here
+    constraints = {
+        "model": Options(*MODELS),
+        "scale": Flag(),
+        "rigid_refine": Flag(),
+        "kernel": Options(*KERNELS),
+        "smoothing": Interval(float, 0, None),
+        "project": Flag(),
+        "max_distance": (NoneAllowed(), Interval(float, 0, None, closed="neither")),
+        "max_normal_angle": Interval(float, 0, 180, closed="right"),
+        "blend_order": Options(1, 2),
+        "stages": (NoneAllowed(), Instances(Stage)),
+        "node_spacing": Interval(float, 0, 1, closed="right"),
+        "point_weight": Interval(float, 0, None),
+        "robust": Options(*ROBUST_NORMS),
+        "pca_components": (NoneAllowed(), Interval(int, 1, None)),
+        "weight_range": (NoneAllowed(), Empty(), Pair(Interval(float, None, None))),
+        "reject_boundary": Flag(),
+        "landmark_scale": Interval(float, 0, None),
+        "landmark_pull": Flag(),
+        "landmark_tolerance": Interval(float, 0, None),
+    }
+
     def __post_init__(self):
-        if not self.landmark_scale >= 0:
-            raise ValueError(f"landmark_scale must be >= 0, got {self.landmark_scale!r}")
-        if not (np.isfinite(self.landmark_tolerance) and self.landmark_tolerance >= 0):
-            raise ValueError("landmark_tolerance must be a finite number >= 0, got "
-                             f"{self.landmark_tolerance!r}")
+        validate(self)
         if self.weight_range is not None:
             r = tuple(float(x) for x in self.weight_range)
-            if len(r) not in (0, 2) or (r and not r[0] < r[1]):
-                raise ValueError("weight_range must be (lo, hi) with lo < hi, or empty, "
-                                 f"got {self.weight_range!r}")
             self.weight_range = r or None
 
     def blend_bounds(self):

@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.params import Interval, validate
 from facewrap.solve import gauss_newton_step
 from facewrap.wrapping.icp.terms import landmark_term, point_and_plane, robust_weights
 
@@ -92,9 +93,21 @@ class Stage:
     node_spacing_factor: float = 1.0
     bound_weight: float = 1e-4
 
+    #: allowed values of every field, checked at construction (:mod:`facewrap.params`)
+    constraints = {
+        "iterations": Interval(int, 1, None),
+        "stiffness": Interval(float, 0, None),
+        "landmark_weight": Interval(float, 0, None),
+        "blend_weight": Interval(float, 0, None),
+        "data_weight": Interval(float, 0, None),
+        "robust_scale": Interval(float, 0, None),
+        "sample": Interval(float, 0, 1, closed="right"),
+        "node_spacing_factor": Interval(float, 0, None, closed="neither"),
+        "bound_weight": Interval(float, 0, None),
+    }
+
     def __post_init__(self):
-        if not self.node_spacing_factor > 0:
-            raise ValueError("node_spacing_factor must be positive")
+        validate(self)
 
 
 def default_schedule(model: str) -> list[Stage]:

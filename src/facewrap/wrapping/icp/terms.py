@@ -14,7 +14,10 @@ import scipy.sparse as sp
 
 from facewrap.solve import BlockJacobian
 
-__all__ = ["point_to_point", "point_to_plane", "point_and_plane",
+#: the robust norms of :func:`robust_weights`
+ROBUST_NORMS = ("welsch", "huber", "geman_mcclure", "none")
+
+__all__ = ["ROBUST_NORMS", "point_to_point", "point_to_plane", "point_and_plane",
            "landmark_term",
            "robust_weights", "landmark_rows"]
 
