@@ -242,3 +242,43 @@ def test_the_private_name_check_catches(tmp_path, text, expected):
     path.write_text(text)
     found = _private_uses(path, "tests")
     assert found and expected in found[0]
+
+
+#: single-format readers and writers may be long; everything else stays readable
+LONG_MODULES_ALLOWED = {"io/ply.py", "io/obj.py"}
+MAX_MODULE_LINES = 600
+MAX_FUNCTION_CODE_LINES = 80
+
+
+def code_lines(node: ast.AST, source_lines: list[str]) -> int:
+    """Lines of a function that hold code: no docstring, blank or comment-only lines."""
+    skip = set()
+    body = getattr(node, "body", [])
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+            and isinstance(body[0].value.value, str):
+        skip |= set(range(body[0].lineno, body[0].end_lineno + 1))
+    count = 0
+    for i in range(node.lineno, node.end_lineno + 1):
+        text = source_lines[i - 1].strip()
+        if i in skip or not text or text.startswith("#"):
+            continue
+        count += 1
+    return count
+
+
+def test_modules_and_functions_stay_short():
+    long_modules, long_functions = [], []
+    for path in MODULES.values():
+        rel = path.relative_to(PACKAGE).as_posix()
+        text = path.read_text()
+        lines = text.splitlines()
+        if len(lines) > MAX_MODULE_LINES and rel not in LONG_MODULES_ALLOWED:
+            long_modules.append(f"{rel} ({len(lines)} lines)")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = code_lines(node, lines)
+                if n > MAX_FUNCTION_CODE_LINES:
+                    long_functions.append(f"{rel}:{node.lineno} {node.name} ({n} lines)")
+    assert not long_modules and not long_functions, (
+        f"modules over {MAX_MODULE_LINES} lines: {long_modules}; "
+        f"functions over {MAX_FUNCTION_CODE_LINES} lines of code: {long_functions}")
