@@ -8,7 +8,7 @@ import pytest
 
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
-from facewrap.wrapping.stages import WrapSettings, wrap
+from facewrap.wrapping import WrapSettings, wrap
 
 from conftest import needs_data
 

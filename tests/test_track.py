@@ -8,7 +8,7 @@ import pytest
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.wrapping.track import track
-from facewrap.wrapping.stages import wrap
+from facewrap.wrapping import wrap
 
 PEAK = {"jaw_open": 0.8, "blink": 1.0, "smile": 0.3}
 

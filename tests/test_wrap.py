@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from facewrap.cli import main
-from facewrap.wrapping.stages import WrapSettings, wrap
+from facewrap.wrapping import WrapSettings, wrap
 
 from conftest import needs_data, DATA
 

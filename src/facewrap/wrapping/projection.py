@@ -26,8 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
-                       uniform_laplacian, vertex_normals)
+from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals, turned,
+                               uniform_laplacian, vertex_normals)
+from facewrap.geometry.matching import compatible
 from facewrap.mesh import Mesh
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
@@ -190,6 +191,19 @@ def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndar
     return d
 
 
+def _landing_compatible(tree: ClosestPointTree, V, N, P, tri, bary, max_distance,
+                        max_normal_angle, reject_boundary) -> np.ndarray:
+    """Which landing points ``P`` (k, 3) on triangles ``tri`` of the scan the
+    vertices ``V`` with normals ``N`` may move to: the matcher's distance, normal
+    and border rules, with the scan normal interpolated at the landing point."""
+    Ns = np.einsum("ij,ijk->ik", bary, tree.vertex_normals[tree.triangles[tri]])
+    Ns /= np.maximum(np.linalg.norm(Ns, axis=1, keepdims=True), 1e-300)
+    ok, _ = compatible(tree, np.linalg.norm(P - V, axis=1), tri, Ns, N,
+                       max_distance=max_distance, max_normal_angle=max_normal_angle,
+                       reject_border=reject_boundary)
+    return ok
+
+
 def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
                        normals=None, mask=None, max_distance: float | None = None,
                        max_normal_angle: float = 60.0, methods=("prism", "ray", "closest"),
@@ -273,19 +287,9 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     has = tri >= 0
     P = np.zeros((n, 3))
     P[has] = np.einsum("ij,ijk->ik", bary[has], tree.vertices[tree.triangles[tri[has]]])
-    # acceptance tests
-    move = np.linalg.norm(P - Vt, axis=1)
-    ok = has & (move <= max_distance)
-    if has.any():
-        Ns = np.zeros((n, 3))
-        Ns[has] = np.einsum("ij,ijk->ik", bary[has],
-                            tree.vertex_normals[tree.triangles[tri[has]]])
-        Ns /= np.maximum(np.linalg.norm(Ns, axis=1, keepdims=True), 1e-300)
-        cos = np.einsum("ij,ij->i", Ns, Nt)
-        ok &= cos >= np.cos(np.radians(max_normal_angle))
-    if reject_boundary:
-        on_border = tree.boundary_triangles
-        ok &= ~np.where(has, on_border[np.maximum(tri, 0)], False)
+    ok = np.zeros(n, dtype=bool)
+    ok[has] = _landing_compatible(tree, Vt[has], Nt[has], P[has], tri[has], bary[has],
+                                  max_distance, max_normal_angle, reject_boundary)
     # Fold guard: on a coarse or faceted scan, neighbouring vertices can land on
     # either side of a scan edge and turn a template triangle over.  Their
     # vertices are not projected but follow the blend instead, until no triangle
@@ -299,10 +303,11 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
         if fold_rounds == 0:
             break
         n1 = face_normals(out, T)
-        turned = (np.einsum("ij,ij->i", n1, n0) < np.cos(np.radians(fold_angle))) \
-            & (np.abs(n0).sum(1) > 0)          # (degenerate triangles have no normal)
+        # a triangle the projection collapsed (zero normal after, not before) has
+        # lost its orientation: it is a fold too, though the turn test skips it
+        collapsed = ~n1.any(axis=1) & n0.any(axis=1)
         bad = np.zeros(n, dtype=bool)
-        bad[T[turned]] = True
+        bad[T[turned(n0, n1, fold_angle) | collapsed]] = True
         bad &= ok
         if not bad.any():
             break
