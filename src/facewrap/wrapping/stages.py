@@ -35,7 +35,7 @@ from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
-           "fit_model", "pull_landmarks", "project"]
+           "fit_model", "pull_landmarks", "project", "alignment_weights"]
 
 
 @dataclass
@@ -206,7 +206,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
                        template_landmarks.positions(template)[ia],
                        scan_landmarks.positions(scan)[ib],
-                       _alignment_weights(template_landmarks, ia), excluded,
+                       alignment_weights(template_landmarks, ia), excluded,
                        blendshapes, s, spec,
                        DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache)
 
@@ -393,10 +393,24 @@ def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmar
     return snapped
 
 
-def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
+def alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
     """Weights of landmark pairs in the similarity: the jaw line and the mouth
     move with expressions (a scan with the jaw open would bias the scale and
-    tilt), so when landmarks are named, those get a small weight."""
+    tilt), so when landmarks are named, those get a small weight.
+
+    Parameters
+    ----------
+    landmarks : Landmarks
+        The template landmarks (names, if any, decide the weights).
+    index : (l,) int
+        The landmarks that have a partner, in pair order.
+
+    Returns
+    -------
+    (l,) float64
+        1 for stable landmarks, 0.05 for moving ones (all 1 when unnamed or when
+        fewer than 4 stable ones remain).
+    """
     if landmarks.names is None:
         return np.ones(len(index))
     names = [landmarks.names[i] for i in index]

@@ -47,6 +47,7 @@ def ict_case(ict_folder):
     return face, lm, shapes, scan, scan_lm, truth_mm
 
 
+@pytest.mark.slow
 def test_hybrid_registers_ict_jaw_open_eyes_shut_below_a_millimetre(ict_case):
     face, lm, shapes, scan, scan_lm, truth = ict_case
     errors = {}
