@@ -15,6 +15,7 @@ import numpy as np
 
 from facewrap.geometry.matching import closest_compatible_points
 from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.wrapping.models.base import rotation_exp
 
 __all__ = ["rigid_icp", "RigidICPResult"]
 
@@ -25,16 +26,6 @@ class RigidICPResult:
     transform: Similarity
     history: list[dict]
     inliers: np.ndarray
-
-
-def _small_rotation(omega) -> np.ndarray:
-    """Rotation matrix of the rotation vector ``omega`` (Rodrigues)."""
-    theta = float(np.linalg.norm(omega))
-    if theta < 1e-12:
-        return np.eye(3)
-    k = omega / theta
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
 
 
 def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
@@ -95,7 +86,7 @@ def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
             A = np.hstack([np.cross(Xk, Nk), Nk])
             b = np.einsum("ij,ij->i", Yk - Xk, Nk)
             sol, *_ = np.linalg.lstsq(A, b, rcond=None)
-            step = Similarity(_small_rotation(sol[:3]), sol[3:], 1.0)
+            step = Similarity(rotation_exp(sol[:3]), sol[3:], 1.0)
         else:
             step = similarity_transform(Xk, Yk, scale=scale)
         updated = step.compose(similarity)

@@ -46,7 +46,7 @@ class WrapSettings:
     project : bool
         Move vertices onto the scan at the end (SPEC §1.3).
     max_distance : float, optional
-        Longest projection move / correspondence distance at the end; default 5 %
+        Longest projection move and longest accepted ICP scan-point distance; default 5 %
         of the template size.
     max_normal_angle : float
         Degrees; larger differences between template and scan normals are rejected.
@@ -75,7 +75,7 @@ class WrapSettings:
         opposing shapes cannot cancel each other with negative weights.  Empty
         or None: unbounded.  Not applied to PCA components.
     reject_boundary : bool
-        Ignore correspondences on the scan's border (holes, crop).
+        Ignore scan points on the scan's border (holes, crop).
     landmark_scale : float
         Multiplies the landmark weight of every ICP stage, the coarse pre-fit's
         included: how much the landmarks are trusted.  :func:`facewrap.wrapping.track.track`

@@ -152,7 +152,8 @@ class NonRigidICP:
         In the caller's units (the frame is undone).
     history_ : list of dict
         Per iteration: stage, iteration, energy, data_rms, landmark_rms (caller's
-        units), correspondences, rejected counts, damping, seconds.
+        units), correspondences (how many scan points), rejected counts, damping,
+        seconds.
     """
 
     def __init__(self, stages=None, *, point_weight: float = 0.1,

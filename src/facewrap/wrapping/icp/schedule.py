@@ -25,14 +25,14 @@ class Stage:
     Attributes
     ----------
     iterations : int
-        Maximum ICP iterations (correspondences + one damped Gauss–Newton step).
+        Maximum ICP iterations (closest scan points + one damped Gauss–Newton step).
     smooth_weight : float
         Weight of the model's smoothness regulariser (graph eq. 7, affine
         stiffness; per edge, relative to the mean data residual).  Called
         ``stiffness`` in the NICP literature; named like every other weight here.
     landmark_weight : float
         Weight of the landmark term (mean over landmarks) relative to the data
-        term (mean over correspondences).
+        term (mean over scan points).
     blend_weight : float
         Tikhonov weight on blend weights (eq. 5).
     data_weight : float
@@ -45,7 +45,7 @@ class Stage:
         outliers; σ otherwise follows the data (a multiple of the median
         distance).
     sample : float
-        Fraction of the fitted vertices that get a correspondence in this stage
+        Fraction of the fitted vertices that get a scan point in this stage
         (a fixed, seeded subset).  A stiff stage moves a few hundred graph nodes
         and needs far fewer data points than the template has vertices (the
         subsets are nested: a larger fraction adds vertices).

@@ -3,8 +3,11 @@
 Every term is a function of the model's vertex Jacobian ``Jv`` (sparse
 (3n, P), see :mod:`facewrap.wrapping.models.base`) and returns the residual vector ``r``
 and its Jacobian ``J`` (sparse (len(r), P)), *unweighted*; the solver
-(:func:`facewrap.solve.factor.gauss_newton_step`) weights and sums them.  Small pieces
-so each can be tested alone against finite differences.
+(:func:`facewrap.solve.gauss_newton_step`) weights and sums them.  Small pieces
+so each can be tested alone against finite differences.  The data and landmark
+terms also come as residual-only functions (``*_residual``): the engine's energy,
+which decides whether a step is accepted, is built from them, so the step and the
+acceptance test cannot disagree on what a term is.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ def point_to_point(V, Jv, vertices, targets):
         Current vertices.
     Jv : (3n, P) sparse or BlockJacobian
     vertices : (k,) int
-        Vertex ids with a correspondence.
+        Vertex ids with a scan point.
     targets : (k, 3) float64
         Their corresponding scan points ``c_i``.
 
@@ -97,7 +100,7 @@ def point_and_plane_residual(V, vertices, targets, normals, point_weight: float)
 
 
 def _point_and_plane_metric(normals, point_weight: float) -> np.ndarray:
-    """``√M = √λ I + (√(1+λ) − √λ) n nᵀ`` per correspondence, (k, 3, 3)."""
+    """``√M = √λ I + (√(1+λ) − √λ) n nᵀ`` per scan point, (k, 3, 3)."""
     n = np.asarray(normals, dtype=np.float64)
     lam = float(point_weight)
     a, b = np.sqrt(lam), np.sqrt(1.0 + lam) - np.sqrt(lam)

@@ -56,7 +56,7 @@ class HybridModel(DeformationModel):
     graph : DeformationGraph
 
     Increment order: [graph (6m), δw (K)]; Jacobians are
-    :class:`~facewrap.wrapping.icp.terms.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
+    :class:`~facewrap.solve.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
     per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
     """
 
