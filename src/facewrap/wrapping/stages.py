@@ -190,9 +190,8 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         pairs, template landmarks far off the template, or a bad ``exclude``.
     """
     s = replace(settings or WrapSettings())
-    if s.model == "auto":
-        s.model = "hybrid" if blendshapes else "graph"
-    spec = model_spec(s.model)
+    spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
+    s.model = spec.name
     if spec.needs_blendshapes and not blendshapes:
         raise ValueError(f"model {s.model!r} needs blendshapes")
     if not template_landmarks.on_mesh:

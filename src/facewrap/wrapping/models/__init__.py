@@ -35,7 +35,7 @@ from facewrap.wrapping.models.graph import DeformationGraph, GraphCache, GraphMo
 from facewrap.wrapping.models.hybrid import HybridModel
 from facewrap.wrapping.warp import RBFWarp, rbf_kernel
 
-__all__ = ["ModelParts", "ModelSpec", "MODEL_REGISTRY", "model_spec",
+__all__ = ["ModelParts", "ModelSpec", "MODEL_REGISTRY", "AUTO_MODEL", "model_spec",
            "default_schedule", "GraphCache", "RBFWarp", "rbf_kernel"]
 
 
@@ -136,8 +136,25 @@ MODEL_REGISTRY: dict[str, ModelSpec] = {spec.name: spec for spec in [
 ]}
 
 
-def model_spec(name: str) -> ModelSpec:
-    """The registry entry of ``name`` (ValueError naming the choices otherwise)."""
+#: what ``WrapSettings.model = "auto"`` becomes, with and without blendshapes
+AUTO_MODEL = {True: "hybrid", False: "graph"}
+
+
+def model_spec(name: str, *, has_blendshapes: bool = False) -> ModelSpec:
+    """The registry entry of ``name`` ("auto": :data:`AUTO_MODEL`).
+
+    Raises
+    ------
+    ValueError
+        Naming the choices, for an unknown model.
+
+    Examples
+    --------
+    >>> model_spec("auto", has_blendshapes=True).name
+    'hybrid'
+    """
+    if name == "auto":
+        name = AUTO_MODEL[bool(has_blendshapes)]
     if name not in MODEL_REGISTRY:
         raise ValueError(f"model must be one of {tuple(MODEL_REGISTRY)}, got {name!r}")
     return MODEL_REGISTRY[name]
