@@ -1,22 +1,27 @@
 """Wrapping: fit a template onto a scan, keeping the template's topology (SPEC §1–§2).
 
-The stages, in the order data flows through them:
+The modules, in the order data flows through them:
 
-* :mod:`.align` — landmark similarity (Umeyama) and trimmed rigid ICP;
-* :mod:`.models` — how the template may move (rigid, blendshape, affine, graph,
-  hybrid);
-* :mod:`.icp` — the non-rigid ICP engine that fits a model, its schedule and terms;
+* :mod:`.settings` — :class:`WrapSettings` and its table of allowed values;
+* :mod:`.align` — trimmed rigid ICP (the landmark similarity is
+  :mod:`facewrap.geometry.similarity`);
+* :mod:`.models` — how the template may move (rigid, rbf, affine, graph,
+  blendshape, hybrid): one module each and the registry of them;
+* :mod:`.icp` — the non-rigid ICP engine, its schedule and energy terms;
+* :mod:`.model_fit` — the coarse pre-fit and ICP fit of a wrap;
 * :mod:`.warp` — the landmark RBF warp and the landmark pull;
 * :mod:`.projection` — projection onto the scan along normals;
-* :mod:`.stages` — :func:`wrap`, the staged pipeline over all of the above;
+* :mod:`.stages` — :func:`wrap`, the named stages over all of the above;
 * :mod:`.track` — 4D sequences, each frame warm-started from the previous one.
 """
 
-from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
-
-from facewrap.wrapping.stages import MODELS
+from facewrap.wrapping.icp.schedule import Stage
+from facewrap.wrapping.models import MODEL_REGISTRY, default_schedule
+from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
+from facewrap.wrapping.settings import MODELS, WrapSettings
+from facewrap.wrapping.stages import WrapResult, fit_metrics, wrap
 from facewrap.wrapping.track import track, write_track_outputs
 
-__all__ = ["wrap", "WrapSettings", "WrapResult",
-    "MODELS", "track", "write_track_outputs",
-]
+__all__ = ["wrap", "WrapSettings", "WrapResult", "MODELS", "MODEL_REGISTRY",
+           "track", "write_track_outputs", "Stage", "default_schedule", "fit_metrics",
+           "GraphCache", "DEFAULT_GRAPH_CACHE"]

@@ -24,13 +24,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
-from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
-                       uniform_laplacian, vertex_normals)
+from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals, turned,
+                               uniform_laplacian, vertex_normals)
+from facewrap.geometry.matching import compatible
 from facewrap.mesh import Mesh
+from facewrap.solve.fixed import FixedSystem
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
+           "extension_operator",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
 
 METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
@@ -147,14 +149,27 @@ def prism_projection(points, tree: ClosestPointTree, candidates, iterations: int
             np.where(found, s[pick], np.nan))
 
 
-def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndarray:
+def extension_operator(mesh: Mesh, order: int = 2) -> sp.csr_matrix:
+    """``Lᵒʳᵈᵉʳ`` of :func:`smooth_extension`: the uniform Laplacian of the polygon
+    edges (quads are not biased by their diagonals), squared for order 2.
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix
+    """
+    E = edges_of_polygons(mesh.face_offsets, mesh.face_indices)
+    L = uniform_laplacian(E, mesh.n_vertices)
+    return (L if order == 1 else (L @ L)).tocsr()
+
+
+def smooth_extension(mesh: Mesh, displacement, known, order: int = 2, *,
+                     operator=None) -> np.ndarray:
     """Extend displacements from ``known`` vertices smoothly over the mesh.
 
     Solves ``Lᵒʳᵈᵉʳ d = 0`` on the unknown vertices with the known ones fixed
-    (``L`` the uniform Laplacian of the polygon edges, so quads are not biased by
-    their diagonals).  Order 1 is harmonic (continuous), order 2 biharmonic (also
-    smooth across the border of the known region).  Vertices in pieces with no
-    known vertex keep a zero displacement.
+    (:class:`facewrap.solve.fixed.FixedSystem`).  Order 1 is harmonic
+    (continuous), order 2 biharmonic (also smooth across the border of the known
+    region).  Vertices in pieces with no known vertex keep a zero displacement.
 
     Parameters
     ----------
@@ -163,6 +178,9 @@ def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndar
         Values at known vertices (others ignored).
     known : (n,) bool
     order : {1, 2}
+    operator : (n, n) scipy.sparse matrix, optional
+        :func:`extension_operator` of ``mesh`` and ``order``, when the caller
+        extends several times over one mesh.
 
     Returns
     -------
@@ -176,18 +194,89 @@ def smooth_extension(mesh: Mesh, displacement, known, order: int = 2) -> np.ndar
     d[unknown] = 0.0
     if not known.any():
         return d
-    E = edges_of_polygons(mesh.face_offsets, mesh.face_indices)
-    L = uniform_laplacian(E, mesh.n_vertices)
-    K = L if order == 1 else (L @ L)
-    K = K.tocsr()
-    u = np.flatnonzero(unknown)
-    k = np.flatnonzero(known)
-    Kuu = K[u][:, u]
-    rhs = -(K[u][:, k] @ d[k])
+    K = extension_operator(mesh, order) if operator is None else operator
     # a tiny ridge keeps pieces without known vertices well-posed (they stay at 0)
-    Kuu = (Kuu + sp.identity(len(u)) * 1e-10 * (abs(Kuu).max() or 1.0)).tocsc()
-    d[u] = splu(Kuu).solve(rhs)
-    return d
+    system = FixedSystem(K, known, solves="few", ridge=1e-10)
+    return system.solve(None, d[known])
+
+
+def _landing_compatible(tree: ClosestPointTree, V, N, P, tri, bary, max_distance,
+                        max_normal_angle, reject_boundary) -> np.ndarray:
+    """Which landing points ``P`` (k, 3) on triangles ``tri`` of the scan the
+    vertices ``V`` with normals ``N`` may move to: the matcher's distance, normal
+    and border rules, with the scan normal interpolated at the landing point."""
+    Ns = np.einsum("ij,ijk->ik", bary, tree.vertex_normals[tree.triangles[tri]])
+    Ns /= np.maximum(np.linalg.norm(Ns, axis=1, keepdims=True), 1e-300)
+    ok, _ = compatible(tree, np.linalg.norm(P - V, axis=1), tri, Ns, N,
+                       max_distance=max_distance, max_normal_angle=max_normal_angle,
+                       reject_border=reject_boundary)
+    return ok
+
+
+def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distance):
+    """Each allowed vertex's landing point by the first method that finds one.
+
+    Returns the method (n,) int8, scan triangle (n,) int64 (-1: none) and
+    barycentric coordinates (n, 3) of every vertex.
+    """
+    n = len(Vt)
+    method = np.zeros(n, dtype=np.int8)
+    tri = np.full(n, -1, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    todo = allowed.copy()
+    cp = tree.query(Vt)
+    if "prism" in methods and todo.any():
+        idx = np.flatnonzero(todo)
+        cand = np.concatenate([cp.triangles[idx, None],
+                               tree.triangle_neighbours[cp.triangles[idx]]], axis=1)
+        found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
+        hit = idx[found]
+        method[hit], tri[hit], bary[hit] = METHOD_PRISM, t_[found], b_[found]
+        todo[hit] = False
+    if "ray" in methods and todo.any():
+        idx = np.flatnonzero(todo)
+        rh = tree.ray_hits(Vt[idx], Nt[idx], max_distance=max_distance)
+        hit = idx[rh.hit]
+        method[hit], tri[hit], bary[hit] = METHOD_RAY, rh.triangles[rh.hit], \
+            rh.barycentric[rh.hit]
+        todo[hit] = False
+    if "closest" in methods and todo.any():
+        idx = np.flatnonzero(todo)
+        method[idx], tri[idx], bary[idx] = METHOD_CLOSEST, cp.triangles[idx], \
+            cp.barycentric[idx]
+    return method, tri, bary
+
+
+def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle: float,
+                         fold_rounds: int):
+    """Projected vertices at ``P``, the others blended; the fold guard.
+
+    On a coarse or faceted scan, neighbouring vertices can land on either side of a
+    scan edge and turn a template triangle over.  Their vertices are not projected
+    but follow the blend instead, until no triangle turns past ``fold_angle`` from
+    where the fit left it (at most ``fold_rounds`` rounds).  Returns the positions
+    (n, 3) and the final projected mask (n,).
+    """
+    T = template.triangles
+    n0 = face_normals(Vt, T)
+    ok = ok.copy()
+    operator = extension_operator(template, blend_order)   # one mesh, every round
+    for _ in range(fold_rounds + 1):
+        out = Vt + smooth_extension(template, P - Vt, ok, operator=operator)
+        out[ok] = P[ok]  # exact landing points (no round-off from the blend)
+        if fold_rounds == 0:
+            break
+        n1 = face_normals(out, T)
+        # a triangle the projection collapsed (zero normal after, not before) has
+        # lost its orientation: it is a fold too, though the turn test skips it
+        collapsed = ~n1.any(axis=1) & n0.any(axis=1)
+        bad = np.zeros(len(Vt), dtype=bool)
+        bad[T[turned(n0, n1, fold_angle) | collapsed]] = True
+        bad &= ok
+        if not bad.any():
+            break
+        ok &= ~bad
+    return out, ok
 
 
 def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
@@ -244,69 +333,15 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     if max_distance is None:
         max_distance = 0.05 * float(np.linalg.norm(Vt.max(0) - Vt.min(0)))
 
-    method = np.zeros(n, dtype=np.int8)
-    tri = np.full(n, -1, dtype=np.int64)
-    bary = np.zeros((n, 3))
-    todo = allowed.copy()
-    cp = tree.query(Vt)
-    if "prism" in methods and todo.any():
-        adj = tree.triangle_neighbours
-        idx = np.flatnonzero(todo)
-        cand = np.concatenate([cp.triangles[idx, None], adj[cp.triangles[idx]]], axis=1)
-        found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
-        hit = idx[found]
-        method[hit], tri[hit], bary[hit] = METHOD_PRISM, t_[found], b_[found]
-        todo[hit] = False
-    if "ray" in methods and todo.any():
-        idx = np.flatnonzero(todo)
-        rh = tree.ray_hits(Vt[idx], Nt[idx], max_distance=max_distance)
-        hit = idx[rh.hit]
-        method[hit], tri[hit], bary[hit] = METHOD_RAY, rh.triangles[rh.hit], \
-            rh.barycentric[rh.hit]
-        todo[hit] = False
-    if "closest" in methods and todo.any():
-        idx = np.flatnonzero(todo)
-        method[idx], tri[idx], bary[idx] = METHOD_CLOSEST, cp.triangles[idx], \
-            cp.barycentric[idx]
-        todo[idx] = False
-
+    method, tri, bary = _landing_points(Vt, Nt, tree, allowed, methods, max_distance)
     has = tri >= 0
     P = np.zeros((n, 3))
     P[has] = np.einsum("ij,ijk->ik", bary[has], tree.vertices[tree.triangles[tri[has]]])
-    # acceptance tests
-    move = np.linalg.norm(P - Vt, axis=1)
-    ok = has & (move <= max_distance)
-    if has.any():
-        Ns = np.zeros((n, 3))
-        Ns[has] = np.einsum("ij,ijk->ik", bary[has],
-                            tree.vertex_normals[tree.triangles[tri[has]]])
-        Ns /= np.maximum(np.linalg.norm(Ns, axis=1, keepdims=True), 1e-300)
-        cos = np.einsum("ij,ij->i", Ns, Nt)
-        ok &= cos >= np.cos(np.radians(max_normal_angle))
-    if reject_boundary:
-        on_border = tree.boundary_triangles
-        ok &= ~np.where(has, on_border[np.maximum(tri, 0)], False)
-    # Fold guard: on a coarse or faceted scan, neighbouring vertices can land on
-    # either side of a scan edge and turn a template triangle over.  Their
-    # vertices are not projected but follow the blend instead, until no triangle
-    # turns past ``fold_angle`` from where the fit left it.
-    T = template.triangles
-    n0 = face_normals(Vt, T)
-    for _ in range(fold_rounds + 1):
-        disp = smooth_extension(template, P - Vt, ok, order=blend_order)
-        out = Vt + disp
-        out[ok] = P[ok]  # exact landing points (no round-off from the blend)
-        if fold_rounds == 0:
-            break
-        n1 = face_normals(out, T)
-        turned = (np.einsum("ij,ij->i", n1, n0) < np.cos(np.radians(fold_angle))) \
-            & (np.abs(n0).sum(1) > 0)          # (degenerate triangles have no normal)
-        bad = np.zeros(n, dtype=bool)
-        bad[T[turned]] = True
-        bad &= ok
-        if not bad.any():
-            break
-        ok &= ~bad
+    ok = np.zeros(n, dtype=bool)
+    ok[has] = _landing_compatible(tree, Vt[has], Nt[has], P[has], tri[has], bary[has],
+                                  max_distance, max_normal_angle, reject_boundary)
+    out, ok = _blend_without_folds(template, Vt, P, ok, blend_order, fold_angle,
+                                   fold_rounds)
     method[~ok] = METHOD_NONE
     tri[~ok] = -1
     bary[~ok] = 0.0

@@ -1,177 +1,41 @@
 """``wrap``: register a template onto a scan, keeping the template's topology.
 
-The pipeline (SPEC §1; the non-rigid ICP models of §2 plug in as further steps):
+The pipeline (SPEC §1–§2), one named function per stage, each testable alone:
 
-    landmark pairs → similarity (Umeyama) → RBF warp of landmark displacements
-    → projection onto the scan along normals, smooth where not projected
-    → the template's mesh with new vertex positions (same count, order, faces, UVs)
+    :func:`prepare_wrap`  the inputs checked, landmarks paired, the scan's tree
+    :func:`align`         landmark similarity (Umeyama), optionally refined by rigid ICP
+    :func:`fit_model`     the model of the registry entry: closed form (rigid, rbf)
+                          or coarse pre-fit + non-rigid ICP (:mod:`.model_fit`)
+    :func:`pull_landmarks` landmarks left far from their targets pulled to them
+    :func:`project`       onto the scan along normals, smooth where not projected
+    :func:`fit_metrics`   distances to the scan and landmark errors
 
-:func:`wrap` returns a :class:`WrapResult` with the fitted mesh, what happened at
-each stage, timings and fit metrics; nothing here reads or writes files.
+:func:`wrap` runs them in this order and returns a :class:`WrapResult` with the
+fitted mesh (same vertex count, order, faces and UVs as the template), what
+happened at each stage, timings and metrics; nothing here reads or writes files.
 """
 
 from __future__ import annotations
 
-import hashlib
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.wrapping.align import rigid_icp
 from facewrap.geometry import ClosestPointTree, connected_components
-from facewrap.wrapping.icp.engine import NonRigidICP, Stage, default_schedule
+from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
-from facewrap.wrapping.models.affine import AffineModel
-from facewrap.wrapping.models.blendshape import (BlendshapeModel, BlendshapeParams, RigidModel,
-                                blendshape_basis)
-from facewrap.wrapping.models.graph import GraphModel, build_graph
-from facewrap.wrapping.models.hybrid import HybridModel, HybridParams
-from facewrap.params import (Empty, Flag, Instances, Interval, NoneAllowed, Options, Pair,
-                             validate)
-from facewrap.wrapping.warp import KERNELS, RBFWarp, pull_to_landmarks
-from facewrap.wrapping.icp.terms import ROBUST_NORMS, landmark_rows
+from facewrap.wrapping.align import rigid_icp
+from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
+from facewrap.wrapping.models import ModelSpec, model_spec
+from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.projection import Projection, project_to_surface
+from facewrap.wrapping.settings import WrapSettings
+from facewrap.wrapping.warp import pull_to_landmarks
 
-__all__ = ["WrapSettings", "WrapResult", "wrap", "MODELS"]
-
-MODELS = ("auto", "rigid", "rbf", "affine", "graph", "blendshape", "hybrid")
-#: the models fitted by non-rigid ICP (the others are closed-form)
-NONRIGID_MODELS = ("affine", "graph", "blendshape", "hybrid")
-
-
-@dataclass
-class WrapSettings:
-    """Settings of a wrap (no work is done here; see :func:`wrap`).
-
-    Every field is also a key of the ``[wrap]`` table of a job file and (for the
-    common ones) a ``facewrap wrap`` option.
-
-    Attributes
-    ----------
-    model : {"auto", "rigid", "rbf", "affine", "graph", "blendshape", "hybrid"}
-        Deformation after the similarity.  "rigid": none; "rbf": landmark RBF warp
-        only; the others run non-rigid ICP (SPEC §2) with that deformation model.
-        "auto" is "hybrid" when blendshapes are given, else "graph".
-    scale : bool
-        Let the similarity scale the template.
-    rigid_refine : bool
-        Refine the similarity with trimmed point-to-plane ICP (good when landmarks
-        are few or noisy; off by default because expressions bias it).
-    kernel, smoothing : see :class:`~facewrap.wrapping.warp.RBFWarp`.
-    project : bool
-        Move vertices onto the scan at the end (SPEC §1.3).
-    max_distance : float, optional
-        Longest projection move / correspondence distance at the end; default 5 %
-        of the template size.
-    max_normal_angle : float
-        Degrees; larger differences between template and scan normals are rejected.
-    blend_order : {1, 2}
-        Harmonic (default) or biharmonic blending of the displacement of
-        vertices that are not projected.  Biharmonic is smoother where projected
-        and blended vertices meet but overshoots over large unprojected regions
-        (the parts of a template a scan does not cover): on menpo's james scan
-        its blend folded 229 template triangle pairs, the harmonic one 72
-        (with the projection's fold guard; the ICP result had 26).
-    stages : list of Stage, optional
-        The non-rigid ICP schedule (stiff to loose); None = the model's default
-        (see :func:`facewrap.wrapping.icp.engine.default_schedule`).
-    node_spacing : float, optional
-        Deformation-graph node spacing as a fraction of the template's bounding
-        box diagonal (default 0.05: ~200 nodes on a face).
-    point_weight : float
-        Weight of point-to-point against point-to-plane (weight 1) in the data term.
-    robust : {"welsch", "huber", "geman_mcclure", "none"}
-        IRLS norm of the data term; its scale comes from the residuals and is
-        annealed.
-    pca_components : int, optional
-        Fit this many PCA components of the blendshapes instead of the raw shapes.
-    weight_range : (lo, hi), optional
-        Range of the blend weights (an expression rig's [0, 1]); a one-sided
-        quadratic penalty (``Stage.bound_weight``) keeps them inside, so
-        opposing shapes cannot cancel each other with negative weights.  Empty
-        or None: unbounded.  Not applied to PCA components.
-    reject_boundary : bool
-        Ignore correspondences on the scan's border (holes, crop).
-    landmark_scale : float
-        Multiplies the landmark weight of every ICP stage, the coarse pre-fit's
-        included: how much the landmarks are trusted.  :func:`facewrap.wrapping.track.track`
-        uses 0.05 for frames whose landmarks are only carried over from the
-        previous frame, so they guard against gross failure without holding the
-        face where it was.
-    landmark_pull : bool
-        After a non-rigid fit (not "rigid" or "rbf"), pull landmarks left farther
-        than ``landmark_tolerance`` from their targets to that distance, by a
-        local smooth displacement (:func:`~facewrap.wrapping.warp.pull_to_landmarks`)
-        before the projection.  The ICP's late stages weigh landmarks lightly,
-        since they are less accurate than the scan surface; on a real scan of
-        another identity (menpo's james, ICT template) that left them 1.43 mm
-        off on average, 3.7 mm at worst.  With the pull: 0.79 / 1.59 mm, and the
-        fit away from the borders 0.50 → 0.44 mm (``bench_realscan``); on the
-        ground-truth cases of ``bench_nicp`` (landmarks with 0.5 mm noise) the
-        hybrid's mean error moved by at most 0.01 mm.
-    landmark_tolerance : float
-        How far a landmark may stay from its target, as a fraction of the
-        template's size (default 0.002, about 0.5 mm on a head); 0 keeps
-        landmarks exactly, which cost the ground-truth cases up to 0.18 mm:
-        pin only landmarks you trust.
-    """
-    model: str = "auto"
-    scale: bool = True
-    rigid_refine: bool = False
-    kernel: str = "biharmonic"
-    smoothing: float = 0.0
-    project: bool = True
-    max_distance: float | None = None
-    max_normal_angle: float = 60.0
-    blend_order: int = 1
-    stages: list[Stage] | None = None
-    node_spacing: float = 0.05
-    point_weight: float = 0.1
-    robust: str = "welsch"
-    pca_components: int | None = None
-    weight_range: tuple[float, ...] | None = (0.0, 1.0)
-    reject_boundary: bool = True
-    landmark_scale: float = 1.0
-    landmark_pull: bool = True
-    landmark_tolerance: float = 0.002
-
-    #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
-    #: the CLI and job files take their choices from here
-    constraints = {
-        "model": Options(*MODELS),
-        "scale": Flag(),
-        "rigid_refine": Flag(),
-        "kernel": Options(*KERNELS),
-        "smoothing": Interval(float, 0, None),
-        "project": Flag(),
-        "max_distance": (NoneAllowed(), Interval(float, 0, None, closed="neither")),
-        "max_normal_angle": Interval(float, 0, 180, closed="right"),
-        "blend_order": Options(1, 2),
-        "stages": (NoneAllowed(), Instances(Stage)),
-        "node_spacing": Interval(float, 0, 1, closed="right"),
-        "point_weight": Interval(float, 0, None),
-        "robust": Options(*ROBUST_NORMS),
-        "pca_components": (NoneAllowed(), Interval(int, 1, None)),
-        "weight_range": (NoneAllowed(), Empty(), Pair(Interval(float, None, None))),
-        "reject_boundary": Flag(),
-        "landmark_scale": Interval(float, 0, None),
-        "landmark_pull": Flag(),
-        "landmark_tolerance": Interval(float, 0, None),
-    }
-
-    def __post_init__(self):
-        validate(self)
-        if self.weight_range is not None:
-            r = tuple(float(x) for x in self.weight_range)
-            self.weight_range = r or None
-
-    def blend_bounds(self):
-        """The weight range the blend models use (None: unbounded)."""
-        return None if self.pca_components else self.weight_range
+__all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
+           "fit_model", "pull_landmarks", "project", "alignment_weights"]
 
 
 @dataclass
@@ -251,11 +115,187 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class WrapProblem:
+    """The checked inputs of a wrap (made by :func:`prepare_wrap`).
+
+    Attributes
+    ----------
+    template, scan : Mesh
+    tree : ClosestPointTree
+        The scan's tree.
+    landmarks : Landmarks
+        Template landmarks on the mesh that have a scan partner, in pair order.
+    sources : (l, 3) float64
+        Their positions on the template.
+    targets : (l, 3) float64
+        Their partners' positions on the scan.
+    alignment_weights : (l,) float64
+        Weights of the pairs in the similarity.
+    excluded : (n,) bool
+        Template vertices not pulled onto the scan.
+    blendshapes : dict or None
+    settings : WrapSettings
+        With ``model`` resolved from "auto".
+    spec : ModelSpec
+        The model's registry entry.
+    graph_cache : GraphCache
+    """
+    template: Mesh
+    scan: Mesh
+    tree: ClosestPointTree
+    landmarks: Landmarks
+    sources: np.ndarray
+    targets: np.ndarray
+    alignment_weights: np.ndarray
+    excluded: np.ndarray
+    blendshapes: dict | None
+    settings: WrapSettings
+    spec: ModelSpec
+    graph_cache: GraphCache
+
+
+def _excluded_mask(exclude, n: int) -> np.ndarray:
+    """``exclude`` (bool mask or vertex ids) as an (n,) bool mask."""
+    excluded = np.zeros(n, dtype=bool)
+    if exclude is None:
+        return excluded
+    ex = np.asarray(exclude)
+    if ex.dtype == bool:
+        if ex.shape != (n,):
+            raise ValueError(f"exclude mask must have shape ({n},)")
+        return ex.copy()
+    if len(ex) and (ex.min() < 0 or ex.max() >= n):
+        raise ValueError(f"exclude holds vertex ids outside [0, {n})")
+    excluded[ex.astype(np.int64)] = True
+    return excluded
+
+
+def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
+                 scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
+                 exclude=None, blendshapes=None, scan_tree: ClosestPointTree | None = None,
+                 graph_cache: GraphCache | None = None) -> WrapProblem:
+    """Check a wrap's inputs, resolve its model and pair its landmarks.
+
+    Parameters are those of :func:`wrap`.
+
+    Returns
+    -------
+    WrapProblem
+
+    Raises
+    ------
+    ValueError
+        For a model that needs blendshapes without them, fewer than 3 landmark
+        pairs, template landmarks far off the template, or a bad ``exclude``.
+    """
+    s = replace(settings or WrapSettings())
+    spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
+    s.model = spec.name
+    if spec.needs_blendshapes and not blendshapes:
+        raise ValueError(f"model {s.model!r} needs blendshapes")
+    if not template_landmarks.on_mesh:
+        template_landmarks = _snapped_template_landmarks(template, template_landmarks)
+    ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
+    if len(ia) < 3:
+        raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
+    excluded = _excluded_mask(exclude, template.n_vertices)
+    tree = scan_tree if scan_tree is not None else ClosestPointTree(scan.vertices,
+                                                                    scan.triangles)
+    return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
+                       template_landmarks.positions(template)[ia],
+                       scan_landmarks.positions(scan)[ib],
+                       alignment_weights(template_landmarks, ia), excluded,
+                       blendshapes, s, spec,
+                       DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache)
+
+
+def align(problem: WrapProblem, initial: WrapResult | None = None) -> Similarity:
+    """Template → scan similarity: from the landmark pairs (Umeyama) or a previous
+    result, refined by trimmed rigid ICP when ``settings.rigid_refine``."""
+    s = problem.settings
+    if initial is not None:
+        similarity = initial.transform
+    else:
+        similarity = similarity_transform(problem.sources, problem.targets,
+                                          weights=problem.alignment_weights,
+                                          scale=s.scale)
+    if s.rigid_refine:
+        similarity = rigid_icp(problem.template.vertices[~problem.excluded], problem.tree,
+                               init=similarity,
+                               max_distance=0.05 * problem.scan.scale()).transform
+    return similarity
+
+
+def fit_model(problem: WrapProblem, vertices, similarity: Similarity,
+              initial: WrapResult | None = None) -> ModelFit:
+    """Deform the aligned template ``vertices`` (n, 3) with the problem's model.
+
+    Closed-form models (rigid, rbf) in one call; the others by a coarse pre-fit and
+    non-rigid ICP (:mod:`facewrap.wrapping.model_fit`), warm-started from
+    ``initial`` when given.
+    """
+    spec, s, template = problem.spec, problem.settings, problem.template
+    if not spec.fitted_by_icp:
+        current = problem.landmarks.positions(vertices, template.triangles)
+        return ModelFit(spec.closed_form(vertices, current, problem.targets, s))
+    t0 = time.perf_counter()
+    start = icp_start(template, vertices, similarity, problem.landmarks, problem.targets,
+                      spec, problem.blendshapes, s.pca_components)
+    start, history = coarse_fit(start, spec, s, template, problem.tree, problem.excluded,
+                                warm_weights=None if initial is None else initial.weights,
+                                warm=initial is not None)
+    fitted = icp_fit(start, spec, s, template, problem.tree, problem.excluded,
+                     problem.graph_cache, t0)
+    fitted.history = history + fitted.history
+    return fitted
+
+
+def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
+    """``WrapSettings.landmark_pull``: landmarks farther than ``landmark_tolerance``
+    (fraction of the size of ``vertices``) from their targets are pulled to it.
+
+    Excluded islands (eyeballs, teeth) move by their mean pull, so they keep their
+    shape.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    summary : dict
+        Tolerance, how many landmarks were pulled, mean and largest pull.
+    """
+    V, T, excluded = vertices, problem.template.triangles, problem.excluded
+    tolerance = problem.settings.landmark_tolerance
+    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    moved, pulls = pull_to_landmarks(V, problem.landmarks.positions(V, T),
+                                     problem.targets, tolerance * size)
+    if excluded.any() and pulls.any():
+        island = connected_components(T[excluded[T].all(axis=1)], len(V))[excluded]
+        shift = moved[excluded] - V[excluded]
+        count = np.bincount(island)
+        mean = np.stack([np.bincount(island, shift[:, c]) for c in range(3)], 1)
+        moved[excluded] = V[excluded] + mean[island] / count[island, None]
+    return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
+                   "mean": float(pulls.mean()), "max": float(pulls.max())}
+
+
+def project(problem: WrapProblem, vertices) -> Projection | None:
+    """Projection onto the scan (None when ``settings.project`` is off)."""
+    s = problem.settings
+    if not s.project:
+        return None
+    return project_to_surface(problem.template, problem.tree, vertices=vertices,
+                              mask=~problem.excluded, max_distance=s.max_distance,
+                              max_normal_angle=s.max_normal_angle,
+                              blend_order=s.blend_order)
+
+
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
          exclude=None, blendshapes=None,
          scan_tree: ClosestPointTree | None = None,
-         initial: WrapResult | None = None) -> WrapResult:
+         initial: WrapResult | None = None,
+         graph_cache: GraphCache | None = None) -> WrapResult:
     """Fit ``template`` to ``scan``.
 
     Parameters
@@ -279,117 +319,57 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         A previous result of the same template (the previous frame of a
         sequence): its similarity replaces the landmark alignment and its blend
         weights start the fit.
+    graph_cache : GraphCache, optional
+        Where deformation graphs are kept between wraps (default: one shared
+        cache, :data:`facewrap.wrapping.models.graph.DEFAULT_GRAPH_CACHE`).
 
     Returns
     -------
     WrapResult
     """
-    s = replace(settings or WrapSettings())
-    if s.model not in MODELS:
-        raise ValueError(f"model must be one of {MODELS}, got {s.model!r}")
-    if s.model == "auto":
-        s.model = "hybrid" if blendshapes else "graph"
-    if s.model in ("blendshape", "hybrid") and not blendshapes:
-        raise ValueError(f"model {s.model!r} needs blendshapes")
     timings = {}
     t0 = time.perf_counter()
-    if not template_landmarks.on_mesh:
-        template_landmarks = _snapped_template_landmarks(template, template_landmarks)
-    ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
-    if len(ia) < 3:
-        raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
-    src = template_landmarks.positions(template)[ia]
-    dst = scan_landmarks.positions(scan)[ib]
-    n = template.n_vertices
-    excluded = np.zeros(n, dtype=bool)
-    if exclude is not None:
-        ex = np.asarray(exclude)
-        if ex.dtype == bool:
-            if ex.shape != (n,):
-                raise ValueError(f"exclude mask must have shape ({n},)")
-            excluded = ex.copy()
-        else:
-            if len(ex) and (ex.min() < 0 or ex.max() >= n):
-                raise ValueError(f"exclude holds vertex ids outside [0, {n})")
-            excluded[ex.astype(np.int64)] = True
-
-    tree = scan_tree if scan_tree is not None else ClosestPointTree(scan.vertices,
-                                                                    scan.triangles)
+    problem = prepare_wrap(template, scan, template_landmarks, scan_landmarks, settings,
+                           exclude=exclude, blendshapes=blendshapes, scan_tree=scan_tree,
+                           graph_cache=graph_cache)
     timings["setup"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    if initial is not None:
-        T = initial.transform
-    else:
-        T = similarity_transform(src, dst,
-                                 weights=_alignment_weights(template_landmarks, ia),
-                                 scale=s.scale)
-    if s.rigid_refine:
-        T = rigid_icp(template.vertices[~excluded], tree, init=T,
-                      max_distance=0.05 * scan.scale()).transform
-    V = T.apply(template.vertices)
+    similarity = align(problem, initial)
+    V = similarity.apply(template.vertices)
     timings["align"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    history, weights, names = [], None, []
-    if s.model == "rbf":
-        lm_now = template_landmarks.positions(V, template.triangles)[ia]
-        warp = RBFWarp(kernel=s.kernel, smoothing=s.smoothing).fit(lm_now, dst - lm_now)
-        V = warp.transform(V)
-    elif s.model in NONRIGID_MODELS:
-        w_init = None if initial is None else initial.weights
-        fitted = _nonrigid_icp(template, V, T, tree, template_landmarks.subset(ia), dst,
-                               s, excluded, blendshapes, w_init, warm=initial is not None)
-        V, history, weights, names, timings["model_setup"] = fitted
+    fitted = fit_model(problem, V, similarity, initial)
+    V = fitted.vertices
+    if fitted.setup_seconds:
+        timings["model_setup"] = fitted.setup_seconds
     # "model_setup" (graph, coarse pre-fit) and "icp" are disjoint parts of the run
-    timings["warp" if s.model == "rbf" else "icp"] = (time.perf_counter() - t
-                                                      - timings.get("model_setup", 0.0))
+    timings["icp" if problem.spec.fitted_by_icp else "warp"] = (
+        time.perf_counter() - t - fitted.setup_seconds)
+
     pull = None
-    if s.model in NONRIGID_MODELS and s.landmark_pull:
+    if problem.spec.fitted_by_icp and problem.settings.landmark_pull:
         t = time.perf_counter()
-        V, pull = _pull_landmarks(template, V, template_landmarks.subset(ia), dst,
-                                  s.landmark_tolerance, excluded)
+        V, pull = pull_landmarks(problem, V)
         timings["landmark_pull"] = time.perf_counter() - t
 
-    projection = None
-    out = V
     t = time.perf_counter()
-    if s.project:
-        projection = project_to_surface(
-            template, tree, vertices=V, mask=~excluded, max_distance=s.max_distance,
-            max_normal_angle=s.max_normal_angle, blend_order=s.blend_order)
-        out = projection.vertices
+    projection = project(problem, V)
+    out = V if projection is None else projection.vertices
     timings["project"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
 
-    metrics = fit_metrics(out, tree,
-                          template_landmarks.positions(out, template.triangles)[ia], dst,
-                          mask=~excluded)
+    metrics = fit_metrics(out, problem.tree,
+                          problem.landmarks.positions(out, template.triangles),
+                          problem.targets, mask=~problem.excluded)
     if projection is not None:
         metrics["projection"] = projection.summary()
     if pull is not None:
         metrics["landmark_pull"] = pull
-    return WrapResult(template.with_vertices(out), T, V, projection, timings, metrics,
-                      settings=s, history=history, weights=weights, shape_names=names)
-
-
-def _pull_landmarks(template: Mesh, V, landmarks: Landmarks, targets, tolerance: float,
-                    excluded) -> tuple[np.ndarray, dict]:
-    """``WrapSettings.landmark_pull``: landmarks farther than ``tolerance`` (fraction
-    of the size of ``V``) from their targets are pulled to it.  Excluded islands
-    (eyeballs, teeth) move by their mean pull, so they keep their shape."""
-    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    moved, pulls = pull_to_landmarks(V, landmarks.positions(V, template.triangles),
-                                     targets, tolerance * size)
-    if excluded.any() and pulls.any():
-        T = template.triangles
-        island = connected_components(T[excluded[T].all(axis=1)], len(V))[excluded]
-        shift = moved[excluded] - V[excluded]
-        count = np.bincount(island)
-        mean = np.stack([np.bincount(island, shift[:, c]) for c in range(3)], 1)
-        moved[excluded] = V[excluded] + mean[island] / count[island, None]
-    return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
-                   "mean": float(pulls.mean()), "max": float(pulls.max())}
+    return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
+                      metrics, settings=problem.settings, history=fitted.history,
+                      weights=fitted.weights, shape_names=fitted.shape_names)
 
 
 #: template landmarks given as points may lie this far off the template's surface
@@ -412,10 +392,24 @@ def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmar
     return snapped
 
 
-def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
+def alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
     """Weights of landmark pairs in the similarity: the jaw line and the mouth
     move with expressions (a scan with the jaw open would bias the scale and
-    tilt), so when landmarks are named, those get a small weight."""
+    tilt), so when landmarks are named, those get a small weight.
+
+    Parameters
+    ----------
+    landmarks : Landmarks
+        The template landmarks (names, if any, decide the weights).
+    index : (l,) int
+        The landmarks that have a partner, in pair order.
+
+    Returns
+    -------
+    (l,) float64
+        1 for stable landmarks, 0.05 for moving ones (all 1 when unnamed or when
+        fewer than 4 stable ones remain).
+    """
     if landmarks.names is None:
         return np.ones(len(index))
     names = [landmarks.names[i] for i in index]
@@ -423,142 +417,3 @@ def _alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
     if (~moving).sum() < 4:
         return np.ones(len(index))
     return np.where(moving, 0.05, 1.0)
-
-
-#: deformation graphs by (template content, spacing), most recent last
-_GRAPHS: "OrderedDict[tuple, object]" = OrderedDict()
-_GRAPH_CACHE_SIZE = 8
-
-
-def _template_graph(template: Mesh, spacing: float):
-    """The deformation graph of a template, built once per template and spacing.
-
-    Nodes and skinning depend only on the template's surface (geodesic
-    distances in the normalised frame, which a similarity does not change), so
-    every scan of a batch or frame of a sequence reuses it.  The key is the
-    template's content, not the object: batch jobs read the template afresh
-    and still share one graph.
-    """
-    V = np.ascontiguousarray(template.vertices)
-    T = np.ascontiguousarray(template.triangles)
-    key = (hashlib.sha1(V.tobytes() + T.tobytes()).hexdigest(), V.shape, T.shape,
-           float(spacing))
-    if key in _GRAPHS:
-        _GRAPHS.move_to_end(key)
-        return _GRAPHS[key]
-    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    graph = build_graph((V - V.mean(axis=0)) / size, T, spacing=spacing)
-    _GRAPHS[key] = graph
-    while len(_GRAPHS) > _GRAPH_CACHE_SIZE:
-        _GRAPHS.popitem(last=False)
-    return graph
-
-
-def _stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:
-    """Consecutive stages that share a node spacing (graph models), as
-    ``(factor, stages)``; one group for other models."""
-    if not by_graph:
-        return [(1.0, list(stages))]
-    groups: list[tuple[float, list]] = []
-    for st in stages:
-        if groups and groups[-1][0] == st.node_spacing_factor:
-            groups[-1][1].append(st)
-        else:
-            groups.append((st.node_spacing_factor, [st]))
-    return groups
-
-
-def _nonrigid_icp(template, V, T, tree, landmarks, targets, s, excluded, blendshapes,
-                  w_init=None, warm: bool = False):
-    """Non-rigid ICP from the similarity-aligned template ``V``.
-
-    Returns (vertices, history, blend weights or None, shape names, setup seconds).
-    """
-    t0 = time.perf_counter()
-    # the engine's normalised frame: centred, unit bounding-box diagonal
-    center = V.mean(axis=0)
-    size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    base = (V - center) / size
-    deltas, names = np.zeros((3 * len(V), 0)), []
-    if s.model in ("blendshape", "hybrid"):
-        neutral = template.vertices
-        D, names = blendshape_basis(neutral, blendshapes, s.pca_components)
-        # deltas live in the template's frame: rotate and scale them like the template
-        D = D.reshape(len(V), 3, -1)
-        deltas = (T.scale * np.einsum("ab,nbk->nak", T.rotation, D) / size
-                  ).reshape(3 * len(V), -1)
-    L = landmark_rows(landmarks, len(V), template.triangles)
-    lm_targets = (targets - center) / size
-    max_distance = (s.max_distance / size if s.max_distance else 0.05)
-
-    def fit(model, stages, params=None):
-        engine = NonRigidICP(stages, point_weight=s.point_weight, robust=s.robust,
-                             max_distance=max_distance,
-                             max_normal_angle=s.max_normal_angle,
-                             reject_boundary=s.reject_boundary)
-        return engine.fit(model, template.triangles, tree, center=center, size=size,
-                          fit_mask=~excluded, landmark_matrix=L,
-                          landmark_targets=lm_targets, params=params)
-
-    history = []
-    w0 = None
-    if s.model in ("affine", "graph", "hybrid"):
-        # coarse first: the whole template's pose and scale (with blend weights for
-        # the hybrid) before local deformation, which resists global scaling
-        if s.model == "hybrid":
-            pre = BlendshapeModel(base, deltas, scale=s.scale, bounds=s.blend_bounds())
-        else:
-            pre = RigidModel(base, scale=s.scale)
-        p_init = None
-        if s.model == "hybrid" and w_init is not None and len(w_init) == deltas.shape[1]:
-            p_init = BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.asarray(w_init))
-        # the coarse pre-fit keeps its own stages, on a third of the vertices
-        # throughout (the main fit refines afterwards); warm-started (tracking),
-        # it skips the landmark-only stage: the start is already close
-        pre_stages = [replace(st, sample=min(st.sample, 0.3),
-                              landmark_weight=st.landmark_weight * s.landmark_scale)
-                      for st in default_schedule("blendshape" if s.model == "hybrid"
-                                                 else "rigid")
-                      if not (warm and st.data_weight == 0)]
-        coarse = fit(pre, pre_stages, p_init)
-        history += [dict(h, model="pre-" + ("blendshape" if s.model == "hybrid"
-                                            else "rigid")) for h in coarse.history_]
-        p0 = coarse.params_
-        base = (coarse.vertices_ - center) / size if s.model != "hybrid" else \
-            pre.vertices(BlendshapeParams(p0.R, p0.t, p0.s, np.zeros_like(p0.w)))
-        if s.model == "hybrid":
-            D = deltas.reshape(len(V), 3, -1)
-            deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * len(V), -1)
-            w0 = p0.w
-    stages = [replace(st, landmark_weight=st.landmark_weight * s.landmark_scale)
-              for st in (s.stages or default_schedule(s.model))]
-    groups = _stage_groups(stages, s.model in ("graph", "hybrid"))
-    if s.model in ("graph", "hybrid"):
-        graph = _template_graph(template, s.node_spacing * groups[0][0])
-    if s.model == "affine":
-        model = AffineModel(base, template.triangles)
-    elif s.model == "graph":
-        model = GraphModel(base, graph)
-    elif s.model == "blendshape":
-        model = BlendshapeModel(base, deltas, scale=s.scale, bounds=s.blend_bounds())
-    else:
-        model = HybridModel(base, deltas, graph, bounds=s.blend_bounds())
-    setup = time.perf_counter() - t0
-    params = None
-    if w0 is not None:
-        params = HybridParams(model.initial_params().graph, w0)
-    first = 0                       # index of the group's first stage
-    for factor, group in groups:
-        if s.model in ("graph", "hybrid") and first > 0:
-            # coarse-to-fine: the next graph continues the deformation so far
-            graph = _template_graph(template, s.node_spacing * factor)
-            model, params = model.on_graph(graph, params if params is not None
-                                           else model.initial_params())
-        icp = fit(model, group, params)
-        params = icp.params_
-        nodes = getattr(getattr(model, "graph", None), "n_nodes", None)
-        history += [dict(h, model=s.model, stage=h["stage"] + first, nodes=nodes)
-                    for h in icp.history_]
-        first += len(group)
-    w = getattr(icp.params_, "w", None)
-    return icp.vertices_, history, w, names, setup

@@ -1,6 +1,6 @@
 """4D tracking: register a sequence of scans of one performer, frame after frame.
 
-Frame 0 is a normal :func:`~facewrap.wrapping.stages.wrap` (it needs landmarks).  Every
+Frame 0 is a normal :func:`~facewrap.wrapping.wrap` (it needs landmarks).  Every
 later frame starts from the previous result: its similarity replaces the
 landmark alignment and its blend weights start the fit (see
 :func:`tracking_schedule`).  Where a frame has no landmarks of its own, the
@@ -25,18 +25,22 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.geometry import ClosestPointTree
-from facewrap.wrapping.icp.engine import Stage, default_schedule
+from facewrap.io import write_mesh
+from facewrap.io.atomic import atomic_write
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
-from facewrap.wrapping.stages import WrapResult, WrapSettings, wrap
+from facewrap.wrapping.icp.schedule import Stage
+from facewrap.wrapping.models import default_schedule
+from facewrap.wrapping.models.graph import GraphCache
+from facewrap.wrapping.settings import WrapSettings
+from facewrap.wrapping.stages import WrapResult, wrap
 
 __all__ = ["TrackResult", "track", "tracking_schedule", "write_track_outputs"]
 
 #: landmark weight factor of frames whose landmarks are predicted from the previous
-#: frames.  On the sample's 10-frame ramp with landmarks on frame 0 only: 0.05
-#: tracks the jaw to 0.80 of 0.8 (0.69 mm at the last frame); 0.2 and 1.0 let
-#: the first, unpredicted frame's lag compound (jaw 0.36 / 0.24, 2.1 / 2.4 mm);
-#: without the velocity prediction 0.05 reached 0.45 (1.7 mm).
+#: frames.  Larger factors let the lag of the first, unpredicted frame compound
+#: over the sequence; the velocity prediction matters as much (on the sample's
+#: ramp with landmarks on frame 0 only; docs/benchmarks.md).
 PROPAGATED_LANDMARKS = 0.05
 
 
@@ -96,7 +100,7 @@ def _propagated_landmarks(previous: WrapResult, template_landmarks: Landmarks,
 
 def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
           settings: WrapSettings | None = None, *, blendshapes=None, exclude=None,
-          progress=None) -> TrackResult:
+          progress=None, graph_cache: GraphCache | None = None) -> TrackResult:
     """Register ``template`` to every scan of a sequence.
 
     Parameters
@@ -114,6 +118,8 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
     exclude : vertex ids or mask, optional
     progress : callable(frame_index, WrapResult), optional
         Called after each frame.
+    graph_cache : GraphCache, optional
+        Passed to every :func:`~facewrap.wrapping.wrap` (default: the shared cache).
 
     Returns
     -------
@@ -136,7 +142,7 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
         given.append(lm is not None)
         if previous is None:
             result = wrap(template, scan, template_landmarks, lm, s0, exclude=exclude,
-                          blendshapes=blendshapes, scan_tree=tree)
+                          blendshapes=blendshapes, scan_tree=tree, graph_cache=graph_cache)
         else:
             if lm is None:
                 lm = _propagated_landmarks(previous, template_landmarks, tree,
@@ -148,7 +154,8 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
                                                             else PROPAGATED_LANDMARKS),
                         landmark_pull=s0.landmark_pull and given[-1])
             result = wrap(template, scan, template_landmarks, lm, s, exclude=exclude,
-                          blendshapes=blendshapes, scan_tree=tree, initial=previous)
+                          blendshapes=blendshapes, scan_tree=tree, initial=previous,
+                          graph_cache=graph_cache)
         frames.append(result)
         if progress is not None:
             progress(i, result)
@@ -165,8 +172,6 @@ def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
 
     Each file is written atomically.  Returns the paths written.
     """
-    from facewrap.io import write_mesh
-    from facewrap.io.atomic import atomic_write
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     width = max(4, len(str(len(result.frames) - 1)))

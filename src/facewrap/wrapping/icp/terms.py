@@ -3,8 +3,11 @@
 Every term is a function of the model's vertex Jacobian ``Jv`` (sparse
 (3n, P), see :mod:`facewrap.wrapping.models.base`) and returns the residual vector ``r``
 and its Jacobian ``J`` (sparse (len(r), P)), *unweighted*; the solver
-(:func:`facewrap.solve.factor.gauss_newton_step`) weights and sums them.  Small pieces
-so each can be tested alone against finite differences.
+(:func:`facewrap.solve.gauss_newton_step`) weights and sums them.  Small pieces
+so each can be tested alone against finite differences.  The data and landmark
+terms also come as residual-only functions (``*_residual``): the engine's energy,
+which decides whether a step is accepted, is built from them, so the step and the
+acceptance test cannot disagree on what a term is.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from facewrap.solve import BlockJacobian
 ROBUST_NORMS = ("welsch", "huber", "geman_mcclure", "none")
 
 __all__ = ["ROBUST_NORMS", "point_to_point", "point_to_plane", "point_and_plane",
-           "landmark_term",
+           "point_and_plane_residual", "landmark_term", "landmark_residual",
            "robust_weights", "landmark_rows"]
 
 
@@ -36,7 +39,7 @@ def point_to_point(V, Jv, vertices, targets):
         Current vertices.
     Jv : (3n, P) sparse or BlockJacobian
     vertices : (k,) int
-        Vertex ids with a correspondence.
+        Vertex ids with a scan point.
     targets : (k, 3) float64
         Their corresponding scan points ``c_i``.
 
@@ -80,13 +83,28 @@ def point_and_plane(V, Jv, vertices, targets, normals, point_weight: float,
     r : (3k,) float64
     J : (3k, P) BlockJacobian
     """
-    n = np.asarray(normals, dtype=np.float64)
-    lam = float(point_weight)
-    a, b = np.sqrt(lam), np.sqrt(1.0 + lam) - np.sqrt(lam)
-    S = a * np.eye(3) + b * np.einsum("ka,kb->kab", n, n)          # (k, 3, 3)
+    S = _point_and_plane_metric(normals, point_weight)
     r = np.einsum("kab,kb->ka", S, V[vertices] - targets).ravel()
     at = vertices if jacobian_rows is None else jacobian_rows
     return r, BlockJacobian.of(Jv).rows(_rows_of(at)).left_blocks(S)
+
+
+def point_and_plane_residual(V, vertices, targets, normals, point_weight: float):
+    """The residual of :func:`point_and_plane` alone (no Jacobian), (3k,) float64.
+
+    What an energy evaluation needs: the acceptance test of a step uses the
+    same residual as the step itself.
+    """
+    S = _point_and_plane_metric(normals, point_weight)
+    return np.einsum("kab,kb->ka", S, V[vertices] - targets).ravel()
+
+
+def _point_and_plane_metric(normals, point_weight: float) -> np.ndarray:
+    """``√M = √λ I + (√(1+λ) − √λ) n nᵀ`` per scan point, (k, 3, 3)."""
+    n = np.asarray(normals, dtype=np.float64)
+    lam = float(point_weight)
+    a, b = np.sqrt(lam), np.sqrt(1.0 + lam) - np.sqrt(lam)
+    return a * np.eye(3) + b * np.einsum("ka,kb->kab", n, n)
 
 
 def landmark_term(V, Jv, landmark_matrix, targets, jacobian_vertices=None):
@@ -107,11 +125,16 @@ def landmark_term(V, Jv, landmark_matrix, targets, jacobian_vertices=None):
     J : (3l, P) BlockJacobian
     """
     L = sp.csr_matrix(landmark_matrix)
-    r = (L @ V - targets).ravel()
+    r = landmark_residual(V, L, targets)
     if jacobian_vertices is not None:
         L = L[:, np.asarray(jacobian_vertices)]
     L3 = sp.kron(L, sp.identity(3), format="csr")
     return r, BlockJacobian.of(Jv).left(L3)
+
+
+def landmark_residual(V, landmark_matrix, targets) -> np.ndarray:
+    """The residual of :func:`landmark_term` alone, ``(L V − p)`` as (3l,) float64."""
+    return (landmark_matrix @ V - targets).ravel()
 
 
 def robust_weights(distances, scale: float, kind: str = "welsch") -> np.ndarray:

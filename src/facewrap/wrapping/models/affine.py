@@ -6,7 +6,7 @@ The classic non-rigid ICP baseline: each vertex ``i`` has its own affine map
     E_stiff = Σ_(i,j) ‖ G (X_i − X_j) ‖²_F ,   G = diag(1, 1, 1, γ)
 
 summed over mesh edges.  The model is linear in its parameters (Gauss–Newton
-converges in one step per correspondence set), but it has 12 unknowns per
+converges in one step per set of scan points), but it has 12 unknowns per
 vertex, so it is the slowest model; it is here so users and benchmarks can
 compare against the method most tools implement (trimesh's ``nricp_amberg``).
 """

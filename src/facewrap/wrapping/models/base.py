@@ -9,8 +9,8 @@ the energy terms and the solver are shared by all models (SPEC §2):
 - ``jacobian(params, vertices=None)`` — (3n, P) derivative of the flattened
   vertices (row ``3 i + c`` is coordinate ``c`` of vertex ``i``) with respect to
   a parameter *increment* ``delta`` (P = ``n_params``); sparse, dense or a
-  :class:`~facewrap.wrapping.icp.terms.BlockJacobian`; with ``vertices``, only their rows
-  (3v, P) — the ICP engine asks only for vertices that have a correspondence
+  :class:`~facewrap.solve.BlockJacobian`; with ``vertices``, only their rows
+  (3v, P) — the ICP engine asks only for vertices that have a scan point
   or carry a landmark,
 - ``regularizers(params)`` — dict name → (residual (r,), Jacobian (r, P)),
   unweighted; the schedule weights them by name ("smooth", "blend"),
@@ -39,7 +39,7 @@ class DeformationModel:
     #: names of the regularisers this model returns (weights come from the schedule)
     regularizer_names: tuple = ()
     #: linear solver of the Gauss–Newton steps ("cg" or "direct", see
-    #: :func:`facewrap.solve.factor.gauss_newton_step`)
+    #: :func:`facewrap.solve.gauss_newton_step`)
     solver: str = "cg"
     #: unknowns per node / vertex in the sparse block (preconditioner blocks)
     param_block: int = 1

@@ -120,8 +120,10 @@ class BlendshapeModel(DeformationModel):
         self.n_shapes = self.deltas.shape[1]
         self.n_params = 7 + self.n_shapes
 
-    def initial_params(self) -> BlendshapeParams:
-        return BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.zeros(self.n_shapes))
+    def initial_params(self, weights=None) -> BlendshapeParams:
+        """Identity pose; blend weights ``weights`` (K,) or zeros."""
+        w = np.zeros(self.n_shapes) if weights is None else np.asarray(weights)
+        return BlendshapeParams(np.eye(3), np.zeros(3), 1.0, w)
 
     def blended(self, w) -> np.ndarray:
         """Neutral plus weighted deltas, before the pose: (n, 3)."""

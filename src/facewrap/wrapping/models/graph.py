@@ -25,6 +25,8 @@ hybrid model (:mod:`facewrap.wrapping.models.hybrid`) reuses them on blended pos
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,10 +37,13 @@ from scipy.spatial import cKDTree
 
 from facewrap.geometry import edges as mesh_edges
 from facewrap.geometry import poisson_disk_vertices
-from facewrap.wrapping.models.base import DeformationModel, cross_matrix_blocks, nearest_rotations, rotation_exp
+from facewrap.geometry.frames import NormalisedFrame
+from facewrap.wrapping.models.base import (DeformationModel, cross_matrix_blocks,
+                                           nearest_rotations, rotation_exp)
 
 __all__ = ["DeformationGraph", "GraphParams", "GraphModel", "build_graph",
-           "graph_vertices", "graph_jacobian", "graph_smoothness", "resample_params"]
+           "graph_vertices", "graph_jacobian", "graph_smoothness", "resample_params",
+           "GraphCache", "DEFAULT_GRAPH_CACHE"]
 
 
 @dataclass(frozen=True)
@@ -375,3 +380,78 @@ class GraphModel(DeformationModel):
 
     def summary(self, params: GraphParams) -> dict:
         return {"nodes": self.graph.n_nodes, "edges": int(len(self.graph.edges))}
+
+
+class GraphCache:
+    """Deformation graphs by template content and node spacing, least recently used
+    dropped first.
+
+    Nodes and skinning depend only on the template's surface (geodesic distances
+    in its normalised frame, which a similarity does not change), so every scan of
+    a batch or frame of a sequence reuses one graph.  The key is the template's
+    content, not the object: batch jobs read the template afresh and still share
+    one graph.  :func:`facewrap.wrapping.wrap` and :func:`facewrap.wrapping.track`
+    take a cache (``graph_cache=``) and use :data:`DEFAULT_GRAPH_CACHE` when given
+    none.
+
+    Parameters
+    ----------
+    capacity : int
+        Graphs kept (at least 1).
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.]])
+    >>> T = np.array([[0, 1, 2], [1, 3, 2]])
+    >>> cache = GraphCache(capacity=2)
+    >>> cache.graph(V, T, 0.5) is cache.graph(V.copy(), T.copy(), 0.5), len(cache)
+    (True, 1)
+    >>> cache.clear(); len(cache)
+    0
+    """
+
+    def __init__(self, capacity: int = 8):
+        if int(capacity) < 1:
+            raise ValueError(f"capacity must be at least 1, got {capacity!r}")
+        self.capacity = int(capacity)
+        self._graphs: OrderedDict[tuple, DeformationGraph] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self._graphs)
+
+    def clear(self) -> None:
+        """Forget every graph (e.g. between batches of different templates)."""
+        self._graphs.clear()
+
+    def graph(self, vertices, triangles, spacing: float) -> DeformationGraph:
+        """The graph of a template at a node spacing, built on first use.
+
+        Parameters
+        ----------
+        vertices : (n, 3) float64
+            Template positions (in any units: the graph is built in their
+            normalised frame).
+        triangles : (t, 3) int64
+        spacing : float
+            Node spacing as a fraction of the template's bounding-box diagonal.
+
+        Returns
+        -------
+        DeformationGraph
+        """
+        V = np.ascontiguousarray(vertices)
+        T = np.ascontiguousarray(triangles)
+        key = (hashlib.sha1(V.tobytes() + T.tobytes()).hexdigest(), V.shape, T.shape,
+               float(spacing))
+        if key in self._graphs:
+            self._graphs.move_to_end(key)
+            return self._graphs[key]
+        graph = build_graph(NormalisedFrame.of(V).to_frame(V), T, spacing=spacing)
+        self._graphs[key] = graph
+        while len(self._graphs) > self.capacity:
+            self._graphs.popitem(last=False)
+        return graph
+
+
+#: the cache of callers that pass none
+DEFAULT_GRAPH_CACHE = GraphCache()

@@ -56,7 +56,7 @@ class HybridModel(DeformationModel):
     graph : DeformationGraph
 
     Increment order: [graph (6m), δw (K)]; Jacobians are
-    :class:`~facewrap.wrapping.icp.terms.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
+    :class:`~facewrap.solve.BlockJacobian` (graph sparse, weights dense).  Regularisers ``"smooth"`` (eq. 7
     per edge, normalised by the edge count) and ``"blend"`` (eq. 5).
     """
 
@@ -82,9 +82,10 @@ class HybridModel(DeformationModel):
             shape=(self.n_vertices, graph.n_nodes))
         self._last_blend = (None, None)
 
-    def initial_params(self) -> HybridParams:
-        return HybridParams(GraphParams.identity(self.graph.n_nodes),
-                            np.zeros(self.n_shapes))
+    def initial_params(self, weights=None) -> HybridParams:
+        """Identity graph; blend weights ``weights`` (K,) or zeros."""
+        w = np.zeros(self.n_shapes) if weights is None else np.asarray(weights)
+        return HybridParams(GraphParams.identity(self.graph.n_nodes), w)
 
     def blended(self, w) -> np.ndarray:
         # the engine asks for the same w several times per iteration (vertices,

@@ -1,40 +1,9 @@
+"""The landmark RBF warp and the landmark pull (facewrap.wrapping.warp)."""
+
 import numpy as np
 import pytest
 
-from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
-
-
-def random_rotation(rng):
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q *= np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] *= -1
-    return q
-
-
-def test_umeyama_recovers_similarity_and_never_reflects():
-    rng = np.random.default_rng(3)
-    P = rng.normal(size=(30, 3))
-    R = random_rotation(rng)
-    T = similarity_transform(P, 1.7 * P @ R.T + [3, -2, 5])
-    assert np.allclose(T.rotation, R) and np.isclose(T.scale, 1.7)
-    assert np.allclose(T.apply(P), 1.7 * P @ R.T + [3, -2, 5])
-    assert np.allclose(T.inverse().apply(T.apply(P)), P)
-    assert np.allclose(Similarity.from_matrix(T.matrix).rotation, R)
-    mirrored = P * [-1, 1, 1]
-    M = similarity_transform(P, mirrored)
-    assert np.isclose(np.linalg.det(M.rotation), 1.0)
-    rigid = similarity_transform(P, 2 * P, scale=False)
-    assert rigid.scale == 1.0
-
-
-def test_umeyama_rejects_bad_input():
-    with pytest.raises(ValueError, match="both be"):
-        similarity_transform(np.zeros((3, 3)), np.zeros((4, 3)))
-    with pytest.raises(ValueError, match="weights"):
-        similarity_transform(np.eye(3), np.eye(3), weights=[-1, 1, 1])
 
 
 def sphere(n=40):
@@ -47,23 +16,6 @@ def sphere(n=40):
     c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
     quads = np.stack([a, b, c, d], -1)[:, :-1].reshape(-1, 4)
     return V, quads
-
-
-def test_rigid_icp_recovers_a_small_motion():
-    from facewrap.geometry import ClosestPointTree
-    from facewrap.mesh import Mesh
-    V, Q = sphere()
-    mesh = Mesh(V, Q)
-    tree = ClosestPointTree(V, mesh.triangles)
-    rng = np.random.default_rng(0)
-    small = Similarity(random_rotation(rng) * 0 + np.eye(3), np.zeros(3))
-    angle = np.radians(6)
-    R = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0],
-                  [0, 0, 1]])
-    moved = Similarity(R, np.array([0.05, -0.03, 0.02])).apply(V)
-    res = rigid_icp(moved, tree, init=small, trim=1.0, iterations=60)
-    assert np.sqrt(np.mean((res.transform.apply(moved) - V) ** 2)) < 1e-3
-    assert res.history[-1]["rms"] < res.history[0]["rms"]
 
 
 def test_rbf_recovers_smooth_field_from_landmarks():

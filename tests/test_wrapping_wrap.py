@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from facewrap.cli import main
-from facewrap.wrapping.stages import WrapSettings, wrap
+from facewrap.wrapping import WrapSettings, wrap
 
 from conftest import needs_data, DATA
 
@@ -53,6 +53,7 @@ def test_excluded_vertices_are_not_projected(sample):
     assert np.isfinite(res.vertices).all()
 
 
+@pytest.mark.slow
 def test_cli_wrap_writes_outputs_and_report(sample, tmp_path):
     from facewrap.io import read_mesh
     from facewrap.sample.face import write_sample
@@ -163,6 +164,7 @@ def test_template_landmarks_as_points_are_snapped_to_the_surface(sample):
         wrap(T, scan.mesh, far, scan.landmarks, WrapSettings(model="rbf"))
 
 
+@pytest.mark.slow
 def test_landmarks_left_off_by_the_fit_are_pulled_to_the_tolerance(sample):
     """A landmark target the scan surface disagrees with (moved 3 % of the face
     along the surface) is reached up to the tolerance; without the pull the fit

@@ -8,7 +8,7 @@ import pytest
 
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
-from facewrap.wrapping.stages import WrapSettings, wrap
+from facewrap.wrapping import WrapSettings, wrap
 
 from conftest import needs_data
 
@@ -47,6 +47,7 @@ def ict_case(ict_folder):
     return face, lm, shapes, scan, scan_lm, truth_mm
 
 
+@pytest.mark.slow
 def test_hybrid_registers_ict_jaw_open_eyes_shut_below_a_millimetre(ict_case):
     face, lm, shapes, scan, scan_lm, truth = ict_case
     errors = {}

@@ -8,7 +8,7 @@ import pytest
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.wrapping.track import track
-from facewrap.wrapping.stages import wrap
+from facewrap.wrapping import wrap
 
 PEAK = {"jaw_open": 0.8, "blink": 1.0, "smile": 0.3}
 
@@ -28,6 +28,7 @@ def seen_error(template, scan, vertices):
     return np.linalg.norm(vertices[seen] - scan.ground_truth[seen], axis=1)
 
 
+@pytest.mark.slow
 def test_track_recovers_every_frame_within_single_frame_accuracy(ramp):
     template, seq = ramp
     result = track(template.mesh, [s.mesh for s in seq], template.landmarks,
@@ -85,6 +86,7 @@ def test_track_needs_first_frame_landmarks(ramp):
               [seq[0].landmarks])
 
 
+@pytest.mark.slow
 def test_track_without_later_landmarks_keeps_up_with_the_expression(ramp):
     """Landmarks on frame 0 only: the carried-over landmarks are predicted at
     their last velocity, so the fit does not lag behind the ramp."""
