@@ -1,4 +1,4 @@
-"""Batches (facewrap.batch.runner): manifests, process pool, Dask, resume after kill -9,
+"""Batches (facewrap.batch): manifests, process pool, Dask, resume after kill -9,
 determinism across engines."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from facewrap.batch.runner import (done_record_path, read_manifest, run_batch, run_one,
-                            _run_pool)
+from facewrap.batch import done_record_path, read_manifest, run_batch, run_one
+from facewrap.batch.engines import run_in_pool
 from facewrap.errors import InputError
 from facewrap.wrapping.icp.engine import Stage
 from facewrap.io import read_mesh
@@ -199,11 +199,12 @@ def _die_on_job_2(bj):
 def test_a_dying_worker_fails_only_its_job(data, tmp_path):
     jobs = read_manifest(manifest(data, tmp_path / "die", 5), data / "shared.toml")
     rows = {}
-    _run_pool(jobs, 2, lambda r: rows.__setitem__(r["index"], r), func=_die_on_job_2)
+    run_in_pool(jobs, 2, lambda r: rows.__setitem__(r["index"], r), _die_on_job_2)
     assert rows[2]["status"] == "failed" and "worker process died" in rows[2]["error"]
     assert [rows[k]["status"] for k in (0, 1, 3, 4)] == ["done"] * 4
 
 
+@pytest.mark.slow
 def test_sigkill_mid_batch_then_resume(data, tmp_path):
     out = tmp_path / "killed"
     n = 12

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
+import re
 import os
 import tomllib
 from pathlib import Path
@@ -16,8 +16,9 @@ from facewrap.errors import InputError
 from facewrap.wrapping.icp.engine import Stage
 from facewrap.io import read_mesh
 from facewrap.jobs.wrap_job import WrapJob
-from facewrap.jobs.jobfile import (_toml_string, job_to_toml, load_job, read_job_tables,
-                               settings_keys, write_job)
+from facewrap.jobs import JOB_KINDS, WRAP, job_to_toml, load_job, read_job_tables, write_job
+from facewrap.jobs.jobfile import job_keys, settings_keys
+from facewrap.jobs.toml_text import toml_string
 from facewrap.wrapping.stages import WrapSettings
 from conftest import facewrap
 
@@ -98,10 +99,10 @@ class Grown(WrapSettings):
 
 
 def test_new_settings_become_keys_by_introspection(tmp_path):
-    with mock.patch("facewrap.jobs.jobfile.WrapSettings", Grown):
+    with mock.patch.dict(JOB_KINDS, wrap=dataclasses.replace(WRAP, settings_class=Grown)):
         p = write(tmp_path / "j.toml", '[wrap]\nnew_knob = 2\nnames = ["a", "b"]\n'
                                        '[wrap.inner]\nradius = 3\n')
-        _, values = read_job_tables(p)
+        values = read_job_tables(p).settings
         assert values == {"new_knob": 2.0, "names": ["a", "b"], "inner": Inner(3.0)}
         assert "new_knob = 1.0" in job_to_toml(
             WrapJob("t.obj", "s.obj", "t.txt", "s.txt", "o.obj"), Grown())
@@ -110,16 +111,15 @@ def test_new_settings_become_keys_by_introspection(tmp_path):
             read_job_tables(bad)
 
 
-def test_every_wrap_option_has_a_key():
-    from facewrap.cli import build_parser
-    from facewrap.jobs.jobfile import job_keys
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+def test_every_wrap_option_has_a_key(capsys):
+    with pytest.raises(SystemExit):
+        facewrap("wrap", "--help")
+    options = set(re.findall(r"--([a-z][a-z-]*)", capsys.readouterr().out))
+    assert {"model", "robust", "no-project", "texture-size"} <= options
     keys = set(job_keys()) | set(settings_keys())
-    for action in sub.choices["wrap"]._actions:
-        if action.dest in ("help", "quiet"):
-            continue
-        assert action.dest in keys or action.dest.removeprefix("no_") in keys, action.dest
+    for option in options - {"help", "quiet"}:
+        dest = option.replace("-", "_")
+        assert dest in keys or dest.removeprefix("no_") in keys, option
 
 
 @pytest.mark.parametrize("text, match, line", [
@@ -153,7 +153,7 @@ def test_bad_job_files_name_file_line_and_key(tmp_path, text, match, line):
 @hsettings(max_examples=200, deadline=None)
 @given(st.text())
 def test_toml_strings_round_trip(s):
-    assert tomllib.loads(f"k = {_toml_string(s)}")["k"] == s
+    assert tomllib.loads(f"k = {toml_string(s)}")["k"] == s
 
 
 @hsettings(max_examples=150, deadline=None)

@@ -1,6 +1,6 @@
 """``facewrap batch MANIFEST``: many wrap jobs, in parallel, resumable (parsing only).
 
-Manifests, job files, done-records and summaries are :mod:`facewrap.batch.runner`'s.
+Manifests, job files, done-records and summaries are :mod:`facewrap.batch`'s.
 Exit status: 0 when every job is done (or was already), 1 when some job failed,
 2 when the manifest or job file is wrong (nothing runs then).
 ``python -m facewrap.cli.batch ARGS`` is ``facewrap batch ARGS``.
@@ -12,6 +12,8 @@ import argparse
 import os
 import sys
 
+from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
+                            record_matches, run_batch, summary_stem)
 from facewrap.errors import InputError
 
 __all__ = ["register", "cmd_batch", "main"]
@@ -29,12 +31,10 @@ def _positive(text: str) -> int:
 
 def cmd_batch(args) -> int:
     """Read the manifest, run (or list) its jobs, write the summary."""
-    from facewrap.batch.runner import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
-                         run_batch, summary_stem, _record_matches)
     jobs = read_manifest(args.manifest, job_file=args.job)
     if args.dry_run:
         for bj in jobs:
-            done = _record_matches(read_done_record(bj.job), fingerprint(bj.job,
+            done = record_matches(read_done_record(bj.job), fingerprint(bj.job,
                                                                         bj.settings))
             print(f"{bj.index + 1:>4} {'finished' if done else 'to run':<8} {bj.name}: "
                   f"{bj.job.scan} -> {bj.job.output}")

@@ -1,0 +1,91 @@
+"""The kinds of job (wrap, transfer): what job files and batches need of each.
+
+A :class:`JobKind` ties a job dataclass to its settings dataclass, the name of
+its settings table in a job file (``[wrap]``, ``[transfer]``), and the functions
+that list its inputs and outputs, check its paths and run it.  Job files
+(:mod:`facewrap.jobs.jobfile`) and batches (:mod:`facewrap.batch`) work through
+this table only, so a new kind of job is one entry in :data:`JOB_KINDS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from typing import Callable
+
+from facewrap.jobs.transfer_job import (TransferJob, TransferJobSettings,
+                                        check_transfer_job_paths, run_transfer_job,
+                                        transfer_job_inputs, transfer_job_outputs)
+from facewrap.jobs.wrap_job import (WrapJob, check_job_paths, job_inputs, job_outputs,
+                                    run_wrap_job)
+from facewrap.wrapping import WrapSettings
+
+__all__ = ["JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "kind_of", "kind_named"]
+
+
+@dataclass(frozen=True)
+class JobKind:
+    """One kind of job.
+
+    Attributes
+    ----------
+    name : str
+        The settings table of its job files (``"wrap"``, ``"transfer"``).
+    job_class : type
+        Dataclass of the job's files; path fields say their table in ``metadata``.
+    settings_class : type
+        Dataclass of its settings.
+    run : callable
+        ``run(job, settings) -> report dict``; writes the outputs.
+    inputs, outputs : callable
+        ``job -> list of paths`` read / written.
+    check_paths : callable
+        ``check_paths(job, source=None)``: raises InputError before any work.
+    main_output : str
+        The field naming the output a done-record sits beside.
+    summary : str
+        What a job of this kind does, for the header of a job file.
+    settings_field : str or None
+        The job's field holding its settings, when the job holds them.
+    """
+    name: str
+    job_class: type
+    settings_class: type
+    run: Callable
+    inputs: Callable
+    outputs: Callable
+    check_paths: Callable
+    main_output: str
+    summary: str
+    settings_field: str | None = None
+
+    def output_of(self, job) -> str:
+        """The main output path of ``job`` (normalised: no trailing separator)."""
+        return os.path.normpath(getattr(job, self.main_output))
+
+
+def _run_transfer(job: TransferJob, settings: TransferJobSettings) -> dict:
+    return run_transfer_job(dataclasses.replace(job, settings=settings))
+
+
+WRAP = JobKind("wrap", WrapJob, WrapSettings, run_wrap_job, job_inputs, job_outputs,
+               check_job_paths, "output", "fits the template onto the scan")
+TRANSFER = JobKind("transfer", TransferJob, TransferJobSettings, _run_transfer,
+                   transfer_job_inputs, transfer_job_outputs, check_transfer_job_paths,
+                   "out", "transfers the source shapes onto the target", "settings")
+#: Every kind of job, by the name of its settings table.
+JOB_KINDS = {k.name: k for k in (WRAP, TRANSFER)}
+
+
+def kind_of(job) -> JobKind:
+    """The kind of a job instance (WrapJob, TransferJob)."""
+    for kind in JOB_KINDS.values():
+        if isinstance(job, kind.job_class):
+            return kind
+    raise TypeError(f"not a job: {type(job).__name__}")
+
+
+def kind_named(name: str) -> JobKind:
+    """The kind whose settings table is ``name``."""
+    return JOB_KINDS[name]
