@@ -32,6 +32,7 @@ def test_info_and_convert(mixed_mesh, tmp_path, capsys):
     assert np.array_equal(read_obj(back).face_indices, mixed_mesh.face_indices)
 
 
+@pytest.mark.slow
 def test_bad_input_is_one_line_and_exit_2(tmp_path):
     bad = tmp_path / "bad.obj"
     bad.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
