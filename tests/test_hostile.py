@@ -32,11 +32,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings as hsettings, strategies as st
 
+from facewrap.batch import read_manifest
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.landmarks import read_landmarks, read_markers
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
+from facewrap.jobs import load_job
 from facewrap.mesh import Mesh
 from conftest import facewrap
 
@@ -687,7 +689,6 @@ def test_hostile_input(c, base, tmp_path, capsys):
     else:
         assert not warned, warned
     fitted = read_mesh(ctx.out)
-    from facewrap.jobs.jobfile import load_job
     template = read_mesh(load_job(ctx.dir / "job.toml")[0].template)
     assert np.array_equal(fitted.face_indices, template.face_indices)
     assert np.isfinite(fitted.vertices).all()
@@ -768,6 +769,7 @@ def _ply_seed(binary: bool) -> bytes:
 
 @_FUZZ
 @given(st.sampled_from([True, False]).flatmap(lambda b: _mutations(_ply_seed(b))))
+@pytest.mark.slow
 def test_fuzz_ply_reader(data):
     _check_mesh(_read_or_input_error(read_ply, data, ".ply"))
 
@@ -810,7 +812,6 @@ def test_fuzz_marker_readers(case_):
 @given(_mutations(b"scan,scan_landmarks,output,smoothing,name\n"
                   b"a.obj,a.txt,out/a.obj,0.5,first\nb.ply,b.txt,out/b.ply,,\n"))
 def test_fuzz_manifest_reader(data):
-    from facewrap.batch.runner import read_manifest
     _read_or_input_error(read_manifest, data, ".csv")
 
 

@@ -21,6 +21,7 @@ from that, so a new field here is a new key there.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 import warnings
@@ -29,8 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
+from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
-from facewrap.wrapping import WrapSettings
+from facewrap.geometry import ClosestPointTree, connected_components
+from facewrap.io import read_mesh, write_mesh
+from facewrap.io.atomic import atomic_write
+from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
+from facewrap.texture import bake_texture, load_image, save_png
+from facewrap.wrapping import WrapSettings, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -165,7 +174,6 @@ def _survey(mesh, path, what: str, pieces: bool = True) -> list[str]:
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
     teeth are separate pieces by design).
     """
-    from facewrap.geometry import connected_components
     out = []
     T = mesh.triangles
     V = mesh.vertices
@@ -209,8 +217,6 @@ def _weld(mesh, landmarks, path):
     Triangle count and order, UVs and normals per corner are kept, so triangle ids
     of surface landmarks and texture baking are unaffected.
     """
-    from facewrap.landmarks import Landmarks
-    from facewrap.mesh import Mesh
     first, inverse = _duplicate_map(mesh.vertices)
     dupes = mesh.n_vertices - len(first)
     if dupes == 0:
@@ -272,7 +278,6 @@ def read_mesh_landmarks(path, mesh, kind: str = "auto"):
     InputError
         Naming ``path`` when a vertex or triangle id is outside ``mesh``.
     """
-    from facewrap.io.landmarks import read_landmarks
     landmarks = read_landmarks(path, kind=kind)
     try:
         landmarks.check(mesh.n_vertices, len(mesh.triangles))
@@ -299,9 +304,6 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         with zero area, landmark counts that differ, landmarks in a line or off the
         scan, indices out of range.
     """
-    from facewrap.geometry import ClosestPointTree
-    from facewrap.io import read_mesh
-    from facewrap.io.landmarks import read_vertex_indices
     notes: list[str] = []
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
@@ -343,12 +345,10 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         exclude = read_vertex_indices(job.exclude, n_vertices=template.n_vertices).vertex
     shapes = None
     if job.blendshapes:
-        from facewrap.datasets import load_shape_folder
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
     image = None
     if job.texture:
-        from facewrap.texture import load_image
         if scan.uvs is None:
             raise InputError("the scan has no texture coordinates to bake from", job.scan)
         if template.uvs is None:
@@ -366,9 +366,6 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     never leaves a half-written file).  The report's ``"warnings"`` lists the
     legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
     """
-    from facewrap.io import write_mesh
-    from facewrap.io.atomic import atomic_write
-    from facewrap.wrapping import wrap
     settings = settings or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
@@ -400,7 +397,6 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
     if inputs["texture"] is not None:
-        from facewrap.texture import bake_texture, save_png
         t = time.perf_counter()
         baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
                              size=job.texture_size)
@@ -409,7 +405,6 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
                              "seconds": time.perf_counter() - t}
     if job.report:
-        import json
         os.makedirs(os.path.dirname(os.path.abspath(job.report)), exist_ok=True)
         with atomic_write(job.report, "w") as fh:
             json.dump(report, fh, indent=1)
