@@ -767,9 +767,9 @@ def _ply_seed(binary: bool) -> bytes:
     return p.read_bytes()
 
 
+@pytest.mark.slow
 @_FUZZ
 @given(st.sampled_from([True, False]).flatmap(lambda b: _mutations(_ply_seed(b))))
-@pytest.mark.slow
 def test_fuzz_ply_reader(data):
     _check_mesh(_read_or_input_error(read_ply, data, ".ply"))
 
