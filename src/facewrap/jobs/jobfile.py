@@ -232,9 +232,10 @@ class JobTables:
 def _kind_of_tables(data: dict, where: TomlSource) -> JobKind:
     """The kind named by the settings table, else the one whose keys the file uses."""
     named = [k for k in JOB_KINDS.values() if k.name in data]
-    if len(named) > 1:
+    if len(named) > 1:  # the error points at the later table
+        later = max(named, key=lambda k: where.line(k.name, None) or 0)
         raise where.error(f"a job file has one settings table, not "
-                          f"{' and '.join(f'[{k.name}]' for k in named)}", named[1].name)
+                          f"{' and '.join(f'[{k.name}]' for k in named)}", later.name)
     if named:
         return named[0]
     given = {key for t in JOB_TABLES if isinstance(data.get(t), dict) for key in data[t]}
