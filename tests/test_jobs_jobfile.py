@@ -1,11 +1,10 @@
-"""Job files (facewrap.jobs.jobfile) and ``facewrap run``."""
+"""Job files (facewrap.jobs.jobfile, reading; .jobfile_writer, writing) and ``facewrap run``."""
 
 from __future__ import annotations
 
 import dataclasses
 import re
 import os
-import tomllib
 from pathlib import Path
 from unittest import mock
 
@@ -18,7 +17,6 @@ from facewrap.io import read_mesh
 from facewrap.jobs.wrap_job import WrapJob
 from facewrap.jobs import JOB_KINDS, WRAP, job_to_toml, load_job, read_job_tables, write_job
 from facewrap.jobs.jobfile import job_keys, settings_keys
-from facewrap.jobs.toml_text import toml_string
 from facewrap.wrapping.stages import WrapSettings
 from conftest import facewrap
 
@@ -148,12 +146,6 @@ def test_bad_job_files_name_file_line_and_key(tmp_path, text, match, line):
         load_job(p)
     assert err.value.path == str(p)
     assert err.value.line == line
-
-
-@hsettings(max_examples=200, deadline=None)
-@given(st.text())
-def test_toml_strings_round_trip(s):
-    assert tomllib.loads(f"k = {toml_string(s)}")["k"] == s
 
 
 @hsettings(max_examples=150, deadline=None)
