@@ -164,13 +164,7 @@ def cmd_evaluate(args) -> int:
 
 
 def register(subparsers) -> None:
-    """Add ``facewrap evaluate`` to an ``argparse`` sub-parser collection.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        From ``parser.add_subparsers()``.
-    """
+    """Add ``evaluate`` to the ``facewrap`` subcommands."""
     p = subparsers.add_parser(
         "evaluate", help="distances, landmark / correspondence errors and triangle "
                          "quality of a fitted mesh",

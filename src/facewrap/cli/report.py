@@ -21,13 +21,7 @@ def cmd_report(args) -> int:
 
 
 def register(subparsers) -> None:
-    """Add ``facewrap report`` to an ``argparse`` sub-parser collection.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        From ``parser.add_subparsers()``.
-    """
+    """Add ``report`` to the ``facewrap`` subcommands."""
     p = subparsers.add_parser(
         "report", help="HTML page (numbers, pictures, 3D viewer) of a wrap run",
         description="Build one self-contained HTML page from the JSON report of "

@@ -19,8 +19,8 @@ input nor an output of the job for batches: finding it or not gives the same
 result up to the solver's round-off.
 
 As for :class:`~facewrap.jobs.wrap_job.WrapJob`, each path field says in its
-``metadata`` which job-file table it belongs to; the settings are the
-``[transfer]`` table.
+``metadata`` which job-file table it belongs to (:mod:`facewrap.jobs.fields`); the
+settings are the ``[transfer]`` table.
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.gltf import write_gltf_morphs
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj_vertices, write_obj
+from facewrap.jobs.fields import check_outputs_apart, input_field, output_field
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -89,14 +90,6 @@ class TransferJobSettings:
         validate(self)
 
 
-def _input(**kw):
-    return field(metadata={"table": "inputs", "path": True}, **kw)
-
-
-def _output(**kw):
-    return field(metadata={"table": "outputs", "path": True}, **kw)
-
-
 @dataclass
 class TransferJob:
     """Files and settings of one transfer.
@@ -126,17 +119,15 @@ class TransferJob:
     settings : TransferJobSettings
         The ``[transfer]`` table.
     """
-    source_neutral: str = _input()
-    target_neutral: str = _input()
-    markers: str = _input()
-    source_shapes: list[str] = _input()
-    out: str = _output()
-    parts: str | None = _input(default=None)
-    correspondence: str | None = field(default=None,
-                                       metadata={"table": "inputs", "path": True,
-                                                 "cache": True})
-    gltf: str | None = _output(default=None)
-    report: str | None = _output(default=None)
+    source_neutral: str = input_field()
+    target_neutral: str = input_field()
+    markers: str = input_field()
+    source_shapes: list[str] = input_field()
+    out: str = output_field()
+    parts: str | None = input_field(default=None)
+    correspondence: str | None = input_field(default=None)  # a cache, see the module
+    gltf: str | None = output_field(default=None)
+    report: str | None = output_field(default=None)
     settings: TransferJobSettings = field(default_factory=TransferJobSettings,
                                           metadata={"table": "transfer"})
 
@@ -167,16 +158,9 @@ def check_transfer_job_paths(job: TransferJob, source=None) -> None:
     """
     if not job.source_shapes:
         raise InputError("no source shapes given", source or job.source_neutral)
-    outs = transfer_job_outputs(job)
-    ins = transfer_job_inputs(job) + ([job.correspondence] if job.correspondence else [])
-    for i, o in enumerate(outs):
-        real = os.path.realpath(o)
-        if any(os.path.realpath(p) == real for p in ins):
-            raise InputError(f"output {o!r} is also an input; inputs are never "
-                             "overwritten", source or o)
-        if any(os.path.realpath(q) == real for q in outs[:i]):
-            raise InputError(f"two outputs of one job are the same file {o!r}",
-                             source or o)
+    cache = [job.correspondence] if job.correspondence else []
+    check_outputs_apart(transfer_job_outputs(job), transfer_job_inputs(job) + cache,
+                        source)
 
 
 def read_source_shapes(items, reference) -> dict[str, np.ndarray]:
