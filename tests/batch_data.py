@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from facewrap.batch import read_manifest, run_batch
-from facewrap.sample.face import make_scan, make_template, write_sample
+from facewrap.sample import make_scan, make_template, write_sample
 
 N_SCANS = 3
 

@@ -19,11 +19,14 @@ that it lists every case.  Hypothesis fuzzes the readers at the end.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import re
 import sys
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -40,6 +43,7 @@ from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.jobs import load_job
 from facewrap.mesh import Mesh
+from facewrap.sample import make_scan, make_template, write_sample
 from conftest import facewrap
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,7 +55,6 @@ class Base:
     """Sample files (template 24, scan 40) and the result of the untouched job."""
 
     def __init__(self, folder: Path):
-        from facewrap.sample.face import make_scan, make_template, write_sample
         self.template_mesh = make_template(24)
         scan = make_scan(self.template_mesh, resolution=40, texture_size=16)
         self.paths = write_sample(folder, self.template_mesh, scan)
@@ -626,7 +629,6 @@ def scan_collapsed(ctx):
 @case("geometry", "a million-triangle scan (slow; see benchmarks/bench_memory.py)", "ok",
       check=fits_like_base, slow=True)
 def scan_million_triangles(ctx):
-    from facewrap.sample.face import make_scan
     scan = make_scan(ctx.base.template_mesh, resolution=1000, texture_size=8)
     p = ctx.mesh("scan.obj", scan.mesh.vertices, scan.mesh.triangles)
     lm = ctx.points("scan_landmarks.txt", scan.landmarks.points)
@@ -665,7 +667,6 @@ def test_corpus_has_at_least_30_kinds():
     c.slow and not os.environ.get("FACEWRAP_SLOW"), reason="slow: FACEWRAP_SLOW=1"))
     for c in CASES])
 def test_hostile_input(c, base, tmp_path, capsys):
-    import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rc, lines, ctx, r = run_case(c, tmp_path, base, capsys)
@@ -818,7 +819,6 @@ def test_fuzz_manifest_reader(data):
 # -- docs/reliability.md -----------------------------------------------------------------------------
 def write_doc() -> None:
     """Run every case (the slow one too when FACEWRAP_SLOW is set) and write the doc."""
-    import warnings
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         base = Base(Path(tmp) / "base")
@@ -827,8 +827,6 @@ def write_doc() -> None:
             if c.slow and not os.environ.get("FACEWRAP_SLOW"):
                 message = "(not run here: see benchmarks/bench_memory.py)"
             else:
-                import contextlib
-                import io
                 err = io.StringIO()
                 with warnings.catch_warnings(), contextlib.redirect_stderr(err):
                     warnings.simplefilter("ignore")

@@ -14,16 +14,15 @@ from hypothesis import given, settings as hsettings, strategies as st
 from facewrap.errors import InputError
 from facewrap.wrapping.icp.engine import Stage
 from facewrap.io import read_mesh
-from facewrap.jobs.wrap_job import WrapJob
-from facewrap.jobs import JOB_KINDS, WRAP, job_to_toml, load_job, read_job_tables, write_job
+from facewrap.sample import make_scan, make_template, write_sample
+from facewrap.jobs import JOB_KINDS, WRAP, WrapJob, job_to_toml, load_job, read_job_tables, write_job
 from facewrap.jobs.jobfile import job_keys, settings_keys
-from facewrap.wrapping.stages import WrapSettings
+from facewrap.wrapping import WrapSettings
 from conftest import facewrap
 
 
 @pytest.fixture(scope="module")
 def sample(tmp_path_factory) -> dict:
-    from facewrap.sample.face import make_scan, make_template, write_sample
     tpl = make_template(24)
     folder = tmp_path_factory.mktemp("sample")
     return write_sample(folder, tpl, make_scan(tpl, resolution=40, texture_size=16))

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facewrap.report.html import STATIC, write_html_report
+from facewrap.report.html import STATIC, THREE_VERSION, write_html_report
+from facewrap.sample import make_scan, make_template
 
 
 # ---------------------------------------------------------------------------------
@@ -192,7 +193,6 @@ class Browser:
 @pytest.fixture(scope="module")
 def sample():
     """Small sample template and scan, a stand-in 'result' and its error."""
-    from facewrap.sample.face import make_scan, make_template
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=24, texture_size=16)
     M = scan.transform
@@ -340,7 +340,6 @@ def test_vendored_files_present():
         assert (STATIC / name).is_file(), name
     head = (STATIC / "three-viewer.min.js").read_text()[:40]
     assert head.startswith("var FWTHREE=")
-    from facewrap.report.html import THREE_VERSION
     assert f"three@{THREE_VERSION}" in (STATIC / "README.md").read_text()
 
 
