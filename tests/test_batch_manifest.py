@@ -44,6 +44,8 @@ def test_toml_manifest_with_job_key_and_stages(data, tmp_path):
     ("scan,scan_landmarks,output,smoothing\na.obj,a.txt,o.obj,lots\n",
      "'smoothing' must be a number", 2),
     ("scan,scan_landmarks,output,stages\na.obj,a.txt,o.obj,3\n", "cannot be set in a CSV", 2),
+    ("scan,scan_landmarks,output,smoothing\na.obj,a.txt,o.obj,-1\n",
+     "job 1: WrapSettings.smoothing must be a real number in \\[0, inf\\)", 2),
     ("scan,scan_landmarks,output\na.obj,a.txt\n", "row has 2 cells", 2),
     ("scan,scan_landmarks\na.obj,a.txt\n", "missing 'output'", 2),
     ("scan,scan_landmarks,output\na.obj,a.txt,o.obj\nb.obj,b.txt,o.obj\n",

@@ -72,7 +72,7 @@ def test_job_to_toml_round_trips_every_value(tmp_path):
                   report=str(tmp_path / "r.json"))
     s = WrapSettings(model="graph", smoothing=0.25, max_distance=1e-7, blend_order=1,
                      pca_components=3, project=False,
-                     stages=[Stage(iterations=3, stiffness=10.0), Stage()])
+                     stages=[Stage(iterations=3, landmark_weight=10.0), Stage()])
     p = tmp_path / "job.toml"
     p.write_text(job_to_toml(job, s, relative_to=tmp_path))
     assert load_job(p) == (job, s)
@@ -128,6 +128,11 @@ def test_every_wrap_option_has_a_key(capsys):
     ("[wrap]\nblend_order = 1.5\n", "'blend_order' must be an integer", 2),
     ("[wrap]\nsmoothing = nan\n", "finite", 2),
     ("[wrap]\nmodel = 'magic'\n", "'model' must be one of auto, rigid, rbf", 2),
+    ("[wrap]\nproject = true\nnode_spacing = -1.0\n",
+     r"\[wrap\] WrapSettings.node_spacing must be a real number in \(0, 1\]; got -1.0", 3),
+    ("[wrap]\nblend_order = 7\n", "'blend_order' must be one of 1, 2; got 7", 2),
+    ("[wrap]\n[[wrap.stages]]\niterations = 0\n",
+     r"stages\[0\]: Stage.iterations must be an integer in \[1, inf\)", 2),
     ("[wrap]\n[[wrap.stages]]\niterations = 3\n[[wrap.stages]]\nstifness = 1\n",
      "unknown key 'stifness' in stages\\[1\\]", 4),
     ("[wrap]\nstages = 3\n", "'stages' must be an array of \\[\\[...\\]\\] tables", 2),
