@@ -124,3 +124,23 @@ def test_a_batch_of_transfers_runs_and_resumes(files, tmp_path):
     changed[0] = replace(changed[0], settings=TransferJobSettings(fix_flips=True))
     assert [r["status"] for r in run_batch(changed, workers=1).rows] == ["done",
                                                                         "skipped"]
+
+
+def test_cli_batch_lists_and_runs_transfer_jobs(files, tmp_path, capsys):
+    d = files["dir"]
+    (tmp_path / "shared.toml").write_text(
+        f'[inputs]\nsource_neutral = "{d / "src.obj"}"\ntarget_neutral = "{d / "tgt.obj"}"'
+        f'\nmarkers = "{d / "m.txt"}"\n[transfer]\n')
+    m = tmp_path / "m.csv"
+    m.write_text("out,gltf_scale\nx,0.5\n")
+    assert facewrap("batch", m, "--job", tmp_path / "shared.toml") == 2  # no shapes: CSV
+    assert "missing 'source_shapes'" in capsys.readouterr().err
+    (tmp_path / "m.toml").write_text(
+        f'[[jobs]]\nsource_shapes = ["{d / "shapes"}"]\nout = "x"\n'
+        '[jobs.transfer]\ngltf_scale = 0.5\n')
+    assert facewrap("batch", tmp_path / "m.toml", "--job", tmp_path / "shared.toml",
+                    "--dry-run") == 0
+    assert f"to run   x: {d / 'shapes'} -> {tmp_path / 'x'}" in capsys.readouterr().out
+    assert facewrap("batch", tmp_path / "m.toml", "--job", tmp_path / "shared.toml",
+                    "-q", "--workers", 1) == 0
+    assert (tmp_path / "x" / "smile.obj").is_file()

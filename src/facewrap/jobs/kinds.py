@@ -46,6 +46,9 @@ class JobKind:
         The field naming the output a done-record sits beside.
     summary : str
         What a job of this kind does, for the header of a job file.
+    subject : str
+        The input field that tells one job of a batch from the next (a wrap's
+        scan), for listings.
     settings_field : str or None
         The job's field holding its settings, when the job holds them.
     """
@@ -58,6 +61,7 @@ class JobKind:
     check_paths: Callable
     main_output: str
     summary: str
+    subject: str
     settings_field: str | None = None
 
     def output_of(self, job) -> str:
@@ -70,10 +74,11 @@ def _run_transfer(job: TransferJob, settings: TransferJobSettings) -> dict:
 
 
 WRAP = JobKind("wrap", WrapJob, WrapSettings, run_wrap_job, job_inputs, job_outputs,
-               check_job_paths, "output", "fits the template onto the scan")
+               check_job_paths, "output", "fits the template onto the scan", "scan")
 TRANSFER = JobKind("transfer", TransferJob, TransferJobSettings, _run_transfer,
                    transfer_job_inputs, transfer_job_outputs, check_transfer_job_paths,
-                   "out", "transfers the source shapes onto the target", "settings")
+                   "out", "transfers the source shapes onto the target", "source_shapes",
+                   "settings")
 #: Every kind of job, by the name of its settings table.
 JOB_KINDS = {k.name: k for k in (WRAP, TRANSFER)}
 
