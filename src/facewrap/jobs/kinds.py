@@ -21,7 +21,7 @@ from facewrap.jobs.wrap_job import (WrapJob, check_job_paths, job_inputs, job_ou
                                     run_wrap_job)
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "kind_of", "kind_named"]
+__all__ = ["JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "kind_of"]
 
 
 @dataclass(frozen=True)
@@ -73,12 +73,16 @@ def _run_transfer(job: TransferJob, settings: TransferJobSettings) -> dict:
     return run_transfer_job(dataclasses.replace(job, settings=settings))
 
 
-WRAP = JobKind("wrap", WrapJob, WrapSettings, run_wrap_job, job_inputs, job_outputs,
-               check_job_paths, "output", "fits the template onto the scan", "scan")
-TRANSFER = JobKind("transfer", TransferJob, TransferJobSettings, _run_transfer,
-                   transfer_job_inputs, transfer_job_outputs, check_transfer_job_paths,
-                   "out", "transfers the source shapes onto the target", "source_shapes",
-                   "settings")
+WRAP = JobKind(name="wrap", job_class=WrapJob, settings_class=WrapSettings,
+               run=run_wrap_job, inputs=job_inputs, outputs=job_outputs,
+               check_paths=check_job_paths, main_output="output",
+               summary="fits the template onto the scan", subject="scan")
+TRANSFER = JobKind(name="transfer", job_class=TransferJob,
+                   settings_class=TransferJobSettings, run=_run_transfer,
+                   inputs=transfer_job_inputs, outputs=transfer_job_outputs,
+                   check_paths=check_transfer_job_paths, main_output="out",
+                   summary="transfers the source shapes onto the target",
+                   subject="source_shapes", settings_field="settings")
 #: Every kind of job, by the name of its settings table.
 JOB_KINDS = {k.name: k for k in (WRAP, TRANSFER)}
 
@@ -90,7 +94,3 @@ def kind_of(job) -> JobKind:
             return kind
     raise TypeError(f"not a job: {type(job).__name__}")
 
-
-def kind_named(name: str) -> JobKind:
-    """The kind whose settings table is ``name``."""
-    return JOB_KINDS[name]
