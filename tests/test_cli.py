@@ -32,6 +32,7 @@ def test_info_and_convert(mixed_mesh, tmp_path, capsys):
     assert np.array_equal(read_obj(back).face_indices, mixed_mesh.face_indices)
 
 
+@pytest.mark.slow
 def test_bad_input_is_one_line_and_exit_2(tmp_path):
     bad = tmp_path / "bad.obj"
     bad.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
@@ -62,3 +63,21 @@ def test_animate_sequence(mixed_mesh, tmp_path):
     other = tmp_path / "c.obj"
     write_obj(other, mixed_mesh.submesh([0])[0])
     assert main(["animate", str(a), str(other), "-o", str(tmp_path / "s2")]) == 2
+
+
+def test_a_value_the_settings_refuse_is_one_line_and_exit_2(tmp_path, capsys):
+    argv = ["wrap", "t.obj", "s.obj", "-o", str(tmp_path / "o.obj"),
+            "--template-landmarks", "t.txt", "--scan-landmarks", "s.txt",
+            "--node-spacing", "-1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("facewrap: error: WrapSettings.node_spacing") and "\n" not in err
+    assert not (tmp_path / "o.obj").exists()
+
+
+def test_every_command_has_help(capsys):
+    for cmd in ("info", "convert", "sample", "wrap", "animate", "track", "transfer",
+                "evaluate", "report", "run", "batch", "demo"):
+        with pytest.raises(SystemExit) as exc:
+            main([cmd, "--help"])
+        assert exc.value.code == 0 and f"facewrap {cmd}" in capsys.readouterr().out

@@ -19,11 +19,14 @@ that it lists every case.  Hypothesis fuzzes the readers at the end.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import re
 import sys
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -32,12 +35,15 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings as hsettings, strategies as st
 
+from facewrap.batch import read_manifest
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.landmarks import read_landmarks, read_markers
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
+from facewrap.jobs import load_job
 from facewrap.mesh import Mesh
+from facewrap.sample import make_scan, make_template, write_sample
 from conftest import facewrap
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,7 +55,6 @@ class Base:
     """Sample files (template 24, scan 40) and the result of the untouched job."""
 
     def __init__(self, folder: Path):
-        from facewrap.sample.face import make_scan, make_template, write_sample
         self.template_mesh = make_template(24)
         scan = make_scan(self.template_mesh, resolution=40, texture_size=16)
         self.paths = write_sample(folder, self.template_mesh, scan)
@@ -624,7 +629,6 @@ def scan_collapsed(ctx):
 @case("geometry", "a million-triangle scan (slow; see benchmarks/bench_memory.py)", "ok",
       check=fits_like_base, slow=True)
 def scan_million_triangles(ctx):
-    from facewrap.sample.face import make_scan
     scan = make_scan(ctx.base.template_mesh, resolution=1000, texture_size=8)
     p = ctx.mesh("scan.obj", scan.mesh.vertices, scan.mesh.triangles)
     lm = ctx.points("scan_landmarks.txt", scan.landmarks.points)
@@ -663,7 +667,6 @@ def test_corpus_has_at_least_30_kinds():
     c.slow and not os.environ.get("FACEWRAP_SLOW"), reason="slow: FACEWRAP_SLOW=1"))
     for c in CASES])
 def test_hostile_input(c, base, tmp_path, capsys):
-    import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rc, lines, ctx, r = run_case(c, tmp_path, base, capsys)
@@ -687,7 +690,6 @@ def test_hostile_input(c, base, tmp_path, capsys):
     else:
         assert not warned, warned
     fitted = read_mesh(ctx.out)
-    from facewrap.jobs.jobfile import load_job
     template = read_mesh(load_job(ctx.dir / "job.toml")[0].template)
     assert np.array_equal(fitted.face_indices, template.face_indices)
     assert np.isfinite(fitted.vertices).all()
@@ -766,6 +768,7 @@ def _ply_seed(binary: bool) -> bytes:
     return p.read_bytes()
 
 
+@pytest.mark.slow
 @_FUZZ
 @given(st.sampled_from([True, False]).flatmap(lambda b: _mutations(_ply_seed(b))))
 def test_fuzz_ply_reader(data):
@@ -810,14 +813,12 @@ def test_fuzz_marker_readers(case_):
 @given(_mutations(b"scan,scan_landmarks,output,smoothing,name\n"
                   b"a.obj,a.txt,out/a.obj,0.5,first\nb.ply,b.txt,out/b.ply,,\n"))
 def test_fuzz_manifest_reader(data):
-    from facewrap.batch.runner import read_manifest
     _read_or_input_error(read_manifest, data, ".csv")
 
 
 # -- docs/reliability.md -----------------------------------------------------------------------------
 def write_doc() -> None:
     """Run every case (the slow one too when FACEWRAP_SLOW is set) and write the doc."""
-    import warnings
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         base = Base(Path(tmp) / "base")
@@ -826,8 +827,6 @@ def write_doc() -> None:
             if c.slow and not os.environ.get("FACEWRAP_SLOW"):
                 message = "(not run here: see benchmarks/bench_memory.py)"
             else:
-                import contextlib
-                import io
                 err = io.StringIO()
                 with warnings.catch_warnings(), contextlib.redirect_stderr(err):
                     warnings.simplefilter("ignore")

@@ -8,8 +8,7 @@ import logging
 
 import pytest
 
-import facewrap.progress as P
-from facewrap.progress import configure_logging, progress, progress_enabled
+from facewrap.progress import configure_logging, open_bars, progress, progress_enabled
 
 
 needs_rich = pytest.mark.skipif(importlib.util.find_spec("rich") is None,
@@ -32,8 +31,7 @@ def clean(monkeypatch):
     yield
     configure_logging(0, stream=io.StringIO())
     logger.handlers[:], logger.level, logger.propagate = saved
-    P._quiet = False
-    assert P._live is None, "a bar was left running"
+    assert open_bars() == 0, "a bar was left running"
 
 
 def test_silent_when_not_a_terminal():
@@ -76,7 +74,7 @@ def test_generator_without_len_and_early_break():
         if x > 10:
             break
     assert seen == [0, 1, 4, 9, 16]
-    assert P._live is None  # the bar stopped when the loop broke off
+    assert open_bars() == 0  # the bar stopped when the loop broke off
 
 
 @needs_rich
@@ -86,9 +84,9 @@ def test_nested_bars_share_one_display():
         for _ in range(2):
             for _ in progress(range(3), "iterations", stream=term):
                 pass
-            assert P._depth == 1  # the inner bar was removed when done
+            assert open_bars() == 1  # the inner bar was removed when done
             outer.advance()
-    assert P._live is None and P._depth == 0
+    assert open_bars() == 0
     assert "frames" in term.getvalue()
 
 
@@ -99,7 +97,7 @@ def test_bar_stops_on_error():
         with progress(5, "failing", stream=term) as bar:
             bar.advance()
             raise RuntimeError("boom")
-    assert P._live is None
+    assert open_bars() == 0
 
 
 @needs_rich

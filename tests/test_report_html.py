@@ -9,7 +9,6 @@ skips when no Chromium binary is found (set ``FACEWRAP_CHROMIUM`` to point at on
 
 from __future__ import annotations
 
-import argparse
 import base64
 import io
 import json
@@ -26,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facewrap.report.html import STATIC, write_html_report
+from facewrap.report.html import STATIC, THREE_VERSION, write_html_report
+from facewrap.sample import make_scan, make_template
 
 
 # ---------------------------------------------------------------------------------
@@ -193,7 +193,6 @@ class Browser:
 @pytest.fixture(scope="module")
 def sample():
     """Small sample template and scan, a stand-in 'result' and its error."""
-    from facewrap.sample.face import make_scan, make_template
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=24, texture_size=16)
     M = scan.transform
@@ -341,57 +340,7 @@ def test_vendored_files_present():
         assert (STATIC / name).is_file(), name
     head = (STATIC / "three-viewer.min.js").read_text()[:40]
     assert head.startswith("var FWTHREE=")
-    from facewrap.report.html import THREE_VERSION
     assert f"three@{THREE_VERSION}" in (STATIC / "README.md").read_text()
-
-
-# ---------------------------------------------------------------------------------
-# CLI
-# ---------------------------------------------------------------------------------
-def test_cli_report_from_wrap_run(tmp_path):
-    from facewrap.cli.report import register
-    from facewrap.jobs.wrap_job import WrapJob, run_wrap_job
-    from facewrap.sample.face import make_scan, make_template, write_sample
-    from facewrap.wrapping.stages import WrapSettings
-    tpl = make_template(24)
-    paths = write_sample(tmp_path / "in", tpl, make_scan(tpl, resolution=24,
-                                                        texture_size=64))
-    job = WrapJob(template=str(paths["template"]), scan=str(paths["scan"]),
-                  template_landmarks=str(paths["template_landmarks"]),
-                  scan_landmarks=str(paths["scan_landmarks"]),
-                  output=str(tmp_path / "wrapped.obj"),
-                  blendshapes=str(tmp_path / "in" / "blendshapes"),
-                  texture=str(paths["scan_texture"]), texture_size=64,
-                  report=str(tmp_path / "run.json"))
-    run_wrap_job(job, WrapSettings(model="rbf"))  # closed-form: quick
-    parser = argparse.ArgumentParser()
-    register(parser.add_subparsers())
-    args = parser.parse_args(["report", str(tmp_path / "run.json"),
-                              "-o", str(tmp_path / "html"), "--image", str(paths["scan_texture"])])
-    assert args.func(args) == 0
-    page = tmp_path / "html" / "index.html"
-    data = _page_data(page)
-    assert [m["name"] for m in data["meshes"]] == ["template (aligned)", "scan", "result"]
-    assert [s["name"] for s in data["scalars"]] == ["distance to scan", "distance to result"]
-    assert data["blendshapes"]["mesh"] == "result"
-    assert len(data["blendshapes"]["shapes"]) == len(tpl.blendshapes)
-    text = page.read_text()
-    assert "fit mean" in text and "Timings" in text and "Transform" in text
-    assert text.count("data:image/png;base64,") == 2  # baked texture + --image
-
-
-def test_cli_report_missing_mesh_is_an_input_error(tmp_path):
-    from facewrap.cli.report import register
-    from facewrap.errors import InputError
-    run = tmp_path / "run.json"
-    run.write_text(json.dumps({"job": {"template": "nope.obj", "scan": "nope.obj",
-                                       "output": "nope.obj"}, "metrics": {}}))
-    parser = argparse.ArgumentParser()
-    register(parser.add_subparsers())
-    args = parser.parse_args(["report", str(run), "-o", str(tmp_path / "html")])
-    with pytest.raises(InputError, match="nope.obj"):
-        args.func(args)
-    assert not (tmp_path / "html").exists()
 
 
 # ---------------------------------------------------------------------------------

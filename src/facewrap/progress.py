@@ -36,7 +36,7 @@ import os
 import sys
 from typing import Iterable, Iterator
 
-__all__ = ["progress", "Progress", "progress_enabled", "configure_logging",
+__all__ = ["progress", "Progress", "progress_enabled", "open_bars", "configure_logging",
            "LOGGER_NAME"]
 
 LOGGER_NAME = "facewrap"
@@ -48,12 +48,21 @@ _depth = 0              # bars open on _live
 _console = None         # rich Console of the log handler, shared with the bars
 
 
+def open_bars() -> int:
+    """Number of progress bars drawing now (nested bars share one display; 0: none).
+
+    >>> open_bars()
+    0
+    """
+    return _depth
+
+
 def _console_for(stream):
     """The rich Console drawing on ``stream``: the log handler's when it is the same
     stream (so log lines print above a live bar instead of through it)."""
     global _console
     if _console is None or _console.file is not stream:
-        from rich.console import Console
+        from rich.console import Console  # rich is optional: only bars need it
         _console = Console(file=stream, force_terminal=True)
     return _console
 
@@ -126,7 +135,7 @@ class Progress:
         global _live, _depth
         if self._task is not None or not progress_enabled(self._stream):
             return
-        if _live is None:
+        if _live is None:  # rich is optional: imported when a bar is first drawn
             from rich.progress import (BarColumn, MofNCompleteColumn, SpinnerColumn,
                                        TaskProgressColumn, TextColumn, TimeElapsedColumn,
                                        TimeRemainingColumn)
@@ -266,7 +275,7 @@ def configure_logging(verbosity: int = 0, *, stream=None) -> logging.Logger:
         h.close()
     handler = None
     if _isatty(stream) and os.environ.get("TERM") != "dumb":
-        try:
+        try:  # rich is optional: plain log lines without it
             from rich.logging import RichHandler
         except ImportError:
             pass

@@ -1,9 +1,8 @@
 """``facewrap batch MANIFEST``: many wrap jobs, in parallel, resumable (parsing only).
 
-Manifests, job files, done-records and summaries are :mod:`facewrap.batch.runner`'s.
+Manifests, job files, done-records and summaries are :mod:`facewrap.batch`'s.
 Exit status: 0 when every job is done (or was already), 1 when some job failed,
 2 when the manifest or job file is wrong (nothing runs then).
-``python -m facewrap.cli.batch ARGS`` is ``facewrap batch ARGS``.
 """
 
 from __future__ import annotations
@@ -12,9 +11,10 @@ import argparse
 import os
 import sys
 
-from facewrap.errors import InputError
+from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
+                            record_matches, run_batch, summary_stem)
 
-__all__ = ["register", "cmd_batch", "main"]
+__all__ = ["register", "cmd_batch"]
 
 
 def _positive(text: str) -> int:
@@ -27,17 +27,21 @@ def _positive(text: str) -> int:
     return n
 
 
+def _shown(value) -> str:
+    """A path, or paths joined by spaces (a transfer's source shapes)."""
+    return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+
+
 def cmd_batch(args) -> int:
     """Read the manifest, run (or list) its jobs, write the summary."""
-    from facewrap.batch.runner import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
-                         run_batch, summary_stem, _record_matches)
     jobs = read_manifest(args.manifest, job_file=args.job)
     if args.dry_run:
         for bj in jobs:
-            done = _record_matches(read_done_record(bj.job), fingerprint(bj.job,
+            done = record_matches(read_done_record(bj.job), fingerprint(bj.job,
                                                                         bj.settings))
             print(f"{bj.index + 1:>4} {'finished' if done else 'to run':<8} {bj.name}: "
-                  f"{bj.job.scan} -> {bj.job.output}")
+                  f"{_shown(getattr(bj.job, bj.kind.subject))} -> "
+                  f"{getattr(bj.job, bj.kind.main_output)}")
         return 0
     total, seen = len(jobs), [0]
 
@@ -62,7 +66,7 @@ def cmd_batch(args) -> int:
 def register(subparsers) -> None:
     """Add ``batch`` to the ``facewrap`` subcommands."""
     p = subparsers.add_parser(
-        "batch", help="run many wrap jobs from a manifest (CSV or TOML), resumable",
+        "batch", help="run many wrap or transfer jobs from a manifest (CSV or TOML), resumable",
         description="Run the jobs of a manifest (CSV: scan, scan_landmarks, output "
                     "and optional override columns; or TOML [[jobs]]) with the "
                     "settings of a shared job file, in parallel. Finished jobs leave "
@@ -84,18 +88,3 @@ def register(subparsers) -> None:
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_batch)
 
-
-def main(argv=None) -> int:
-    """``facewrap batch`` on its own (``python -m facewrap.cli.batch``)."""
-    parser = argparse.ArgumentParser(prog="facewrap")
-    register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["batch", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"facewrap: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

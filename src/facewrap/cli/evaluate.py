@@ -13,6 +13,12 @@ import json
 import numpy as np
 
 from facewrap.errors import InputError
+from facewrap.evaluate import evaluate
+from facewrap.geometry import similarity_transform
+from facewrap.io import read_mesh
+from facewrap.io.atomic import atomic_write
+from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.report import frame_from_axes, heatmap_figure, save_png
 
 __all__ = ["register", "cmd_evaluate"]
 
@@ -47,22 +53,18 @@ def _read_ground_truth(path, result):
                              f"(NaN rows for vertices without truth), got {G.shape}",
                              path)
         return G.astype(np.float64)
-    from facewrap.io import read_mesh
     gt = read_mesh(path)
     _same_topology(result, gt, path, "the ground truth")
     return gt.vertices
 
 
 def _read_mask(path, n):
-    from facewrap.io.landmarks import read_vertex_indices
     ids = read_vertex_indices(path, n_vertices=n).vertex
     return ids
 
 
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
-    from facewrap.geometry.similarity import similarity_transform
-    from facewrap.report import frame_from_axes
     try:
         F = frame_from_axes(args.up, args.front)
     except ValueError as exc:
@@ -103,10 +105,6 @@ def _format_line(s: dict, units: str) -> str:
 
 def cmd_evaluate(args) -> int:
     """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
-    from facewrap.evaluate import evaluate
-    from facewrap.io import read_mesh
-    from facewrap.io.atomic import atomic_write
-    from facewrap.io.landmarks import read_landmarks
 
     if (args.result_landmarks is None) != (args.scan_landmarks is None):
         raise InputError("--result-landmarks and --scan-landmarks go together")
@@ -136,7 +134,6 @@ def cmd_evaluate(args) -> int:
 
     image = None
     if args.heatmap:
-        from facewrap.report import heatmap_figure
         key, label, title = _HEATMAPS[args.heatmap_of]
         values = ev.vertex_values()[key]
         s = summary
@@ -157,7 +154,6 @@ def cmd_evaluate(args) -> int:
         with atomic_write(args.json, "w") as fh:
             json.dump(summary, fh, indent=1)
     if image is not None:
-        from facewrap.report import save_png
         save_png(args.heatmap, image)
     if not args.quiet:
         print(_format_line(summary, args.units))
@@ -168,13 +164,7 @@ def cmd_evaluate(args) -> int:
 
 
 def register(subparsers) -> None:
-    """Add ``facewrap evaluate`` to an ``argparse`` sub-parser collection.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        From ``parser.add_subparsers()``.
-    """
+    """Add ``evaluate`` to the ``facewrap`` subcommands."""
     p = subparsers.add_parser(
         "evaluate", help="distances, landmark / correspondence errors and triangle "
                          "quality of a fitted mesh",

@@ -1,24 +1,25 @@
-"""``facewrap run JOB.toml``: run the wrap a job file describes (parsing only).
+"""``facewrap run JOB.toml``: run the job (wrap or transfer) a job file describes.
 
-The job file format is :mod:`facewrap.jobs.jobfile`'s; ``--write-template`` writes a
-commented job file with every key to start from, ``--dry-run`` checks a job file
-and its inputs and prints the job as resolved (absolute paths, every setting)
-without writing anything.
+Parsing and one call.  The job file format is :mod:`facewrap.jobs.jobfile`'s;
+``--write-template`` writes a commented wrap job file with every key to start
+from, ``--dry-run`` checks a job file and its inputs and prints the job as
+resolved (absolute paths, every setting) without writing anything.
 """
 
 from __future__ import annotations
 
 import os
 
+from facewrap.cli.transfer import print_transfer_summary
+from facewrap.cli.wrap import run_wrap_job_verbosely
 from facewrap.errors import InputError
+from facewrap.jobs import TRANSFER, job_to_toml, kind_of, load_job, run_transfer_job, write_job
 
 __all__ = ["register", "cmd_run"]
 
 
 def cmd_run(args) -> int:
     """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
-    from facewrap.jobs import job_inputs
-    from facewrap.jobs import job_to_toml, load_job, write_job
     if args.write_template:
         if os.path.exists(args.job) and not args.force:
             raise InputError("already exists (use --force to replace it)", args.job)
@@ -27,25 +28,30 @@ def cmd_run(args) -> int:
             print(f"wrote {args.job}")
         return 0
     job, settings = load_job(args.job)
+    kind = kind_of(job)
     if args.dry_run:
-        for p in job_inputs(job):
+        for p in kind.inputs(job):
             if not os.path.exists(p):
                 raise InputError(f"no such file: {p}", args.job)
         print(job_to_toml(job, settings, header=f"{args.job}, resolved (dry run: "
                                                 "nothing written)"), end="")
         return 0
-    from facewrap.cli import run_wrap_job_verbosely
-    run_wrap_job_verbosely(job, settings, quiet=args.quiet)
+    if kind is TRANSFER:
+        report = run_transfer_job(job)
+        if not args.quiet:
+            print_transfer_summary(report)
+    else:
+        run_wrap_job_verbosely(job, settings, quiet=args.quiet)
     return 0
 
 
 def register(subparsers) -> None:
     """Add ``run`` to the ``facewrap`` subcommands."""
     p = subparsers.add_parser(
-        "run", help="run a wrap described by a TOML job file",
-        description="Run the wrap a TOML job file describes (inputs, outputs and "
-                    "[wrap] settings; paths relative to the file). Start from "
-                    "`facewrap run --write-template job.toml`.")
+        "run", help="run a wrap or transfer described by a TOML job file",
+        description="Run the job a TOML job file describes (inputs, outputs and "
+                    "[wrap] or [transfer] settings; paths relative to the file). Start "
+                    "from `facewrap run --write-template job.toml`.")
     p.add_argument("job", metavar="JOB.toml", help="job file")
     p.add_argument("--dry-run", action="store_true",
                    help="check the job file and its inputs, print the resolved job, "

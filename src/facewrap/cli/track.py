@@ -7,9 +7,17 @@ errors over time, iterations, seconds).  See :mod:`facewrap.wrapping.track`.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
+from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
+from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
+from facewrap.io import read_mesh
+from facewrap.io.landmarks import read_vertex_indices
+from facewrap.jobs import read_mesh_landmarks
+from facewrap.progress import progress
+from facewrap.wrapping import track, write_track_outputs
 
 __all__ = ["register", "cmd_track"]
 
@@ -33,11 +41,6 @@ def _scan_paths(items) -> list[Path]:
 
 def cmd_track(args) -> int:
     """Track the template through the scans and write the sequence."""
-    from facewrap.io import read_mesh
-    from facewrap.io.landmarks import read_vertex_indices
-    from facewrap.jobs import read_mesh_landmarks
-    from facewrap.wrapping import track, write_track_outputs
-    from facewrap.cli.__init__ import wrap_settings_from_args
     template = read_mesh(args.template)
     scans = _scan_paths(args.scans)
     if len(args.scan_landmarks) not in (1, len(scans)):
@@ -55,14 +58,10 @@ def cmd_track(args) -> int:
     lms += [None] * (len(meshes) - len(lms))
     shapes = None
     if args.blendshapes:
-        from facewrap.datasets import load_shape_folder
         shapes = load_shape_folder(args.blendshapes, template, exclude=())
     exclude = None
     if args.exclude:
         exclude = read_vertex_indices(args.exclude, n_vertices=template.n_vertices).vertex
-
-    from facewrap.progress import progress
-    import logging
     log = logging.getLogger("facewrap.wrapping.track")
 
     with progress(len(meshes), "tracking") as bar:
@@ -85,7 +84,6 @@ def cmd_track(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``track`` to the ``facewrap`` subcommands."""
-    from facewrap.cli.__init__ import add_fit_options
     p = subparsers.add_parser(
         "track", help="register a sequence of scans (4D), each frame from the last")
     p.add_argument("template", help="template mesh (OBJ/PLY)")

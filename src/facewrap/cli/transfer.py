@@ -1,136 +1,52 @@
 """``facewrap transfer``: deformation transfer and avatar blendshapes from the shell.
 
-Parsing and calling only: reads the meshes, markers and shapes, runs
-:class:`~facewrap.transfer.DeformationTransfer` (or
-:class:`~facewrap.transfer.AvatarTransfer` with ``--landmark-guided``), writes one
-OBJ per shape in the target's topology, optionally a GLB with morph targets, the
-correspondence (``--correspondence``: loaded when the file exists, else computed and
-saved) and a JSON report.
+Parsing and one call: the options become a :class:`~facewrap.jobs.TransferJob`
+run by :func:`~facewrap.jobs.run_transfer_job`, which reads the meshes, markers
+and shapes, runs :class:`~facewrap.transfer.DeformationTransfer` (or
+:class:`~facewrap.avatar.AvatarTransfer` with ``--landmark-guided``) and writes
+one OBJ per shape in the target's topology, optionally a GLB with morph targets,
+the correspondence (``--correspondence``: loaded when the file exists, else
+computed and saved) and a JSON report.
 """
 
 from __future__ import annotations
 
-import json
-import time
 from pathlib import Path
 
-__all__ = ["register", "cmd_transfer"]
+from facewrap.jobs import TransferJob, TransferJobSettings, run_transfer_job
+
+__all__ = ["register", "cmd_transfer", "transfer_job_from_args", "print_transfer_summary"]
 
 
-def _read_shapes(items, reference):
-    """name -> (n, 3) from a folder or OBJ files (InputError names a bad file)."""
-    from facewrap.datasets import load_shape_folder
-    from facewrap.errors import InputError
-    from facewrap.io.obj import read_obj_vertices
-    shapes = {}
-    for item in items:
-        p = Path(item)
-        if p.is_dir():
-            shapes.update(load_shape_folder(p, reference))
-        elif p.is_file():
-            shapes[p.stem] = read_obj_vertices(p, reference.n_vertices)
-        else:
-            raise InputError("no such file or folder", p)
-    if not shapes:
-        raise InputError("no source shapes given", items[0] if items else None)
-    return shapes
+def transfer_job_from_args(args) -> TransferJob:
+    """The :class:`~facewrap.jobs.TransferJob` of ``facewrap transfer``'s options."""
+    settings = TransferJobSettings(landmark_guided=args.landmark_guided,
+                                   anchor=args.anchor, fix_flips=not args.no_fix_flips,
+                                   ambiguity=args.ambiguity, gltf_scale=args.gltf_scale)
+    return TransferJob(source_neutral=args.source_neutral,
+                       target_neutral=args.target_neutral, markers=args.markers,
+                       source_shapes=list(args.source_shapes), out=args.out,
+                       parts=args.parts, correspondence=args.correspondence,
+                       gltf=args.gltf, report=args.report, settings=settings)
 
 
-def _repairs(repairs, names) -> dict:
-    """Per shape with new flipped triangles: found / repaired / remaining / rounds."""
-    if not repairs:
-        return {}
-    return {name: {k: int(v[i]) for k, v in repairs.items()}
-            for i, name in enumerate(names) if repairs["found"][i]}
+def print_transfer_summary(report: dict) -> None:
+    """One line on what was written (and one on the ambiguity, when measured)."""
+    print(f"wrote {report['shapes']} shapes to {Path(report['job']['out'])} "
+          f"({report['method']}, {report['correspondence']['pairs']} triangle pairs, "
+          f"{report['timings']['total']:.2f} s)")
+    ambiguity = report["ambiguity"]
+    if ambiguity is not None:
+        print(f"partner ambiguity median {ambiguity['median']:.3g}, p90 "
+              f"{ambiguity['p90']:.3g}; markers would help most near target "
+              f"vertices {' '.join(map(str, ambiguity['marker_hints']))}")
 
 
 def cmd_transfer(args) -> int:
     """Transfer source shapes onto the target; write OBJs (+ GLB, report)."""
-    from facewrap.io import read_mesh
-    from facewrap.io.landmarks import read_markers
-    from facewrap.io.obj import write_obj
-    from facewrap.avatar import AvatarTransfer, read_parts
-    from facewrap.transfer import Correspondence, DeformationTransfer, find_correspondence
-    from facewrap.transfer import check_markers
-    from facewrap.avatar import IBUG51_PARTS
-    t0 = time.perf_counter()
-    source = read_mesh(args.source_neutral)
-    target = read_mesh(args.target_neutral)
-    src_ids, tgt_ids = check_markers(read_markers(args.markers), source.n_vertices,
-                                     target.n_vertices, args.markers)
-    shapes = _read_shapes(args.source_shapes, source)
-    corr = None
-    corr_path = Path(args.correspondence) if args.correspondence else None
-    if corr_path is not None and corr_path.is_file():
-        corr = Correspondence.load(corr_path)
-        corr.check(source, target, corr_path)
-    t1 = time.perf_counter()
-    if args.landmark_guided:
-        parts = read_parts(args.parts) if args.parts else IBUG51_PARTS
-        model = AvatarTransfer(parts=parts, fix_flips=not args.no_fix_flips).fit(source, src_ids, target, tgt_ids,
-                                                correspondence=corr,
-                                                landmarks_path=args.markers)
-        corr = model.correspondence_
-    else:
-        if corr is None:
-            corr = find_correspondence(source, target, (src_ids, tgt_ids),
-                                       markers_path=args.markers)
-        anchor = "markers" if args.anchor is None else args.anchor
-        if args.anchor is not None and not 0 <= args.anchor < target.n_vertices:
-            from facewrap.errors import InputError
-            raise InputError(f"--anchor {args.anchor} out of range (target has "
-                             f"{target.n_vertices} vertices)", args.target_neutral)
-        model = DeformationTransfer(anchor=anchor, fix_flips=not args.no_fix_flips
-                                    ).fit(source, target, corr)
-    if corr_path is not None and not corr_path.is_file():
-        corr_path.parent.mkdir(parents=True, exist_ok=True)
-        corr.save(corr_path)
-    t2 = time.perf_counter()
-    names = list(shapes)
-    import numpy as np
-    results = model.transfer(np.stack([shapes[k] for k in names]))
-    t3 = time.perf_counter()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    for name, X in zip(names, results):
-        path = out / f"{name}.obj"
-        write_obj(path, target.with_vertices(X))
-        written.append(str(path))
-    if args.gltf:
-        from facewrap.io.gltf import write_gltf_morphs
-        Path(args.gltf).parent.mkdir(parents=True, exist_ok=True)
-        write_gltf_morphs(args.gltf, target, dict(zip(names, results)),
-                          scale=args.gltf_scale)
-    t4 = time.perf_counter()
-    ambiguity = None
-    if args.ambiguity:
-        from facewrap.transfer import ambiguity_summary, partner_ambiguity
-        ambiguity = ambiguity_summary(partner_ambiguity(
-            corr, source, target, np.stack([shapes[k] for k in names])), target)
-    t5 = time.perf_counter()
-    report = {
-        "source": str(args.source_neutral), "target": str(args.target_neutral),
-        "method": "landmark-guided" if args.landmark_guided else "deformation transfer",
-        "shapes": len(names), "outputs": written, "gltf": args.gltf,
-        "correspondence": {"file": None if corr_path is None else str(corr_path),
-                           "pairs": len(corr), **corr.stats},
-        "flip_repairs": _repairs(getattr(model, "repairs_", None), names),
-        "ambiguity": ambiguity,
-        "timings": {"read": t1 - t0, "fit": t2 - t1, "transfer": t3 - t2,
-                    "write": t4 - t3, "ambiguity": t5 - t4, "total": t5 - t0},
-    }
-    if args.report:
-        from facewrap.io.atomic import atomic_write
-        with atomic_write(args.report, "w") as fh:
-            json.dump(report, fh, indent=1)
+    report = run_transfer_job(transfer_job_from_args(args))
     if not args.quiet:
-        print(f"wrote {len(names)} shapes to {out} ({report['method']}, "
-              f"{len(corr)} triangle pairs, {report['timings']['total']:.2f} s)")
-        if ambiguity is not None:
-            print(f"partner ambiguity median {ambiguity['median']:.3g}, p90 "
-                  f"{ambiguity['p90']:.3g}; markers would help most near target "
-                  f"vertices {' '.join(map(str, ambiguity['marker_hints']))}")
+        print_transfer_summary(report)
     return 0
 
 
@@ -154,7 +70,7 @@ def register(subparsers) -> None:
     p.add_argument("--parts", help="face parts JSON (default: 51-point iBUG layout)")
     p.add_argument("--gltf", metavar="OUT.glb",
                    help="also write a GLB with the target neutral and named morph targets")
-    p.add_argument("--gltf-scale", type=float, default=1.0,
+    p.add_argument("--gltf-scale", type=float, default=TransferJobSettings.gltf_scale,
                    help="scale positions in the GLB (0.01 for cm -> m; default 1)")
     p.add_argument("--correspondence", metavar="F.npz",
                    help="reuse this correspondence file, or compute and save it here")

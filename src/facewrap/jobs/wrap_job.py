@@ -14,23 +14,32 @@ anyway; each oddity becomes one line in the report's ``"warnings"`` list and an
 triangle soups) are merged before fitting, so they do not read as holes.
 
 Each :class:`WrapJob` field says in its ``metadata`` which job-file table it
-belongs to (``"inputs"`` or ``"outputs"``) and whether it is a path; job files
-(:mod:`facewrap.jobs.jobfile`) and batches (:mod:`facewrap.batch.runner`) derive their keys
-from that, so a new field here is a new key there.
+belongs to (:mod:`facewrap.jobs.fields`), so a new field here is a new key of job
+files and batch manifests.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
+from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
-from facewrap.wrapping import WrapSettings
+from facewrap.geometry import ClosestPointTree, connected_components
+from facewrap.io import read_mesh, write_mesh
+from facewrap.io.atomic import atomic_write
+from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.jobs.fields import check_outputs_apart, input_field, output_field
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
+from facewrap.texture import bake_texture, load_image, save_png
+from facewrap.wrapping import WrapSettings, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -41,14 +50,6 @@ MESH_EXTENSIONS = (".obj", ".ply")
 
 class InputWarning(UserWarning):
     """An input that is legal but odd; the message names the file and the oddity."""
-
-
-def _input(**kw):
-    return field(metadata={"table": "inputs", "path": True}, **kw)
-
-
-def _output(path=True, **kw):
-    return field(metadata={"table": "outputs", "path": path}, **kw)
 
 
 @dataclass
@@ -79,16 +80,16 @@ class WrapJob:
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
     """
-    template: str = _input()
-    scan: str = _input()
-    template_landmarks: str = _input()
-    scan_landmarks: str = _input()
-    output: str = _output()
-    blendshapes: str | None = _input(default=None)
-    exclude: str | None = _input(default=None)
-    texture: str | None = _input(default=None)
-    texture_size: int = _output(path=False, default=1024)
-    report: str | None = _output(default=None)
+    template: str = input_field()
+    scan: str = input_field()
+    template_landmarks: str = input_field()
+    scan_landmarks: str = input_field()
+    output: str = output_field()
+    blendshapes: str | None = input_field(default=None)
+    exclude: str | None = input_field(default=None)
+    texture: str | None = input_field(default=None)
+    texture_size: int = output_field(path=False, default=1024)
+    report: str | None = output_field(default=None)
 
 
 def _path_fields(table: str) -> list[str]:
@@ -101,7 +102,7 @@ def job_inputs(job: WrapJob) -> list[str]:
     return [getattr(job, n) for n in _path_fields("inputs") if getattr(job, n)]
 
 
-def texture_output(job: WrapJob) -> str | None:
+def textureoutput_field(job: WrapJob) -> str | None:
     """Where the baked texture goes (beside ``output``, ``.png``), or None."""
     return str(Path(job.output).with_suffix(".png")) if job.texture else None
 
@@ -109,12 +110,8 @@ def texture_output(job: WrapJob) -> str | None:
 def job_outputs(job: WrapJob) -> list[str]:
     """Files that :func:`run_wrap_job` writes for ``job``: mesh, texture, report."""
     out = [getattr(job, n) for n in _path_fields("outputs") if getattr(job, n)]
-    png = texture_output(job)
+    png = textureoutput_field(job)
     return out + ([png] if png else [])
-
-
-def _same_file(a, b) -> bool:
-    return os.path.realpath(a) == os.path.realpath(b)
 
 
 def check_job_paths(job: WrapJob, source=None) -> None:
@@ -136,16 +133,7 @@ def check_job_paths(job: WrapJob, source=None) -> None:
         raise InputError(f"output {job.output!r}: unknown mesh format "
                          f"{ext or '(no extension)'!r}; use .obj or .ply",
                          source or job.output)
-    outs = job_outputs(job)
-    for i, o in enumerate(outs):
-        for p in job_inputs(job):
-            if _same_file(o, p):
-                raise InputError(f"output {o!r} is also an input; inputs are never "
-                                 "overwritten", source or o)
-        for q in outs[:i]:
-            if _same_file(o, q):
-                raise InputError(f"two outputs of one job are the same file {o!r}",
-                                 source or o)
+    check_outputs_apart(job_outputs(job), job_inputs(job), source)
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
@@ -165,7 +153,6 @@ def _survey(mesh, path, what: str, pieces: bool = True) -> list[str]:
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
     teeth are separate pieces by design).
     """
-    from facewrap.geometry import connected_components
     out = []
     T = mesh.triangles
     V = mesh.vertices
@@ -209,8 +196,6 @@ def _weld(mesh, landmarks, path):
     Triangle count and order, UVs and normals per corner are kept, so triangle ids
     of surface landmarks and texture baking are unaffected.
     """
-    from facewrap.landmarks import Landmarks
-    from facewrap.mesh import Mesh
     first, inverse = _duplicate_map(mesh.vertices)
     dupes = mesh.n_vertices - len(first)
     if dupes == 0:
@@ -272,7 +257,6 @@ def read_mesh_landmarks(path, mesh, kind: str = "auto"):
     InputError
         Naming ``path`` when a vertex or triangle id is outside ``mesh``.
     """
-    from facewrap.io.landmarks import read_landmarks
     landmarks = read_landmarks(path, kind=kind)
     try:
         landmarks.check(mesh.n_vertices, len(mesh.triangles))
@@ -299,9 +283,6 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         with zero area, landmark counts that differ, landmarks in a line or off the
         scan, indices out of range.
     """
-    from facewrap.geometry import ClosestPointTree
-    from facewrap.io import read_mesh
-    from facewrap.io.landmarks import read_vertex_indices
     notes: list[str] = []
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
@@ -343,12 +324,10 @@ def load_wrap_inputs(job: WrapJob) -> dict:
         exclude = read_vertex_indices(job.exclude, n_vertices=template.n_vertices).vertex
     shapes = None
     if job.blendshapes:
-        from facewrap.datasets import load_shape_folder
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
     image = None
     if job.texture:
-        from facewrap.texture import load_image
         if scan.uvs is None:
             raise InputError("the scan has no texture coordinates to bake from", job.scan)
         if template.uvs is None:
@@ -366,9 +345,6 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     never leaves a half-written file).  The report's ``"warnings"`` lists the
     legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
     """
-    from facewrap.io import write_mesh
-    from facewrap.io.atomic import atomic_write
-    from facewrap.wrapping import wrap
     settings = settings or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
@@ -400,16 +376,14 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
     if inputs["texture"] is not None:
-        from facewrap.texture import bake_texture, save_png
         t = time.perf_counter()
         baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
                              size=job.texture_size)
-        png = texture_output(job)
+        png = textureoutput_field(job)
         save_png(png, baked.image)
         report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
                              "seconds": time.perf_counter() - t}
     if job.report:
-        import json
         os.makedirs(os.path.dirname(os.path.abspath(job.report)), exist_ok=True)
         with atomic_write(job.report, "w") as fh:
             json.dump(report, fh, indent=1)

@@ -30,7 +30,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["write_html_report"]
+from facewrap.io.atomic import atomic_write
+from facewrap.version import __version__
+
+__all__ = ["write_html_report", "STATIC", "THREE_VERSION", "VIEW_NAMES"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 """Folder of the vendored three.js bundle, the viewer script and the page style."""
@@ -39,6 +42,9 @@ _PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0"}
 _CYCLE = ["#d9a98c", "#b9c3cf", "#8fb3a0", "#b7a3cf", "#cfc08f", "#8fb0cf"]
 THREE_VERSION = "0.187.0"
 """Version of the vendored three.js (npm package ``three``)."""
+
+#: Camera views the page offers (``initial_view``).
+VIEW_NAMES = ("front", "three_quarter", "left", "right")
 
 _IMAGE_TYPES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
 
@@ -431,16 +437,32 @@ def write_html_report(folder, *, title: str = "facewrap report",
     >>> page.name, "one triangle" in page.read_text()
     ('index.html', True)
     """
-    meshes = dict(meshes or {})
-    scalars = dict(scalars or {})
-    if initial_view not in ("front", "three_quarter", "left", "right"):
+    up, front = _view_axes(view_up, view_front, initial_view)
+    figures = [_image_uri(item, k) for k, item in enumerate(images)]
+    data = _viewer_data(dict(meshes or {}), dict(scalars or {}), blendshapes, visible)
+    data["view"] = {"up": up, "front": front, "initial": initial_view}
+    page = _page_html(title, subtitle, summary, figures, data)
+    out = Path(os.fspath(folder))
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / filename
+    with atomic_write(path, "w", encoding="utf-8") as fh:
+        fh.write(page)
+    return path
+
+
+def _view_axes(view_up, view_front, initial_view: str) -> tuple[list, list]:
+    """The unit up and front vectors of the view, checked."""
+    if initial_view not in VIEW_NAMES:
         raise ValueError(f"initial_view must be front, three_quarter, left or right, "
                          f"not {initial_view!r}")
     up, front = _unit(view_up, "view_up"), _unit(view_front, "view_front")
     if abs(float(np.dot(up, front))) > 0.999:
         raise ValueError("view_up and view_front must not be parallel")
-    figures = [_image_uri(item, k) for k, item in enumerate(images)]
+    return up, front
 
+
+def _viewer_data(meshes: dict, scalars: dict, blendshapes, visible) -> dict:
+    """The viewer's JSON: mesh layers, heatmaps and blendshape sliders, checked."""
     mesh_entries, positions = [], {}
     for k, (name, mesh) in enumerate(meshes.items()):
         V, T = _triangles_of(mesh, str(name))
@@ -460,18 +482,18 @@ def write_html_report(folder, *, title: str = "facewrap report",
                              f"meshes are {sorted(sizes)}")
     for m in mesh_entries:
         m["visible"] = m["name"] in shown
-    data = {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry,
-            "view": {"up": up, "front": front, "initial": initial_view}}
+    return {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry}
 
-    from facewrap.version import __version__
-    created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
+
+def _body_parts(title, subtitle, summary, figures, data, created: str) -> list[str]:
+    """Header, 3D view, tables, pictures and footer of the page."""
     e = html.escape
     parts = [f'<header class="top"><div><h1>{e(title)}</h1><div class="sub">'
              f'{e(subtitle if subtitle is not None else "created " + created)}</div></div>'
              f'<div class="brand"><b>facewrap</b> {e(__version__)}</div></header>']
-    if mesh_entries:
+    if data["meshes"]:
         counts = " · ".join(f'{e(m["name"])} {m["n_vertices"]:,} vertices'
-                            for m in mesh_entries)
+                            for m in data["meshes"])
         parts.append(f'<h2>3D view <span class="sub" style="font-weight:400;'
                      f'color:var(--muted);font-size:12.5px">— {counts}</span></h2>')
         parts.append(_viewer_html(data))
@@ -485,24 +507,23 @@ def write_html_report(folder, *, title: str = "facewrap report",
     parts.append(f'<footer>Made by facewrap {e(__version__)} on {e(created)}. '
                  'Self-contained page: works offline. 3D view: three.js '
                  f'{THREE_VERSION} (MIT).</footer>')
+    return parts
 
+
+def _page_html(title, subtitle, summary, figures, data) -> str:
+    """The whole page: styles, body and (with meshes) the inlined viewer scripts."""
+    e = html.escape
+    created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
+    parts = _body_parts(title, subtitle, summary, figures, data, created)
     scripts = ""
-    if mesh_entries:
+    if data["meshes"]:
         scripts = (f'<script type="application/json" id="facewrap-data">'
                    f'{_json_for_script(data)}</script>\n'
                    f'<script>{_static_text("three-viewer.min.js")}</script>\n'
                    f'<script>{_static_text("viewer.js")}</script>')
-    page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<meta name=\"generator\" content=\"facewrap {e(__version__)}\">"
             f"<title>{e(title)}</title><style>{_static_text('report.css')}</style>"
             f"</head><body><main class=\"page\">{''.join(parts)}</main>\n{scripts}"
             "</body></html>\n")
-
-    from facewrap.io.atomic import atomic_write
-    out = Path(os.fspath(folder))
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / filename
-    with atomic_write(path, "w", encoding="utf-8") as fh:
-        fh.write(page)
-    return path

@@ -1,0 +1,179 @@
+"""Where the jobs of a batch run: a local process pool or a Dask cluster.
+
+Both call one function per job (:func:`facewrap.batch.runner.run_one`) and hand
+each summary row to ``report`` as it arrives.  A worker that dies (crash, out of
+memory) fails only its job; a lost Dask worker fails its job with the cluster's
+error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+
+from facewrap.batch.summary import FAILED, summary_row
+
+__all__ = ["default_workers", "single_threaded_blas", "run_in_pool", "run_on_dask"]
+
+
+def default_workers() -> int:
+    """Cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def single_threaded_blas():
+    """Workers started inside get one BLAS/OpenMP thread each (as Dask's do)."""
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    old = {n: os.environ.get(n) for n in names}
+    for n in names:
+        os.environ.setdefault(n, "1")
+    try:
+        yield
+    finally:
+        for n, v in old.items():
+            if v is None:
+                os.environ.pop(n, None)
+            else:
+                os.environ[n] = v
+
+
+# flags "job i has started", shared with the pool's workers (set by their initializer)
+_started = None
+
+
+def _pool_init(started) -> None:
+    global _started
+    _started = started
+
+
+def _run_tracked(func, bj) -> dict:
+    """Mark the job started in shared memory (survives the worker's death)."""
+    if _started is not None:
+        _started[bj.index] = 1
+    return func(bj)
+
+
+def _pool_context():
+    """A fork server with facewrap imported once (workers start in milliseconds);
+    spawn where there is none.  Never plain fork: the parent may hold threads."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["facewrap.batch.runner", "facewrap.jobs",
+                                    "facewrap.wrapping"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def _after_break(batch, finished, started, report, idle_breaks):
+    """Sort the jobs of a broken pool: (isolated, todo, idle_breaks)."""
+    left = [bj for bj in batch if bj.index not in finished]
+    isolated = [bj for bj in left if started[bj.index]]
+    todo = [bj for bj in left if not started[bj.index]]
+    idle_breaks = 0 if len(todo) < len(left) else idle_breaks + 1
+    if idle_breaks >= 2:  # workers die before any job starts
+        for bj in todo:
+            report(summary_row(bj, FAILED, error="worker processes die on start"))
+        todo = []
+    return isolated, todo, idle_breaks
+
+
+def run_in_pool(jobs, workers: int, report, func) -> None:
+    """Run ``func(job)`` for every job in a process pool; ``report(row)`` per result.
+
+    When the pool breaks (a worker died), the jobs that had started and not
+    finished are retried one at a time in a single-worker pool (a second death
+    marks that job failed) and the others go back to a new pool.
+
+    Parameters
+    ----------
+    jobs : list of BatchJob
+    workers : int
+        Processes at most.
+    report : callable
+        Called with each summary row.
+    func : callable
+        ``func(BatchJob) -> row``, picklable (a module-level function).
+    """
+    ctx = _pool_context()
+    started = ctx.RawArray("b", max((bj.index for bj in jobs), default=0) + 1)
+    todo, isolated, idle_breaks = list(jobs), [], 0
+    while todo or isolated:
+        if isolated:
+            batch, alone = [isolated.pop(0)], True
+        else:
+            batch, todo, alone = todo, [], False
+        finished = set()
+        for bj in batch:
+            started[bj.index] = 0
+        with single_threaded_blas():
+            pool = ProcessPoolExecutor(max_workers=1 if alone else min(workers, len(batch)),
+                                       mp_context=ctx, initializer=_pool_init,
+                                       initargs=(started,))
+            futures = {pool.submit(_run_tracked, func, bj): bj for bj in batch}
+        try:
+            for fut in as_completed(futures):
+                row = fut.result()
+                finished.add(row["index"])
+                report(row)
+        except BrokenProcessPool:
+            if alone:
+                report(summary_row(batch[0], FAILED, error="the worker process died "
+                                   "(crash or out of memory) while running this job"))
+                continue
+            more, todo, idle_breaks = _after_break(batch, finished, started, report,
+                                                   idle_breaks)
+            isolated += more
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def run_on_dask(jobs, address, workers: int, report, func) -> None:
+    """Run ``func(job)`` for every job on a Dask cluster; ``report(row)`` per result.
+
+    Parameters
+    ----------
+    jobs : list of BatchJob
+    address : str or distributed.Client
+        ``"local"`` (a LocalCluster of ``workers`` processes, closed afterwards), a
+        scheduler address, or a connected Client (left open).
+    workers : int
+    report, func : callable
+        As for :func:`run_in_pool`.
+    """
+    from distributed import Client, LocalCluster  # optional dependency, slow to import
+    from distributed import as_completed as dask_completed
+    cluster = None
+    if address == "local":
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+    elif isinstance(address, str):
+        client = Client(address)
+    else:  # a Client given by the caller
+        client, address = address, None
+    try:
+        futures = {}
+        for bj in jobs:
+            fut = client.submit(func, bj, key=f"facewrap-job-{bj.index}-{os.getpid()}"
+                                f"-{time.time_ns()}", pure=False)
+            futures[fut] = bj
+        for fut in dask_completed(list(futures)):
+            bj = futures[fut]
+            try:
+                report(fut.result())
+            except Exception as exc:  # noqa: BLE001 - worker lost, cancelled...
+                report(summary_row(bj, FAILED, error=f"{type(exc).__name__} on the Dask "
+                                   f"cluster: {' '.join(str(exc).split())}"))
+    finally:
+        if address is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()

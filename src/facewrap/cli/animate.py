@@ -1,0 +1,45 @@
+"""``facewrap animate START END -o DIR``: frames between two fitted meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from facewrap.animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+from facewrap.errors import InputError
+from facewrap.io import read_mesh
+from facewrap.texture import load_image
+
+__all__ = ["register", "cmd_animate"]
+
+
+def cmd_animate(args) -> int:
+    """Frames between two fitted meshes of one topology, as an OBJ sequence."""
+    start, end = read_mesh(args.start), read_mesh(args.end)
+    if (start.n_vertices != end.n_vertices
+            or not np.array_equal(start.face_indices, end.face_indices)):
+        raise InputError(f"is not in the topology of {args.start} (vertex count or "
+                         "faces differ)", args.end)
+    frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
+    textures = None
+    if args.textures:
+        a, b = (load_image(p) for p in args.textures)
+        if a.shape != b.shape:
+            raise InputError(f"image size {b.shape[:2]} differs from "
+                             f"{args.textures[0]} {a.shape[:2]}", args.textures[1])
+        textures = interpolate_textures(a, b, args.frames)
+    paths = write_obj_sequence(args.out, start, frames, textures=textures)
+    print(f"wrote {len(paths)} frames to {args.out}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``animate`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser("animate",
+                              help="interpolate two fitted meshes into a sequence")
+    p.add_argument("start", help="first mesh (e.g. fitted neutral)")
+    p.add_argument("end", help="last mesh, same topology")
+    p.add_argument("--frames", type=int, default=10, help="frames including both ends")
+    p.add_argument("--textures", nargs=2, metavar=("START_PNG", "END_PNG"),
+                   help="textures to blend along")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_animate)

@@ -1,0 +1,22 @@
+"""``facewrap convert IN OUT``: convert a mesh between OBJ and PLY."""
+
+from __future__ import annotations
+
+from facewrap.io import read_mesh, write_mesh
+
+__all__ = ["register", "cmd_convert"]
+
+
+def cmd_convert(args) -> int:
+    """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
+    write_mesh(args.output, read_mesh(args.input))
+    print(args.output)
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``convert`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser("convert", help="convert a mesh between OBJ and PLY")
+    p.add_argument("input")
+    p.add_argument("output")
+    p.set_defaults(func=cmd_convert)

@@ -1,0 +1,84 @@
+"""The fitting options shared by ``facewrap wrap`` and ``facewrap track``.
+
+Choices and defaults come from :class:`~facewrap.wrapping.WrapSettings` (its
+field defaults and its constraint table, :func:`facewrap.params.choices_of`), so
+the options, job files and the library never disagree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from facewrap.params import choices_of
+from facewrap.wrapping import WrapSettings
+
+__all__ = ["add_fit_options", "wrap_settings_from_args"]
+
+_DEFAULTS = {f.name: f.default for f in dataclasses.fields(WrapSettings)}
+
+
+def _choice_option(p, option: str, field: str, help: str, type=str) -> None:
+    p.add_argument(option, default=_DEFAULTS[field], type=type,
+                   choices=list(choices_of(WrapSettings, field)), help=help)
+
+
+def add_fit_options(p) -> None:
+    """Add the fitting options (see :class:`~facewrap.wrapping.WrapSettings`) to ``p``."""
+    p.add_argument("--blendshapes", metavar="DIR",
+                   help="folder of meshes in the template's topology (shape = file - "
+                        "template)")
+    _choice_option(p, "--model", "model", "deformation model (default: hybrid with "
+                   "--blendshapes, else graph)")
+    p.add_argument("--exclude", help="template vertex ids not to fit (they follow)")
+    p.add_argument("--node-spacing", type=float, default=_DEFAULTS["node_spacing"],
+                   help="graph node spacing, fraction of template size (default "
+                        "%(default)s)")
+    _choice_option(p, "--robust", "robust", "robust norm of the data term (default "
+                   "%(default)s)")
+    p.add_argument("--pca-components", type=int, default=_DEFAULTS["pca_components"],
+                   help="fit this many PCA components of the blendshapes")
+    p.add_argument("--weight-range", type=float, nargs=2, metavar=("LO", "HI"),
+                   default=_DEFAULTS["weight_range"],
+                   help="range of the blend weights (default 0 1, an expression "
+                        "rig's); see --no-weight-range")
+    p.add_argument("--no-weight-range", action="store_true",
+                   help="let blend weights take any value (identity or corrective "
+                        "shapes used with negative or > 1 weights)")
+    p.add_argument("--landmark-tolerance", type=float,
+                   default=_DEFAULTS["landmark_tolerance"], metavar="F",
+                   help="landmarks left farther than this from their targets after "
+                        "the fit (fraction of template size) are pulled to it; 0 keeps "
+                        "them exactly (default %(default)s)")
+    p.add_argument("--no-landmark-pull", action="store_true",
+                   help="leave the landmarks where the fit puts them")
+    _choice_option(p, "--kernel", "kernel", "RBF kernel of the landmark warp")
+    _choice_option(p, "--blend-order", "blend_order", "blending of the displacement of "
+                   "vertices that are not projected: 1 harmonic, 2 biharmonic "
+                   "(default %(default)s)", type=int)
+    p.add_argument("--smoothing", type=float, default=_DEFAULTS["smoothing"],
+                   help="RBF smoothing for noisy landmarks (default 0)")
+    p.add_argument("--max-distance", type=float, default=_DEFAULTS["max_distance"],
+                   help="longest projection move (default 5%% of template size)")
+    p.add_argument("--no-project", action="store_true", help="skip the projection")
+    p.add_argument("--rigid-refine", action="store_true",
+                   help="refine the alignment with rigid ICP")
+
+
+def wrap_settings_from_args(args) -> WrapSettings:
+    """The :class:`~facewrap.wrapping.WrapSettings` of the fitting options.
+
+    Raises
+    ------
+    ValueError
+        When WrapSettings refuses a value (e.g. a negative ``--node-spacing``),
+        naming the field.
+    """
+    return WrapSettings(model=args.model, kernel=args.kernel, smoothing=args.smoothing,
+                        project=not args.no_project, max_distance=args.max_distance,
+                        rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
+                        robust=args.robust, pca_components=args.pca_components,
+                        weight_range=(None if args.no_weight_range
+                                      else tuple(args.weight_range)),
+                        blend_order=args.blend_order,
+                        landmark_pull=not args.no_landmark_pull,
+                        landmark_tolerance=args.landmark_tolerance)

@@ -1,0 +1,48 @@
+"""``facewrap info MESH``: a summary of a mesh file (counts, pieces, borders, size)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from facewrap.geometry import boundary_loops, connected_components
+from facewrap.io import read_mesh
+
+__all__ = ["register", "cmd_info"]
+
+
+def cmd_info(args) -> int:
+    """Print a summary of a mesh (as text, or JSON with ``--json``)."""
+    mesh = read_mesh(args.mesh)
+    sizes, counts = np.unique(mesh.face_sizes, return_counts=True)
+    lo, hi = mesh.bounding_box()
+    info = {
+        "file": str(args.mesh),
+        "vertices": mesh.n_vertices,
+        "faces": mesh.n_faces,
+        "polygon_sizes": {int(s): int(c) for s, c in zip(sizes, counts)},
+        "triangles": len(mesh.triangles),
+        "uvs": None if mesh.uvs is None else len(mesh.uvs),
+        "normals": None if mesh.normals is None else len(mesh.normals),
+        "materials": list(mesh.materials),
+        "groups": list(mesh.groups),
+        "components": int(connected_components(mesh.triangles, mesh.n_vertices).max() + 1),
+        "boundary_loops": len(boundary_loops(mesh.triangles)),
+        "bounding_box": [lo.tolist(), hi.tolist()],
+        "diagonal": mesh.scale(),
+    }
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        for k, v in info.items():
+            print(f"{k:>15}: {v}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``info`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser("info", help="summary of a mesh file")
+    p.add_argument("mesh", help="OBJ or PLY file")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_info)

@@ -1,0 +1,28 @@
+"""``facewrap sample OUT``: write the built-in synthetic template and scan."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from facewrap.sample import make_scan, make_template, write_sample
+
+__all__ = ["register", "cmd_sample"]
+
+
+def cmd_sample(args) -> int:
+    """Write the built-in synthetic template and scan to a folder; print the files."""
+    template = make_template()
+    scan = make_scan(template)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = write_sample(out, template, scan)
+    for name, p in paths.items():
+        print(f"{name:>20}: {p}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``sample`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser("sample", help="write the built-in synthetic template and scan")
+    p.add_argument("out", help="output folder")
+    p.set_defaults(func=cmd_sample)

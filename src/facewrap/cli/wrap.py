@@ -1,0 +1,65 @@
+"""``facewrap wrap TEMPLATE SCAN -o OUT``: one wrap job from the command line.
+
+Parsing and one call: the options become a :class:`~facewrap.jobs.WrapJob` and a
+:class:`~facewrap.wrapping.WrapSettings` (:mod:`.fit_options`), run by
+:func:`~facewrap.jobs.run_wrap_job`.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+
+from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
+from facewrap.jobs import InputWarning, WrapJob, run_wrap_job
+
+__all__ = ["register", "cmd_wrap", "run_wrap_job_verbosely"]
+
+
+def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
+    """Run a wrap job for the command line: input warnings as one
+    ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", InputWarning)
+        report = run_wrap_job(job, settings)
+    for w in caught:
+        if issubclass(w.category, InputWarning):
+            print(f"facewrap: warning: {w.message}", file=sys.stderr)
+    if not quiet:
+        m, t = report["metrics"], report["timings"]
+        print(f"wrote {job.output}: {report['vertices']} vertices, model "
+              f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
+              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
+              f"{t['total']:.2f} s")
+    return report
+
+
+def cmd_wrap(args) -> int:
+    """Fit the template to the scan and write the template-topology result."""
+    job = WrapJob(template=args.template, scan=args.scan,
+                  template_landmarks=args.template_landmarks,
+                  scan_landmarks=args.scan_landmarks, output=args.output,
+                  blendshapes=args.blendshapes, exclude=args.exclude,
+                  texture=args.texture, texture_size=args.texture_size,
+                  report=args.report)
+    run_wrap_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``wrap`` to the ``facewrap`` subcommands."""
+    p = subparsers.add_parser("wrap",
+                              help="fit a template onto a scan (template topology kept)")
+    p.add_argument("template", help="template mesh (OBJ/PLY)")
+    p.add_argument("scan", help="scan mesh (OBJ/PLY)")
+    p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")
+    p.add_argument("--template-landmarks", required=True,
+                   help="template vertex ids (text) or facewrap landmark JSON")
+    p.add_argument("--scan-landmarks", required=True,
+                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
+    add_fit_options(p)
+    p.add_argument("--texture", help="scan texture image to bake into the template UVs")
+    p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
+    p.add_argument("--report", help="write metrics and timings as JSON")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_wrap)

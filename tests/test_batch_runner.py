@@ -1,0 +1,130 @@
+"""Running batches (facewrap.batch.runner, .engines): process pool, Dask, resume after
+kill -9, determinism across engines."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from facewrap.batch import done_record_path, read_manifest, run_batch, run_one
+from facewrap.batch.engines import run_in_pool
+from facewrap.io import read_mesh
+from batch_data import batch_command, dask_client, data, manifest, serial  # noqa: F401
+from conftest import facewrap
+
+# -- engines and determinism --------------------------------------------------------------------
+def test_dask_cluster_runs_batch_with_one_broken_job(data, tmp_path, dask_client, serial):
+    out = tmp_path / "dask"
+    jobs = read_manifest(manifest(data, out, 7, broken=6), data / "shared.toml")
+    result = run_batch(jobs, dask=dask_client, summary=tmp_path / "summary")
+    assert [r["status"] for r in result.rows] == ["done"] * 6 + ["failed"]
+    assert "missing.txt" in result.rows[6]["error"]
+    assert sorted(p.name for p in out.glob("*.obj")) == [f"r{k}.obj" for k in range(6)]
+    for name, reference in serial.items():  # bit-identical to the serial run
+        assert (out / name).read_bytes() == reference
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["counts"] == {"done": 6, "skipped": 0, "failed": 1, "pending": 0}
+    lines = (tmp_path / "summary.csv").read_text().splitlines()
+    assert len(lines) == 8 and lines[7].split(",")[2] == "failed"
+    hosts = {r["host"] for r in result.rows[:6]}
+    assert len(hosts) >= 1 and all(h.split(":")[1] != str(os.getpid()) for h in hosts)
+
+
+def test_process_pool_is_bit_identical_to_serial(data, tmp_path, serial, capsys):
+    out = tmp_path / "pool"
+    m = manifest(data, out, 7, broken=6)
+    rc = facewrap("batch", m, "--job", data / "shared.toml", "--workers", 2)
+    assert rc == 1  # one job failed; the others ran
+    err = capsys.readouterr().err
+    assert "job job6 failed" in err and "missing.txt" in err
+    for name, reference in serial.items():
+        assert (out / name).read_bytes() == reference
+    summary = json.loads((out / "manifest.summary.json").read_text())
+    assert summary["engine"] == "processes"
+    assert summary["counts"]["done"] == 6 and summary["counts"]["failed"] == 1
+
+
+def test_rerun_skips_and_redoes_what_changed(data, tmp_path):
+    out = tmp_path / "resume"
+    m = manifest(data, out, 3)
+    jobs = read_manifest(m, data / "shared.toml")
+    assert run_batch(jobs, workers=1).count("done") == 3
+    stamp = {k: os.stat(out / f"r{k}.obj").st_mtime_ns for k in range(3)}
+    result = run_batch(read_manifest(m, data / "shared.toml"), workers=1)
+    assert result.count("skipped") == 3
+    assert result.rows[0]["metrics"]["fit_mean"] > 0  # metrics kept from the record
+    assert {k: os.stat(out / f"r{k}.obj").st_mtime_ns for k in range(3)} == stamp
+
+    (out / "r0.obj").unlink()                                   # output deleted
+    Path(done_record_path(jobs[1].job)).write_text("{not json")  # record corrupted
+    (out / ".tmp-abc-r2.obj").write_text("half")                 # litter of a kill
+    again = read_manifest(m, data / "shared.toml")
+    again[2].settings.smoothing = 0.125                          # settings changed
+    result = run_batch(again, workers=1)
+    assert [r["status"] for r in result.rows] == ["done"] * 3
+    assert not list(out.glob(".tmp-*"))
+    st = data / "s1" / "scan.obj"                                # input touched
+    os.utime(st, ns=(st.stat().st_atime_ns, st.stat().st_mtime_ns + 10**9))
+    result = run_batch(again, workers=1)
+    assert [r["status"] for r in result.rows] == ["skipped", "done", "skipped"]
+
+
+def _die_on_job_2(bj):
+    """A job function whose worker dies on job 2 (as when the OOM killer strikes)."""
+    if bj.index == 2:
+        os._exit(9)
+    return run_one(bj)
+
+
+def test_a_dying_worker_fails_only_its_job(data, tmp_path):
+    jobs = read_manifest(manifest(data, tmp_path / "die", 5), data / "shared.toml")
+    rows = {}
+    run_in_pool(jobs, 2, lambda r: rows.__setitem__(r["index"], r), _die_on_job_2)
+    assert rows[2]["status"] == "failed" and "worker process died" in rows[2]["error"]
+    assert [rows[k]["status"] for k in (0, 1, 3, 4)] == ["done"] * 4
+
+
+@pytest.mark.slow
+def test_sigkill_mid_batch_then_resume(data, tmp_path):
+    out = tmp_path / "killed"
+    n = 12
+    m = manifest(data, out, n)
+    cmd = batch_command() + [str(m), "--job", str(data / "shared.toml"), "--workers", "2"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    try:
+        while len(list(out.glob("r*.done.json"))) < 3:
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "batch too slow to start"
+            time.sleep(0.01)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the batch and its workers, at once
+        proc.wait()
+    finished = sorted(p.name[:-len(".done.json")] for p in out.glob("r*.done.json"))
+    assert 3 <= len(finished) < n
+    n_template = read_mesh(data / "s0" / "template.obj").n_vertices
+    for p in out.glob("r*.obj"):  # whatever exists is complete
+        assert read_mesh(p).n_vertices == n_template
+    before = {f: (os.stat(out / f).st_mtime_ns, (out / f"{f}.done.json").read_bytes())
+              for f in finished}
+
+    rerun = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 0, rerun.stderr
+    summary = json.loads((out / "manifest.summary.json").read_text())
+    status = {Path(j["output"]).name: j["status"] for j in summary["jobs"]}
+    assert all(status[f] == "skipped" for f in finished)
+    assert sum(s == "done" for s in status.values()) == n - len(finished)
+    for f, (mtime, record) in before.items():  # not redone
+        assert os.stat(out / f).st_mtime_ns == mtime
+        assert (out / f"{f}.done.json").read_bytes() == record
+    for k in range(n):
+        assert read_mesh(out / f"r{k}.obj").n_vertices == n_template
+        assert (out / f"r{k}.obj.done.json").is_file()
+    assert not list(out.glob(".tmp-*"))
