@@ -8,7 +8,7 @@ import pytest
 
 from facewrap.batch import read_manifest
 from facewrap.errors import InputError
-from facewrap.wrapping.icp.engine import Stage
+from facewrap.wrapping import Stage
 from batch_data import data  # noqa: F401 - a fixture
 
 # -- manifests -------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings as hsettings, strategies as st
 
 from facewrap.errors import InputError
-from facewrap.wrapping.icp.engine import Stage
+from facewrap.wrapping import Stage
 from facewrap.io import read_mesh
 from facewrap.sample import make_scan, make_template, write_sample
 from facewrap.jobs import JOB_KINDS, WRAP, WrapJob, job_to_toml, load_job, read_job_tables, write_job
