@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from facewrap.geometry.similarity import similarity_transform
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.checks import as_points, as_triangles, as_vertices
-from facewrap.geometry.normals import _cross_columns, _edge_vectors
+from facewrap.geometry.arrays import cross_columns, edge_vectors
 from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "CorrespondenceErrors",
@@ -330,8 +330,8 @@ class TriangleQuality:
 
 def _triangle_frames(V, T):
     """Edges e1 = V1 - V0, e2 = V2 - V0 and doubled-area normals, each (3, t)."""
-    e1, e2 = _edge_vectors(V, T)
-    return e1, e2, _cross_columns(e1, e2)
+    e1, e2 = edge_vectors(V, T)
+    return e1, e2, cross_columns(e1, e2)
 
 
 def _min_angles(V, T) -> np.ndarray:
@@ -397,7 +397,7 @@ def triangle_quality(vertices, triangles, reference=None, *,
     ratio[ok] = two_a[ok] / ref_two_a[ok]
     stretch = np.full(len(T), np.nan)
     stretch[ok] = _anisotropy(r1[:, ok], r2[:, ok], rn[:, ok], ref_two_a[ok],
-                              *_edge_vectors(V, T[ok]))
+                              *edge_vectors(V, T[ok]))
     return TriangleQuality(min_angle, 0.5 * two_a, degenerate, flipped, ratio, stretch)
 
 

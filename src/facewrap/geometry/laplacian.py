@@ -16,8 +16,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.geometry.checks import as_count, as_triangles, as_triangles_or_edges, as_vertices
-from facewrap.geometry.adjacency import _adjacency, _edges_from
-from facewrap.geometry.normals import _column_norms, _cross_columns, _edge_vectors
+from facewrap.geometry.adjacency import adjacency_matrix, unique_edges
+from facewrap.geometry.arrays import column_norms, cross_columns, edge_vectors
 
 __all__ = ["cotangent_laplacian", "uniform_laplacian", "mass_matrix"]
 
@@ -33,8 +33,8 @@ _MASS_TYPES = {
 
 def _cotangent_laplacian(V: np.ndarray, T: np.ndarray) -> sp.csr_matrix:
     n = len(V)
-    e01, e02 = _edge_vectors(V, T)
-    double_area = _column_norms(_cross_columns(e01, e02))
+    e01, e02 = edge_vectors(V, T)
+    double_area = column_norms(cross_columns(e01, e02))
     l01_sq = np.einsum("ij,ij->j", e01, e01)
     l02_sq = np.einsum("ij,ij->j", e02, e02)
     d0 = np.einsum("ij,ij->j", e01, e02)       # at corner 0
@@ -105,7 +105,7 @@ def uniform_laplacian(T_or_edges, n) -> sp.csr_matrix:
     """
     n = as_count(n)
     arr, columns = as_triangles_or_edges(T_or_edges, n)
-    A = _adjacency(_edges_from(arr, columns), n)
+    A = adjacency_matrix(unique_edges(arr, columns), n)
     degree = np.asarray(A.sum(axis=1)).ravel()
     return (sp.diags(degree, format="csr") - A).tocsr()
 

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from facewrap.geometry.checks import as_count, as_triangles, as_vertices
-from facewrap.geometry.normals import _face_areas
+from facewrap.geometry.normals import trusted_face_areas
 
 __all__ = ["sample_surface", "farthest_point_sampling", "poisson_disk_vertices"]
 
@@ -58,7 +58,7 @@ def sample_surface(V, T, count, seed=0) -> tuple[np.ndarray, np.ndarray, np.ndar
     V = as_vertices(V)
     T = as_triangles(T, len(V))
     count = as_count(count, "count")
-    areas = _face_areas(V, T) if len(T) else np.zeros(0)
+    areas = trusted_face_areas(V, T) if len(T) else np.zeros(0)
     cdf = np.cumsum(areas)
     if len(cdf) == 0 or not cdf[-1] > 0:
         raise ValueError("T must have non-zero total area to sample from")

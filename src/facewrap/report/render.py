@@ -31,8 +31,8 @@ from __future__ import annotations
 import numpy as np
 
 from facewrap.geometry.checks import as_triangles, as_vertices
-from facewrap.geometry.normals import _face_normals, _vertex_normals
-from facewrap.texture.bake import _chunks  # the UV rasteriser's work splitter
+from facewrap.geometry.arrays import blocks_by_budget
+from facewrap.geometry.normals import trusted_face_normals, trusted_vertex_normals
 
 __all__ = ["VIEWS", "COLORMAPS", "view_rotation", "frame_from_axes", "rasterize",
            "Raster", "colormap", "apply_colormap", "render_mesh", "fit_pixel_size",
@@ -333,7 +333,7 @@ def _rasterize(x, y, z, T, W, H) -> Raster:
         zq = (z - z.min()) * ((2.0 ** _DEPTH_BITS - 1) / span) if span > 0 \
             else np.zeros_like(z)
         Zq = zq[T]
-        for sel in _chunks(counts, _CHUNK):
+        for sel in blocks_by_budget(counts, _CHUNK):
             found.append(_scan_chunk(sel, counts[sel], X, Y, Zq, e1x, e1y, e2x, e2y,
                                      det, c0, r0, width, W, buf))
     # the winner of each pixel is the candidate whose packed key survived
@@ -689,10 +689,10 @@ def _shade(raster: Raster, C, T, R, V, kind, source, smooth) -> np.ndarray:
     tri = raster.triangle.reshape(-1)[raster.pixels]
     bary = np.ascontiguousarray(raster.barycentric.T)      # (3, p) float32
     corners = np.ascontiguousarray(T[tri].T)               # (3, p)
-    fn = np.take(np.ascontiguousarray(_face_normals(C, T).T, dtype=f32), tri, axis=1)
+    fn = np.take(np.ascontiguousarray(trusted_face_normals(C, T).T, dtype=f32), tri, axis=1)
     sign = np.where(fn[2] >= 0, f32(1), f32(-1))          # -1: back side seen
     if smooth:
-        vn = np.ascontiguousarray((_vertex_normals(V, T, "angle") @ R.T).T, dtype=f32)
+        vn = np.ascontiguousarray((trusted_vertex_normals(V, T, "angle") @ R.T).T, dtype=f32)
         nrm = (bary[0] * np.take(vn, corners[0], axis=1)
                + bary[1] * np.take(vn, corners[1], axis=1)
                + bary[2] * np.take(vn, corners[2], axis=1))      # (3, p)

@@ -31,6 +31,7 @@ from scipy import ndimage
 
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
+from facewrap.geometry.arrays import blocks_by_budget
 from facewrap.geometry.checks import as_points
 from facewrap.mesh import Mesh
 
@@ -374,7 +375,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     counts = width * np.maximum(r1 - r0 + 1, 0)
     counts[det == 0] = 0                                   # no area in UV space
     keys, tris, barys, scores = [], [], [], []
-    for sel in _chunks(counts, _CHUNK_TEXELS):
+    for sel in blocks_by_budget(counts, _CHUNK_TEXELS):
         cnt = counts[sel]
         tri = np.repeat(sel, cnt)
         start = np.cumsum(cnt) - cnt
@@ -415,18 +416,6 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     pixels = np.stack([key // W, key % W], axis=1)
     return UVRaster(pixels=pixels, triangles=tri, barycentric=bary,
                     mask=mask.reshape(H, W))
-
-
-def _chunks(counts: np.ndarray, budget: int):
-    """Index arrays of consecutive non-empty items whose counts sum to about budget."""
-    nz = np.flatnonzero(counts)
-    if len(nz) == 0:
-        return
-    cum = np.cumsum(counts[nz])
-    cuts = np.searchsorted(cum, np.arange(budget, cum[-1], budget), side="right")
-    for part in np.split(nz, np.unique(cuts)):
-        if len(part):
-            yield part
 
 
 # -- sampling and baking ----------------------------------------------------------------
