@@ -19,8 +19,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from facewrap.report.render import (_clim, _color, _size, apply_colormap, colormap, fit_pixel_size,
-                     mesh_arrays, render_mesh)
+from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
+from facewrap.report.colors import apply_colormap, as_rgb, color_limits, colormap
+from facewrap.report.render import mesh_arrays, render_mesh
 
 __all__ = ["nice_ticks", "robust_clim", "colorbar", "render_views", "heatmap_figure",
            "side_by_side", "image_grid", "blendshape_sheet"]
@@ -59,7 +60,7 @@ def _draw_text(draw, xy, text: str, font, fill=_TEXT, align: str = "left",
 
 def _canvas(width: int, height: int, background):
     from PIL import Image
-    bg = tuple(int(round(c * 255)) for c in _color(background, "background"))
+    bg = tuple(int(round(c * 255)) for c in as_rgb(background, "background"))
     return Image.new("RGB", (int(width), int(height)), bg), bg
 
 
@@ -201,7 +202,7 @@ def colorbar(cmap="viridis", clim=(0.0, 1.0), *, height: int = 360, units: str =
     (200, 'uint8')
     """
     from PIL import ImageDraw
-    lo, hi = _clim(np.zeros(0), clim)
+    lo, hi = color_limits(np.zeros(0), clim)
     if extend not in ("neither", "max", "min", "both"):
         raise ValueError(f"extend must be 'neither', 'max', 'min' or 'both', got "
                          f"{extend!r}")
@@ -290,7 +291,7 @@ def render_views(meshes, views=_DEFAULT_VIEWS, *, size=(400, 480), margin=0.06,
     if isinstance(views, str) or (len(views) == 2 and not isinstance(views[0], str)):
         views = [views]
     arrays = [mesh_arrays(m) for m in meshes]
-    w, h = _size(size)
+    w, h = image_size(size)
     pixel_size = fit_pixel_size([V for V, _ in arrays], views, (w, h), margin, frame)
     # one centre per view for all meshes: the middle of their joint projected box
     out = []
@@ -303,7 +304,6 @@ def render_views(meshes, views=_DEFAULT_VIEWS, *, size=(400, 480), margin=0.06,
 
 
 def _joint_center(arrays, view, frame) -> np.ndarray:
-    from facewrap.report.render import view_rotation
     R = view_rotation(view, frame)
     lo = np.min([(V @ R.T).min(axis=0) for V, _ in arrays], axis=0)
     hi = np.max([(V @ R.T).max(axis=0) for V, _ in arrays], axis=0)
@@ -354,13 +354,13 @@ def heatmap_figure(mesh, values, *, units: str = "mm", title: str | None = None,
     finite = vals[np.isfinite(vals)]
     if cmap is None:
         cmap = "coolwarm" if len(finite) and finite.min() < 0 < finite.max() else "viridis"
-    lo, hi = robust_clim(vals) if clim is None else _clim(vals, clim)
+    lo, hi = robust_clim(vals) if clim is None else color_limits(vals, clim)
     extend = {(False, False): "neither", (False, True): "max", (True, False): "min",
               (True, True): "both"}[(bool(len(finite) and finite.min() < lo),
                                      bool(len(finite) and finite.max() > hi))]
     if isinstance(views, str) or (len(views) == 2 and not isinstance(views[0], str)):
         views = [views]
-    w, h = _size(size)
+    w, h = image_size(size)
     pictures = render_views((V, T), views, size=(w, h), frame=frame, scalars=vals,
                             cmap=cmap, clim=(lo, hi), background=background,
                             nan_color=nan_color)
@@ -532,7 +532,7 @@ def blendshape_sheet(neutral, shapes: Mapping[str, np.ndarray], *, columns: int 
         names, positions = ["neutral"] + names, [V] + positions
     if not positions:
         raise ValueError("shapes is empty and include_neutral is False")
-    w, h = _size(cell_size)
+    w, h = image_size(cell_size)
     pixel_size = fit_pixel_size(positions, [view], (w, h), 0.05, frame)
     arrays = [(P, T) for P in positions]
     center = _joint_center(arrays, view, frame)
