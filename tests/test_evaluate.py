@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from facewrap.errors import InputError
-from facewrap.evaluate import (correspondence_errors, evaluate, landmark_errors,
-                               surface_distances, triangle_quality, triangle_to_vertex)
-from facewrap.geometry import ClosestPointTree
+from facewrap.evaluate import evaluate, ground_truth_errors, landmark_errors, surface_distances
+from facewrap.geometry import ClosestPointTree, triangle_quality, triangle_to_vertex
 from facewrap.landmarks import Landmarks
 
 
@@ -107,11 +106,11 @@ def test_landmark_errors_known_values_and_summary():
 def test_correspondence_skips_nan_truth_and_masked_vertices():
     V = np.zeros((4, 3))
     G = np.array([[0, 0, 1.0], [np.nan, 0, 0], [0, 2, 0], [3, 0, 0]])
-    e = correspondence_errors(V, G, mask=[0, 1, 2])
+    e = ground_truth_errors(V, G, mask=[0, 1, 2])
     assert np.isnan(e.errors[[1, 3]]).all() and e.errors[[0, 2]].tolist() == [1.0, 2.0]
     assert e.count == 2 and e.summary()["correspondence_mean"] == 1.5
     with pytest.raises(ValueError, match="ground_truth"):
-        correspondence_errors(V, G[:3])
+        ground_truth_errors(V, G[:3])
 
 
 # -- triangles ------------------------------------------------------------------------------------
