@@ -25,7 +25,7 @@ def grid(n=11, size=10.0):
 
 @pytest.fixture(scope="module")
 def sample():
-    from facewrap.sample.face import make_scan, make_template
+    from facewrap.sample import make_scan, make_template
     from facewrap.wrapping.stages import WrapSettings, wrap
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=40, texture_size=8)
@@ -215,7 +215,7 @@ def files(sample, tmp_path_factory):
 
 
 def test_cli_writes_json_and_heatmap(files, capsys):
-    from facewrap.texture.bake import load_image
+    from facewrap.texture import load_image
     d = files
     rc = _cli(["evaluate", str(d / "fit.obj"), str(d / "scan.obj"),
                "--ground-truth", str(d / "gt.npy"), "--reference", str(d / "template.obj"),

@@ -165,7 +165,7 @@ def test_nice_ticks_and_robust_clim():
 
 def test_render_is_deterministic_and_png_bytes_repeat(tmp_path):
     from facewrap.report import save_png
-    from facewrap.sample.face import make_template
+    from facewrap.sample import make_template
     tpl = make_template(24)
     a = render_mesh(tpl.mesh, view="three_quarter", size=(120, 140))
     b = render_mesh(tpl.mesh, view="three_quarter", size=(120, 140))
@@ -229,7 +229,7 @@ def test_colorbar_runs_from_high_at_top_to_low_at_bottom():
 
 
 def test_heatmap_side_by_side_and_sheet_shapes():
-    from facewrap.sample.face import make_template
+    from facewrap.sample import make_template
     tpl = make_template(24)
     V = tpl.mesh.vertices
     fig = heatmap_figure(tpl.mesh, V[:, 1] - V[:, 1].mean(), title="height", units="mm",

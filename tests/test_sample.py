@@ -7,10 +7,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from facewrap.sample import face as sample
 from facewrap.landmarks import IBUG68_NAMES
-from facewrap.sample.face import (EXPRESSIONS, LANDMARK_NAMES, make_scan, make_sequence,
-                             make_template, write_sample)
+from facewrap.sample import (EXPRESSIONS, LANDMARK_NAMES, make_scan, make_sequence, make_template,
+                             write_sample)
+from facewrap.sample.layout import EYE_S, EYE_T, MOUTH_HALF_WIDTH, MOUTH_T, st_from_uv, uv_from_st
 
 
 # -- helpers (independent of the code under test) -------------------------------------
@@ -307,7 +307,8 @@ def test_given_transform_is_applied(tpl):
     plain = make_scan(tpl, transform=False, **kw)
     assert np.array_equal(plain.transform, np.eye(4))
     M = np.eye(4)
-    M[:3, :3] = sample._rotation([0.0, 1.0, 0.0], 0.5)
+    c, s = np.cos(0.5), np.sin(0.5)
+    M[:3, :3] = [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]      # 0.5 rad about +y
     M[:3, 3] = [10.0, -5.0, 3.0]
     moved = make_scan(tpl, transform=M, **kw)
     np.testing.assert_allclose(moved.mesh.vertices, plain.mesh.vertices @ M[:3, :3].T
@@ -320,15 +321,15 @@ def test_given_transform_is_applied(tpl):
 
 def test_no_triangle_spans_the_open_mouth(tpl):
     sc = make_scan(tpl, weights={"jaw_open": 1.0}, transform=False, noise=0.0, holes=0)
-    s, t = sample._st_from_uv(sc.mesh.uvs)
+    s, t = st_from_uv(sc.mesh.uvs)
     T = sc.mesh.triangles
-    above, below = t > sample._MOUTH_T, t < sample._MOUTH_T
+    above, below = t > MOUTH_T, t < MOUTH_T
     for a, b in ((0, 1), (1, 2), (2, 0)):
         pa, pb = T[:, a], T[:, b]
         cross = (above[pa] & below[pb]) | (below[pa] & above[pb])
         dt = t[pb] - t[pa]
-        sc_ = s[pa] + (sample._MOUTH_T - t[pa]) / np.where(dt == 0, 1, dt) * (s[pb] - s[pa])
-        assert not np.any(cross & (np.abs(sc_) < sample._MOUTH_HW))
+        sc_ = s[pa] + (MOUTH_T - t[pa]) / np.where(dt == 0, 1, dt) * (s[pb] - s[pa])
+        assert not np.any(cross & (np.abs(sc_) < MOUTH_HALF_WIDTH))
     # in 3-D: the lips are far apart and no triangle edge comes close to that gap
     lm = tpl.landmarks.vertex
     gap = np.linalg.norm(sc.ground_truth[lm[62]] - sc.ground_truth[lm[66]])
@@ -364,19 +365,19 @@ def test_holes_are_discs_away_from_landmarks(tpl):
     # landmarks are not in holes: their nearest scan vertices all survive
     d_full = cKDTree(full.mesh.vertices).query(full.landmarks.points)[0]
     d_holed = cKDTree(holed.mesh.vertices).query(holed.landmarks.points)[0]
-    np.testing.assert_array_equal(d_holed, d_full)
+    np.testing.assert_allclose(d_holed, d_full, rtol=0, atol=1e-9)  # two code paths
 
 
 def test_crop_keeps_the_face_only(tpl):
     kw = dict(resolution=40, texture_size=8, holes=0, transform=False)
     full, cropped = make_scan(tpl, crop=False, **kw), make_scan(tpl, crop=True, **kw)
     assert cropped.mesh.n_vertices < 0.8 * full.mesh.n_vertices
-    s, t = sample._st_from_uv(cropped.mesh.uvs)
+    s, t = st_from_uv(cropped.mesh.uvs)
     assert np.abs(s).max() < 150 and t.max() < 90 and t.min() > -112
     # the whole face is there: each landmark's nearest scan vertex survives the crop
     d_full = cKDTree(full.mesh.vertices).query(full.landmarks.points)[0]
     d_crop = cKDTree(cropped.mesh.vertices).query(cropped.landmarks.points)[0]
-    np.testing.assert_array_equal(d_crop, d_full)
+    np.testing.assert_allclose(d_crop, d_full, rtol=0, atol=1e-9)   # two code paths
 
 
 def test_ground_truth_lies_on_the_noise_free_scan(tpl):
@@ -453,10 +454,10 @@ def test_texture_looks_like_a_face(tpl):
     tex = open_eyes.texture.astype(float)
 
     def at(s, t):
-        u, v = sample._uv_from_st(np.array(s), np.array(t))
+        u, v = uv_from_st(np.array(s), np.array(t))
         return tex[int((1 - v) * 256), int(u * 256)]
-    skin, lip = at(60.0, -20.0), at(0.0, sample._MOUTH_T + 4.0)
-    brow, white = at(-33.0, 19.5), at(sample._EYE_S + 8.0, sample._EYE_T + 1.5)
+    skin, lip = at(60.0, -20.0), at(0.0, MOUTH_T + 4.0)
+    brow, white = at(-33.0, 19.5), at(EYE_S + 8.0, EYE_T + 1.5)
     assert lip[0] - lip[1] > skin[0] - skin[1] + 20            # lips redder than skin
     assert brow.sum() < 0.7 * skin.sum()                         # brows darker
     assert white.min() > 200                                     # eye white

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+import facewrap.texture.bake
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.texture.bake import (bake_texture, cylindrical_uvs, interpolate_images,
-                              load_image, rasterize_uv, sample_image, save_png,
-                              scan_uvs_at, transfer_uvs)
+from facewrap.texture import (bake_texture, cylindrical_uvs, interpolate_images, load_image,
+                              rasterize_uv, sample_image, save_png, scan_uvs_at, transfer_uvs)
 
 
 def grid(n, uv=lambda xy: xy, scale=(1.0, 1.0), jitter=0.0, seed=0):
@@ -335,10 +335,9 @@ def test_png_round_trip_and_image_errors(tmp_path):
 
 
 def test_rasterize_in_small_chunks_gives_the_same_raster(monkeypatch):
-    import facewrap.texture.bake as texture
     mesh = grid(5, jitter=0.3)
     whole = rasterize_uv(mesh, 40)
-    monkeypatch.setattr(texture, "_CHUNK_TEXELS", 7)
+    monkeypatch.setattr(facewrap.texture.bake, "BLOCK_TEXELS", 7)
     parts = rasterize_uv(mesh, 40)
     np.testing.assert_array_equal(parts.pixels, whole.pixels)
     np.testing.assert_array_equal(parts.triangles, whole.triangles)

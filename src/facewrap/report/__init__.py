@@ -18,7 +18,7 @@ Files
 
 Examples
 --------
->>> from facewrap.sample.face import make_template
+>>> from facewrap.sample import make_template
 >>> tpl = make_template(24)
 >>> img = heatmap_figure(tpl.mesh, tpl.mesh.vertices[:, 2], units="mm",
 ...                      title="depth", size=(120, 140))
