@@ -253,8 +253,9 @@ def boundary_vertices(T, n) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; an edge used by one of them only is a boundary edge.
     n : int
-        Number of vertices.
+        Number of vertices (the mask's length).
 
     Returns
     -------
@@ -378,8 +379,9 @@ def connected_components(T, n) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; two vertices are connected when an edge path joins them.
     n : int
-        Number of vertices.
+        Number of vertices, isolated ones included.
 
     Returns
     -------

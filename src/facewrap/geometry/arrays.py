@@ -89,10 +89,12 @@ def edge_vectors(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ----------
     V : (n, 3) float64
     T : (t, 3) int64
+        Indices in range.
 
     Returns
     -------
     e01, e02 : (3, t) float64
+        Coordinate-major, contiguous: row ``k`` holds coordinate ``k`` of every edge.
 
     Examples
     --------

@@ -61,7 +61,9 @@ def cotangent_laplacian(V, T) -> sp.csr_matrix:
     Parameters
     ----------
     V : (n, 3) float64
+        Vertex positions; the weights depend on the triangles' angles.
     T : (t, 3) int64
+        Triangles; degenerate ones contribute nothing.
 
     Returns
     -------

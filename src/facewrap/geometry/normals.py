@@ -21,35 +21,13 @@ __all__ = ["face_normals", "face_areas", "vertex_normals", "trusted_face_normals
 
 
 def trusted_face_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """:func:`face_normals` without input checks, for callers that checked already.
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-    T : (t, 3) int64
-        Indices in range.
-
-    Returns
-    -------
-    (t, 3) float64
-    """
+    """:func:`face_normals` (t, 3) of clean ``V`` (n, 3) float64, ``T`` (t, 3) int64 in range."""
     cross = cross_columns(*edge_vectors(V, T))
     return (cross * safe_inverse(column_norms(cross))).T.copy()
 
 
 def trusted_face_areas(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """:func:`face_areas` without input checks, for callers that checked already.
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-    T : (t, 3) int64
-        Indices in range.
-
-    Returns
-    -------
-    (t,) float64
-    """
+    """:func:`face_areas` (t,) of clean ``V`` (n, 3) float64, ``T`` (t, 3) int64 in range."""
     return 0.5 * column_norms(cross_columns(*edge_vectors(V, T)))
 
 
@@ -93,18 +71,9 @@ def _sum_at_vertices(T: np.ndarray, weights: np.ndarray | None, values: np.ndarr
 
 def trusted_vertex_normals(V: np.ndarray, T: np.ndarray, weighting: str = "angle"
                            ) -> np.ndarray:
-    """:func:`vertex_normals` without input checks, for callers that checked already.
+    """:func:`vertex_normals` (n, 3) of clean ``V`` (n, 3) float64, ``T`` (t, 3) int64 in range.
 
-    Parameters
-    ----------
-    V : (n, 3) float64
-    T : (t, 3) int64
-        Indices in range.
-    weighting : {"angle", "area"}
-
-    Returns
-    -------
-    (n, 3) float64
+    ``weighting`` is "angle" or "area" (not checked).
     """
     n = len(V)
     if len(T) == 0:
@@ -155,7 +124,9 @@ def face_areas(V, T) -> np.ndarray:
     Parameters
     ----------
     V : (n, 3) float64
+        Vertex positions.
     T : (t, 3) int64
+        Triangles (either winding: areas are unsigned).
 
     Returns
     -------

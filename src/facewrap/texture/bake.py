@@ -84,7 +84,8 @@ class UVRaster:
     mask: np.ndarray
 
     def __len__(self) -> int:
-        return len(self.triangles)
+        """Number of covered texels."""
+        return self.pixels.shape[0]
 
 
 def rasterize_uv(mesh: Mesh, size) -> UVRaster:
