@@ -137,6 +137,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     Returns
     -------
     SurfaceDistances
+        One row per point, unsigned and signed, and which points are covered.
 
     Examples
     --------

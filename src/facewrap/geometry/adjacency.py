@@ -102,6 +102,7 @@ def edges(T) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; an edge shared by several of them is returned once.
 
     Returns
     -------
@@ -186,6 +187,7 @@ def triangle_adjacency(T) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; edge ``j`` of triangle ``i`` runs from corner ``j`` to ``j + 1``.
 
     Returns
     -------

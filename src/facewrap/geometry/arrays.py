@@ -47,11 +47,14 @@ def normalize_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     a : (k, 3) float64
+        Not changed.
 
     Returns
     -------
     unit : (k, 3) float64
+        ``a`` divided by its row norms, a new array.
     norm : (k,) float64
+        Euclidean length of each row of ``a``.
 
     Examples
     --------

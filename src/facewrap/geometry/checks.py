@@ -50,6 +50,12 @@ def as_triangles(T, n: int | None = None, name: str = "T") -> np.ndarray:
     return as_index_array(T, 3, n, name)
 
 
+def as_mesh_arrays(V, T) -> tuple[np.ndarray, np.ndarray]:
+    """``V`` as (n, 3) finite float64 and ``T`` as (t, 3) int64 indices into it."""
+    V = as_vertices(V)
+    return V, as_triangles(T, len(V))
+
+
 def as_count(n, name: str = "n") -> int:
     """A non-negative Python int."""
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):

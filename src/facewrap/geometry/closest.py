@@ -28,7 +28,7 @@ from typing import NamedTuple
 import igl
 import numpy as np
 
-from facewrap.geometry.checks import as_points, as_triangles, as_vertices
+from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
 from facewrap.geometry.adjacency import triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows
 from facewrap.geometry.normals import trusted_vertex_normals
@@ -192,8 +192,7 @@ class ClosestPointTree:
     """
 
     def __init__(self, V, T, vertex_normals=None):
-        V = as_vertices(V)
-        T = as_triangles(T, len(V))
+        V, T = as_mesh_arrays(V, T)
         if len(T) == 0:
             raise ValueError("T must hold at least one triangle")
         self.vertices = _readonly(V)
@@ -237,7 +236,7 @@ class ClosestPointTree:
         Parameters
         ----------
         points : (k, 3) float64
-            Query points.
+            Query points, anywhere in space (no distance limit).
 
         Returns
         -------
@@ -360,6 +359,8 @@ def closest_points(V, T, points) -> ClosestPoints:
     Returns
     -------
     ClosestPoints
+        One row per query point (a tree is built and dropped: use
+        :class:`ClosestPointTree` for repeated queries).
 
     Examples
     --------

@@ -15,7 +15,7 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.geometry.checks import as_count, as_triangles, as_triangles_or_edges, as_vertices
+from facewrap.geometry.checks import as_count, as_mesh_arrays, as_triangles_or_edges
 from facewrap.geometry.adjacency import adjacency_matrix, unique_edges
 from facewrap.geometry.arrays import column_norms, cross_columns, edge_vectors
 
@@ -79,8 +79,7 @@ def cotangent_laplacian(V, T) -> sp.csr_matrix:
     >>> cotangent_laplacian(V, [[0, 1, 2]]).toarray().tolist()
     [[1.0, -0.5, -0.5], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     return _cotangent_laplacian(V, T)
 
 
@@ -119,6 +118,7 @@ def mass_matrix(V, T, kind: str = "voronoi") -> sp.csr_matrix:
     ----------
     V : (n, 3) float64
     T : (t, 3) int64
+        Triangles; a vertex in none of them has mass 0.
     kind : {"voronoi", "barycentric"}
         ``"voronoi"``: mixed Voronoi areas (Meyer et al. 2003; barycentric-like split
         on obtuse triangles); ``"barycentric"``: a third of each triangle's area to
@@ -136,8 +136,7 @@ def mass_matrix(V, T, kind: str = "voronoi") -> sp.csr_matrix:
     >>> mass_matrix(V, [[0, 1, 2]], "barycentric").diagonal().round(4).tolist()
     [0.1667, 0.1667, 0.1667]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     if kind not in _MASS_TYPES:
         raise ValueError(f'kind must be "voronoi" or "barycentric", got {kind!r}')
     n = len(V)

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from facewrap.geometry.arrays import (column_norms, cross_columns, edge_vectors, normalize_rows,
                                       safe_inverse)
-from facewrap.geometry.checks import as_triangles, as_vertices
+from facewrap.geometry.checks import as_mesh_arrays
 
 __all__ = ["face_normals", "face_areas", "vertex_normals", "trusted_face_normals",
            "trusted_face_areas", "trusted_vertex_normals"]
@@ -98,7 +98,6 @@ def face_normals(V, T) -> np.ndarray:
     Parameters
     ----------
     V : (n, 3) float64
-        Vertex positions.
     T : (t, 3) int64
         Triangles, counter-clockwise around their normal.
 
@@ -113,8 +112,7 @@ def face_normals(V, T) -> np.ndarray:
     >>> face_normals(V, [[0, 1, 2], [0, 1, 3]]).tolist()
     [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     return trusted_face_normals(V, T)
 
 
@@ -138,8 +136,7 @@ def face_areas(V, T) -> np.ndarray:
     >>> face_areas([[0, 0, 0], [2, 0, 0], [0, 1, 0]], [[0, 1, 2]]).tolist()
     [1.0]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     return trusted_face_areas(V, T)
 
 
@@ -149,6 +146,7 @@ def vertex_normals(V, T, weighting: str = "angle") -> np.ndarray:
     Parameters
     ----------
     V : (n, 3) float64
+        Vertex positions; isolated vertices get a zero normal.
     T : (t, 3) int64
     weighting : {"angle", "area"}
         ``"angle"`` weights each triangle by its corner angle at the vertex (stable
@@ -166,8 +164,7 @@ def vertex_normals(V, T, weighting: str = "angle") -> np.ndarray:
     >>> vertex_normals(V, [[0, 1, 2], [0, 2, 3]]).tolist()
     [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     if weighting not in ("angle", "area"):
         raise ValueError(f'weighting must be "angle" or "area", got {weighting!r}')
     return trusted_vertex_normals(V, T, weighting)

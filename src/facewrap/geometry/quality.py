@@ -208,6 +208,7 @@ def triangle_quality(vertices, triangles, reference=None, *,
     Returns
     -------
     TriangleQuality
+        Per-triangle arrays; the reference-based ones are None without a reference.
 
     Examples
     --------

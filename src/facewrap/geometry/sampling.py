@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-from facewrap.geometry.checks import as_count, as_triangles, as_vertices
+from facewrap.geometry.checks import as_count, as_mesh_arrays, as_vertices
 from facewrap.geometry.normals import trusted_face_areas
 
 __all__ = ["sample_surface", "farthest_point_sampling", "poisson_disk_vertices"]
@@ -55,8 +55,7 @@ def sample_surface(V, T, count, seed=0) -> tuple[np.ndarray, np.ndarray, np.ndar
     >>> np.array_equal(P, sample_surface(V, T, 1000, seed=1)[0])
     True
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     count = as_count(count, "count")
     areas = trusted_face_areas(V, T) if len(T) else np.zeros(0)
     cdf = np.cumsum(areas)

@@ -194,6 +194,7 @@ def colorbar(cmap="viridis", clim=(0.0, 1.0), *, height: int = 360, units: str =
     Returns
     -------
     (height, w, 3) uint8
+        ``w`` fits the bar, the tick labels and the title.
 
     Examples
     --------
@@ -406,6 +407,7 @@ def side_by_side(images: Sequence, labels: Sequence[str] | None = None, *,
     Returns
     -------
     (H, W, 3) uint8
+        The row of images with their labels on top.
 
     Examples
     --------

@@ -112,6 +112,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     Returns
     -------
     UVRaster
+        Covered texels in row-major order, with their triangle and coordinates.
 
     Examples
     --------
@@ -295,6 +296,7 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     Returns
     -------
     BakeResult
+        The image, which texels the scan covered and which were padded.
 
     Examples
     --------

@@ -53,6 +53,7 @@ def scan_uvs_at(scan: Mesh, triangles, barycentric) -> np.ndarray:
     Returns
     -------
     (k, 2) float64
+        ``(u, v)`` of each point.
 
     Examples
     --------
@@ -185,6 +186,7 @@ def transfer_uvs(scan: Mesh, points_or_closest, mask=None, *, vertices=None,
     Returns
     -------
     (n, 2) float64
+        ``(u, v)`` per template vertex: the scan's where valid, cylindrical elsewhere.
 
     Examples
     --------
