@@ -3,8 +3,8 @@
 These functions take clean arrays (float64 positions, int64 indices in range) and do
 no validation: the public functions that call them check their input once, at the
 door.  The bulk work runs on coordinate-major ``(3, t)`` arrays where it can: on
-large meshes this is about twice as fast as row-major ``(t, 3)`` arithmetic and
-fancy indexing.
+large meshes contiguous rows per coordinate beat row-major ``(t, 3)`` arithmetic
+and fancy indexing.
 """
 
 from __future__ import annotations

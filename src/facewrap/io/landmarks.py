@@ -37,6 +37,7 @@ import os
 import re
 
 import numpy as np
+import yaml
 
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
@@ -409,7 +410,6 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _read_markers_yaml(path):
-    import yaml
     try:
         d = yaml.safe_load(_text(path))
     except yaml.YAMLError as exc:

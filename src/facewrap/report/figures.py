@@ -18,6 +18,7 @@ import math
 from typing import Mapping, Sequence
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
 from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
 from facewrap.report.colors import apply_colormap, as_rgb, color_limits, colormap
@@ -35,7 +36,6 @@ _DEFAULT_VIEWS = ("front", "three_quarter", "side")
 
 def _font(size: int):
     """Pillow's built-in scalable font at ``size`` px (bitmap font without FreeType)."""
-    from PIL import ImageFont
     try:
         return ImageFont.load_default(size=max(int(size), 6))
     except (TypeError, OSError, ImportError, AttributeError):   # Pillow < 10.1 or no FreeType
@@ -59,13 +59,11 @@ def _draw_text(draw, xy, text: str, font, fill=_TEXT, align: str = "left",
 
 
 def _canvas(width: int, height: int, background):
-    from PIL import Image
     bg = tuple(int(round(c * 255)) for c in as_rgb(background, "background"))
     return Image.new("RGB", (int(width), int(height)), bg), bg
 
 
 def _to_pil(image):
-    from PIL import Image
     a = np.asarray(image)
     if a.dtype != np.uint8 or a.ndim not in (2, 3):
         raise ValueError(f"images must be uint8 (H, W[, C]) arrays, got {a.dtype} "
@@ -202,7 +200,6 @@ def colorbar(cmap="viridis", clim=(0.0, 1.0), *, height: int = 360, units: str =
     >>> img.shape[0], img.dtype.name
     (200, 'uint8')
     """
-    from PIL import ImageDraw
     lo, hi = color_limits(np.zeros(0), clim)
     if extend not in ("neither", "max", "min", "both"):
         raise ValueError(f"extend must be 'neither', 'max', 'min' or 'both', got "
@@ -349,7 +346,6 @@ def heatmap_figure(mesh, values, *, units: str = "mm", title: str | None = None,
     -------
     (H, W, 3) uint8
     """
-    from PIL import ImageDraw
     V, T = mesh_arrays(mesh)
     vals = np.asarray(values, dtype=np.float64).reshape(-1)
     finite = vals[np.isfinite(vals)]
@@ -447,7 +443,6 @@ def image_grid(images: Sequence, labels: Sequence[str] | None = None, *,
     -------
     (H, W, 3) uint8
     """
-    from PIL import ImageDraw
     images = [np.asarray(im) for im in images]
     if not images:
         raise ValueError("images must not be empty")

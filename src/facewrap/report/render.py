@@ -16,8 +16,8 @@ with edge functions, and the nearest candidate per pixel is kept by one
 the lower triangle index, so output is deterministic).  Shading runs per pixel on
 the winners only: interpolated vertex normals (Phong normals), a soft three-light
 studio rig plus hemispheric ambient, in linear light; the image is rendered at
-``supersample`` times the size and box-filtered down (anti-aliasing).  A
-100k-triangle mesh at 800 x 800 (2x supersampled) takes about 0.5 s on one core.
+``supersample`` times the size and box-filtered down (anti-aliasing).  Timings
+are in ``docs/benchmarks.md``.
 
 Conventions: the camera is orthographic.  ``view="front"`` looks at the mesh from
 +z with +y up (the built-in sample face looks toward +z); a view ``(azimuth,

@@ -14,7 +14,7 @@ __all__ = ["skin_texture"]
 
 def _smooth_noise(rng, size, cells, order=3):
     """(size, size) smooth random field with about ``cells`` blobs across, std ~1."""
-    from scipy.ndimage import zoom
+    from scipy.ndimage import zoom  # scipy.ndimage takes ~0.3 s to import; only scans need it
 
     coarse = rng.standard_normal((cells + 3, cells + 3))
     fine = zoom(coarse, size / cells, order=order, mode="grid-wrap")

@@ -210,7 +210,7 @@ def make_template(resolution: int = 64) -> SampleTemplate:
     resolution : int, default 64
         Grid cells across the face (about ``200 / resolution`` mm apart at the face
         centre, finer at the eyes and mouth, coarser toward the back and top).  The
-        default gives about 7,400 vertices (in 0.05 s).
+        default gives about 7,400 vertices.
 
     Returns
     -------
