@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import igl
 import numpy as np
 import pytest
@@ -549,11 +547,9 @@ def test_boundary_loops_touching_at_a_vertex():
     assert len(used) == 6
 
 
-def test_boundary_loops_large_is_fast():
+def test_boundary_loops_of_a_large_grid():
     _, T = grid(300, 300)
-    t0 = time.perf_counter()
     loops = geo.boundary_loops(T)
-    assert time.perf_counter() - t0 < 2.0
     assert [len(loop) for loop in loops] == [4 * 299]
 
 
@@ -698,11 +694,10 @@ def test_poisson_disk_vertices(radius):
     assert cKDTree(V[idx]).query(V)[0].max() <= radius
 
 
-def test_poisson_disk_vertices_fast_and_validated():
+def test_poisson_disk_vertices_on_many_points_and_validated():
     V = np.random.default_rng(0).uniform(0, 1, (10000, 3))
-    t0 = time.perf_counter()
-    geo.poisson_disk_vertices(V, 0.05)
-    assert time.perf_counter() - t0 < 1.0      # ~0.1 s; loose bound for slow CI
+    idx = geo.poisson_disk_vertices(V, 0.05)
+    assert cKDTree(V[idx]).query(V[idx], k=2)[0][:, 1].min() > 0.05
     with pytest.raises(ValueError, match="radius"):
         geo.poisson_disk_vertices(V, 0.0)
 
