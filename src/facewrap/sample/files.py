@@ -1,5 +1,4 @@
-"""Writing the sample as plain files that any tool (or the CLI) can read.
-"""
+"""Writing the sample as plain files that any tool (or the CLI) can read."""
 
 from __future__ import annotations
 

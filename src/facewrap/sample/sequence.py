@@ -1,5 +1,4 @@
-"""Expression sequences of sample scans (4-D capture).
-"""
+"""Expression sequences of sample scans (4-D capture), one topology per frame."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The procedural skin texture of a sample scan: skin, hair, brows, lips, lashes, eyes.
-"""
+"""The procedural texture of a sample scan: skin, hair, brows, lips, lashes, eyes."""
 
 from __future__ import annotations
 

@@ -1,4 +1,8 @@
 """The built-in template head: a quad grid over the domain, eyeballs, blendshapes.
+
+The grid follows the layout's density (finer at the eyes and mouth), is cut along
+the mouth slit and snapped to the lid margins, so that landmarks fall on vertices;
+two UV-sphere eyeballs close the eye sockets.
 """
 
 from __future__ import annotations
