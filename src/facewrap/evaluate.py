@@ -27,7 +27,7 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, TriangleQuality, triangle_quality,
                                triangle_to_vertex)
-from facewrap.geometry.checks import as_points, as_triangles, as_vertices
+from facewrap.geometry.checks import as_points, mesh_arrays
 from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "GroundTruthErrors", "Evaluation",
@@ -60,15 +60,6 @@ def _vertex_mask(mask, n: int, name: str = "mask") -> np.ndarray:
     out = np.zeros(n, dtype=bool)
     out[m] = True
     return out
-
-
-def _mesh_vt(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
-    if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
-        return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.triangles)
-    if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
-        V = as_vertices(mesh[0], f"{name} vertices")
-        return V, as_triangles(mesh[1], len(V), f"{name} triangles")
-    raise ValueError(f"{name} must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")
 
 
 # -- surface distances ----------------------------------------------------------------------
@@ -149,7 +140,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     """
     P = as_points(points, "points")
     tree = surface if isinstance(surface, ClosestPointTree) else \
-        ClosestPointTree(*_mesh_vt(surface, "surface"))
+        ClosestPointTree(*mesh_arrays(surface, "surface"))
     covered = _vertex_mask(mask, len(P))
     if len(P) == 0:
         z = np.zeros(0)
@@ -391,8 +382,8 @@ def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,
     -------
     Evaluation
     """
-    V, T = _mesh_vt(result, "result")
-    SV, ST = _mesh_vt(scan, "scan")
+    V, T = mesh_arrays(result, "result")
+    SV, ST = mesh_arrays(scan, "scan")
     tree = scan_tree if scan_tree is not None else ClosestPointTree(SV, ST)
     r2s = surface_distances(V, tree, exclude_border=exclude_border, mask=mask)
     s2r = surface_distances(SV, ClosestPointTree(V, T), exclude_border=exclude_border)

@@ -20,9 +20,10 @@ from typing import Mapping, Sequence
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from facewrap.geometry.checks import mesh_arrays
 from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
 from facewrap.report.colors import apply_colormap, as_rgb, color_limits, colormap
-from facewrap.report.render import mesh_arrays, render_mesh
+from facewrap.report.render import render_mesh
 
 __all__ = ["nice_ticks", "robust_clim", "colorbar", "render_views", "heatmap_figure",
            "side_by_side", "image_grid", "blendshape_sheet"]

@@ -31,14 +31,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from facewrap.geometry.checks import as_triangles, as_vertices
+from facewrap.geometry.checks import mesh_arrays
 from facewrap.geometry.normals import trusted_face_normals, trusted_vertex_normals
 from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
 from facewrap.report.colors import (NAN_COLOR, apply_colormap, as_rgb, color_limits, colormap,
                                     colormap_lookup, linear_to_srgb8, srgb_to_linear)
 from facewrap.report.raster import Raster, trusted_rasterize
 
-__all__ = ["render_mesh", "mesh_arrays"]
+__all__ = ["render_mesh"]
 
 _BACKFACE_DIM = 0.75                 # back faces are drawn this much darker
 
@@ -55,32 +55,6 @@ _RIGS = {   # powers of the three lights, sky, ground, specular
     "clay": (np.array([1.05, 0.18, 0.45]), 0.18, 0.06, 0.12),
     "colour": (np.array([0.70, 0.20, 0.30]), 0.42, 0.22, 0.06),
 }
-
-
-def mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """``(V, T)`` of a :class:`~facewrap.mesh.Mesh` or of a ``(V, T)`` pair, checked.
-
-    Parameters
-    ----------
-    mesh : Mesh or (V, T)
-        ``V : (n, 3) float``, ``T : (t, 3) int``.  Polygons of a Mesh are taken as
-        its fan triangulation (:attr:`~facewrap.mesh.Mesh.triangles`).
-
-    Returns
-    -------
-    V : (n, 3) float64
-    T : (t, 3) int64
-    """
-    if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
-        V = np.asarray(mesh.vertices, dtype=np.float64)
-        if not np.all(np.isfinite(V)):
-            raise ValueError("mesh vertices must be finite (found NaN or inf)")
-        return V, np.asarray(mesh.triangles)
-    if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
-        V = as_vertices(mesh[0], "mesh vertices")
-        return V, as_triangles(mesh[1], len(V), "mesh triangles")
-    raise ValueError(f"mesh must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")
-
 
 
 def _albedo(V, T, scalars, colors, cmap, clim, color, nan_color):
