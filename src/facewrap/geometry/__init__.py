@@ -24,6 +24,11 @@ Triangle quality (:mod:`.quality`)
 Sampling (:mod:`.sampling`)
     :func:`sample_surface`, :func:`farthest_point_sampling`,
     :func:`poisson_disk_vertices`
+
+For code inside the package: argument checks at the door (:mod:`.checks`, e.g.
+:func:`~.checks.as_mesh_arrays`, :func:`~.checks.mesh_arrays`) and trusted array
+primitives behind it (:mod:`.arrays`; ``trusted_*`` kernels in :mod:`.normals`,
+:func:`~.adjacency.adjacency_matrix`, :func:`~.adjacency.unique_edges`).
 """
 
 from facewrap.geometry.closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
