@@ -208,7 +208,7 @@ def landmark_errors(positions, targets, names=None) -> LandmarkErrors:
     return LandmarkErrors(np.linalg.norm(A - B, axis=1), names)
 
 
-# -- ground truth ----------------------------------------------------------------------------------
+# -- ground truth --------------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
 class GroundTruthErrors:

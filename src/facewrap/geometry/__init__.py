@@ -41,7 +41,8 @@ from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, unifor
 from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_quality,
                                        triangle_to_vertex, turned, turned_triangles)
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.geometry.sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
+from facewrap.geometry.sampling import (farthest_point_sampling, poisson_disk_vertices,
+                                        sample_surface)
 
 __all__ = [
     # closest points and rays

@@ -216,11 +216,9 @@ def landmark_layout() -> tuple[np.ndarray, np.ndarray]:
             b = {"c": 0.0, "u": float(up), "l": float(lo)}[which]
             out.append((side * (EYE_S + a), EYE_T + _EYE_TILT * a + b))
         return out
-    q = EYE_HALF_WIDTH / 3.0
-    pts += eye(-1.0, [(EYE_HALF_WIDTH, "c"), (q, "u"), (-q, "u"), (-EYE_HALF_WIDTH, "c"), (-q, "l"),
-                      (q, "l")])
-    pts += eye(1.0, [(-EYE_HALF_WIDTH, "c"), (-q, "u"), (q, "u"), (EYE_HALF_WIDTH, "c"), (q, "l"),
-                     (-q, "l")])
+    w, q = EYE_HALF_WIDTH, EYE_HALF_WIDTH / 3.0
+    pts += eye(-1.0, [(w, "c"), (q, "u"), (-q, "u"), (-w, "c"), (-q, "l"), (q, "l")])
+    pts += eye(1.0, [(-w, "c"), (-q, "u"), (q, "u"), (w, "c"), (q, "l"), (-q, "l")])
     kind += [1, 4, 4, 1, 5, 5] * 2
     m = MOUTH_T
     pts += [(-MOUTH_HALF_WIDTH - 2.0, m), (-15.0, m + 6.5), (-5.5, m + 9.0), (0.0, m + 8.3),
