@@ -9,20 +9,15 @@ Composing several images with text (colour bars, titles, sheets) is
 
 Why a software rasteriser: it needs nothing but numpy (no OpenGL, no display, no
 GPU, no system library), so pictures render the same on a laptop, a headless
-server and a CI machine with only pip wheels, byte for byte.  Every triangle's
-bounding-box pixels are enumerated at once (``np.repeat`` / ``cumsum``), tested
-with edge functions, and the nearest candidate per pixel is kept by one
-``np.minimum.at`` on a key packing quantised depth and triangle index (ties go to
-the lower triangle index, so output is deterministic).  Shading runs per pixel on
-the winners only: interpolated vertex normals (Phong normals), a soft three-light
+server and a CI machine with only pip wheels, byte for byte.  The z-buffer
+(:func:`~facewrap.report.raster.trusted_rasterize`) finds the visible triangle of
+every pixel deterministically; shading runs per pixel on the winners only: interpolated vertex normals (Phong normals), a soft three-light
 studio rig plus hemispheric ambient, in linear light; the image is rendered at
 ``supersample`` times the size and box-filtered down (anti-aliasing).  Timings
 are in ``docs/benchmarks.md``.
 
-Conventions: the camera is orthographic.  ``view="front"`` looks at the mesh from
-+z with +y up (the built-in sample face looks toward +z); a view ``(azimuth,
-elevation)`` in degrees turns the camera around +y (positive azimuth moves it
-toward +x) and then raises it toward +y.  Images are ``(H, W, 3)`` or
+Conventions: the camera is orthographic (views: :mod:`facewrap.report.cameras`).
+Images are ``(H, W, 3)`` or
 ``(H, W, 4)`` uint8 with row 0 at the top.  Triangles are two-sided: back faces
 are lit with their normal flipped toward the viewer and drawn a little darker.
 """
