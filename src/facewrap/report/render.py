@@ -17,9 +17,9 @@ studio rig plus hemispheric ambient, in linear light; the image is rendered at
 are in ``docs/benchmarks.md``.
 
 Conventions: the camera is orthographic (views: :mod:`facewrap.report.cameras`).
-Images are ``(H, W, 3)`` or
-``(H, W, 4)`` uint8 with row 0 at the top.  Triangles are two-sided: back faces
-are lit with their normal flipped toward the viewer and drawn a little darker.
+Images are ``(H, W, 3)`` or ``(H, W, 4)`` uint8 with row 0 at the top.  Triangles
+are two-sided: back faces are lit with their normal flipped toward the viewer and
+drawn a little darker.
 """
 
 from __future__ import annotations
