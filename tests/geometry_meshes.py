@@ -50,6 +50,17 @@ def grid(nx=6, ny=5, noise=0.0, seed=0):
     return V, T
 
 
+def flat_square(n=11, size=10.0):
+    """A flat (n x n)-vertex square in the z = 0 plane, normals +z."""
+    s = np.linspace(0, size, n)
+    X, Y = np.meshgrid(s, s, indexing="ij")
+    V = np.stack([X.ravel(), Y.ravel(), np.zeros(n * n)], axis=1)
+    i = np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]
+    i = i.ravel()
+    T = np.concatenate([np.stack([i, i + n, i + n + 1], 1), np.stack([i, i + n + 1, i + 1], 1)])
+    return V, T
+
+
 def soup(count=150, seed=0, degenerate=True):
     """Random triangle soup, with some degenerate triangles mixed in."""
     rng = np.random.default_rng(seed)

@@ -11,16 +11,7 @@ from facewrap.evaluate import evaluate, ground_truth_errors, landmark_errors, su
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
 
-
-def grid(n=11, size=10.0):
-    """A flat (n x n)-vertex square in the z = 0 plane, normals +z."""
-    s = np.linspace(0, size, n)
-    X, Y = np.meshgrid(s, s, indexing="ij")
-    V = np.stack([X.ravel(), Y.ravel(), np.zeros(n * n)], axis=1)
-    i = np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]
-    i = i.ravel()
-    T = np.concatenate([np.stack([i, i + n, i + n + 1], 1), np.stack([i, i + n + 1, i + 1], 1)])
-    return V, T
+from geometry_meshes import flat_square
 
 
 @pytest.fixture(scope="module")
@@ -37,14 +28,14 @@ def sample():
 # -- surface distances ------------------------------------------------------------------
 
 def test_distance_of_a_mesh_to_itself_is_zero():
-    V, T = grid()
+    V, T = flat_square()
     d = surface_distances(V, (V, T), exclude_border=False)
     assert np.allclose(d.distances, 0, atol=1e-12)
     assert d.coverage == 1.0 and d.summary()["max"] < 1e-12
 
 
 def test_known_offset_gives_known_signed_distance():
-    V, T = grid()
+    V, T = flat_square()
     inner = (V[:, 0] > 2) & (V[:, 0] < 8) & (V[:, 1] > 2) & (V[:, 1] < 8)
     P = V[inner] + [0, 0, 0.7]
     Q = V[inner] - [0, 0, 0.3]
@@ -56,7 +47,7 @@ def test_known_offset_gives_known_signed_distance():
 
 
 def test_points_beyond_the_border_are_not_covered():
-    V, T = grid()
+    V, T = flat_square()
     P = np.array([[5.0, 5.0, 1.0], [15.0, 5.0, 0.0], [-3.0, -3.0, 0.0]])
     d = surface_distances(P, (V, T))
     assert d.covered.tolist() == [True, False, False]
@@ -83,7 +74,7 @@ def test_fit_summary_matches_wrap_fit_metrics(sample):
 
 
 def test_surface_distances_validates_points():
-    V, T = grid(3)
+    V, T = flat_square(3)
     with pytest.raises(ValueError, match="points"):
         surface_distances(np.zeros((2, 2)), (V, T))
     with pytest.raises(ValueError, match="mask"):
@@ -133,7 +124,7 @@ def test_evaluate_sample_summary_is_json(sample):
 
 
 def test_evaluate_pairs_named_landmarks_by_name():
-    V, T = grid()
+    V, T = flat_square()
     lm_r = Landmarks.from_vertices([0, 5, 60], names=["a", "b", "c"])
     lm_s = Landmarks.from_points(V[[60, 0]] + [0, 0, 2.0], names=["c", "a"])
     ev = evaluate((V, T), (V, T), result_landmarks=lm_r, scan_landmarks=lm_s)

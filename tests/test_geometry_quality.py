@@ -5,20 +5,11 @@ import pytest
 
 from facewrap.geometry import triangle_quality, triangle_to_vertex
 
-
-def grid(n=11, size=10.0):
-    """A flat (n x n)-vertex square in the z = 0 plane, normals +z."""
-    s = np.linspace(0, size, n)
-    X, Y = np.meshgrid(s, s, indexing="ij")
-    V = np.stack([X.ravel(), Y.ravel(), np.zeros(n * n)], axis=1)
-    i = np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]
-    i = i.ravel()
-    T = np.concatenate([np.stack([i, i + n, i + n + 1], 1), np.stack([i, i + n + 1, i + 1], 1)])
-    return V, T
+from geometry_meshes import flat_square
 
 
 def test_flipped_triangle_is_counted():
-    V, T = grid(5)
+    V, T = flat_square(5)
     W = V.copy()
     # push one interior vertex across a neighbour in-plane: its triangles fold over
     v = 12
@@ -32,7 +23,7 @@ def test_flipped_triangle_is_counted():
 
 
 def test_similarity_of_reference_is_no_change():
-    V, T = grid(6)
+    V, T = flat_square(6)
     V = V + np.random.default_rng(0).normal(0, 0.3, V.shape)   # not planar
     a = 0.7
     R = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])

@@ -6,14 +6,7 @@ import pytest
 from facewrap.errors import InputError
 from facewrap.io.images import load_image, save_png
 
-
-def gradient_image(S, channels=3):
-    r, c = np.mgrid[0:S, 0:S]
-    img = np.stack([c * 255 / (S - 1), r * 255 / (S - 1), (r + c) * 127.0 / (S - 1)], -1)
-    img = np.rint(img).astype(np.uint8)
-    if channels == 4:
-        img = np.concatenate([img, np.full((S, S, 1), 9, np.uint8)], axis=2)
-    return img
+from texture_cases import gradient_image
 
 
 def test_png_round_trip_and_image_errors(tmp_path):

@@ -4,26 +4,12 @@ truth (ground truth, landmarks), checked against brute-force oracles.
 
 import numpy as np
 import pytest
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from facewrap.sample import EXPRESSIONS, LANDMARK_NAMES, make_scan, make_template
 from facewrap.sample.layout import MOUTH_HALF_WIDTH, MOUTH_T, st_from_uv
 
-
-def boundary_loops(T):
-    """Number of boundary loops: components of the graph of edges used once."""
-    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
-    edges, count = np.unique(e, axis=0, return_counts=True)
-    assert count.max() <= 2, "non-manifold edge"
-    b = edges[count == 1]
-    if len(b) == 0:
-        return 0
-    verts, idx = np.unique(b, return_inverse=True)
-    idx = idx.reshape(-1, 2)
-    A = coo_matrix((np.ones(len(b)), (idx[:, 0], idx[:, 1])), shape=(len(verts),) * 2)
-    return connected_components(A, directed=False)[0]
+from sample_oracles import boundary_loops
 
 
 def closest_point_distances(P, V, T, candidates=24):

@@ -10,32 +10,13 @@ from facewrap.mesh import Mesh
 from facewrap.texture import (bake_texture, interpolate_images, load_image, rasterize_uv,
                               sample_image)
 
-
-def grid(n, uv=lambda xy: xy, scale=(1.0, 1.0), jitter=0.0, seed=0):
-    """Unit-square plane (z = 0) of n x n quads; UVs = uv(xy) per vertex."""
-    g = np.linspace(0.0, 1.0, n + 1)
-    X, Y = np.meshgrid(g, g)
-    xy = np.stack([X.ravel(), Y.ravel()], axis=1)
-    if jitter:
-        inner = (xy > 0).all(axis=1) & (xy < 1).all(axis=1)
-        xy[inner] += np.random.default_rng(seed).uniform(-jitter, jitter,
-                                                         (inner.sum(), 2)) / n
-    i = np.arange(n)
-    a = (i[None, :] + (n + 1) * i[:, None]).ravel()
-    faces = np.stack([a, a + 1, a + n + 2, a + n + 1], axis=1)
-    V = np.column_stack([xy * np.asarray(scale), np.zeros(len(xy))])
-    return Mesh(V, faces, uvs=uv(xy), face_uvs=faces)
-
-
-def texel_centres(H, W):
-    r, c = np.mgrid[0:H, 0:W]
-    return np.stack([(c + 0.5) / W, 1 - (r + 0.5) / H], axis=-1)  # (H, W, 2) uv
+from texture_cases import checkerboard, gradient_image, texel_centres, uv_plane
 
 
 @pytest.mark.parametrize("size", [64, (48, 80), 50])
 @pytest.mark.parametrize("jitter", [0.0, 0.35])
 def test_full_square_layout_covers_every_texel_exactly_once(size, jitter):
-    mesh = grid(7, jitter=jitter)            # 7 does not divide the sizes: edges cut texels
+    mesh = uv_plane(7, jitter=jitter)            # 7 does not divide the sizes: edges cut texels
     r = rasterize_uv(mesh, size)
     H, W = (size, size) if np.ndim(size) == 0 else size
     assert r.mask.shape == (H, W) and r.mask.all()
@@ -57,7 +38,7 @@ def test_partial_layout_coverage_matches_area_and_a_brute_force_oracle():
         n = np.linalg.norm(d, axis=1, keepdims=True)
         return 0.45 + 0.4 * np.divide(d * r, n, out=np.zeros_like(d), where=n > 0)
 
-    mesh = grid(6, uv=squeeze)
+    mesh = uv_plane(6, uv=squeeze)
     S = 96
     r = rasterize_uv(mesh, S)
     uvt = mesh.uvs[mesh.triangle_uvs]                    # (t, 3, 2)
@@ -81,7 +62,7 @@ def test_partial_layout_coverage_matches_area_and_a_brute_force_oracle():
 
 
 def test_rasterize_ignores_uvs_outside_the_unit_square_and_checks_size():
-    mesh = grid(2, uv=lambda xy: xy + 2.0)
+    mesh = uv_plane(2, uv=lambda xy: xy + 2.0)
     r = rasterize_uv(mesh, 16)
     assert len(r) == 0 and not r.mask.any()
     for bad in (0, -3, 2.5, (4, 0), (1, 2, 3), True):
@@ -89,26 +70,9 @@ def test_rasterize_ignores_uvs_outside_the_unit_square_and_checks_size():
             rasterize_uv(mesh, bad)
 
 
-def gradient_image(S, channels=3):
-    r, c = np.mgrid[0:S, 0:S]
-    img = np.stack([c * 255 / (S - 1), r * 255 / (S - 1), (r + c) * 127.0 / (S - 1)], -1)
-    img = np.rint(img).astype(np.uint8)
-    if channels == 4:
-        img = np.concatenate([img, np.full((S, S, 1), 9, np.uint8)], axis=2)
-    return img
-
-
-def checkerboard(S, cell=8):
-    r, c = np.mgrid[0:S, 0:S]
-    on = ((r // cell + c // cell) % 2).astype(bool)
-    img = np.where(on[..., None], [230, 40, 90], [20, 200, 60]).astype(np.uint8)
-    img[..., 2] = (np.arange(S) * 255 // (S - 1)).astype(np.uint8)[None, :]
-    return img
-
-
 @pytest.mark.parametrize("image", [checkerboard(128), gradient_image(128, 4)])
 def test_bake_mesh_onto_itself_reproduces_the_image(image):
-    mesh = grid(9, jitter=0.3)
+    mesh = uv_plane(9, jitter=0.3)
     image_ro = image.copy()
     image_ro.setflags(write=False)
     res = bake_texture(mesh, mesh, image_ro, size=128)
@@ -120,7 +84,7 @@ def test_bake_mesh_onto_itself_reproduces_the_image(image):
 
 
 def test_bake_resamples_a_smooth_image_at_another_size():
-    mesh = grid(5)
+    mesh = uv_plane(5)
     img = gradient_image(200)
     res = bake_texture(mesh, mesh, img, size=64)
     # the gradient is linear, so the bilinear sample equals the analytic value
@@ -133,8 +97,8 @@ def test_bake_resamples_a_smooth_image_at_another_size():
 
 def test_bake_between_rotated_layouts_rotates_the_image():
     S = 96
-    scan = grid(6)                                              # uv = (x, y)
-    template = grid(5, uv=lambda xy: np.stack([1 - xy[:, 1], xy[:, 0]], 1))  # 90 deg
+    scan = uv_plane(6)                                              # uv = (x, y)
+    template = uv_plane(5, uv=lambda xy: np.stack([1 - xy[:, 1], xy[:, 0]], 1))  # 90 deg
     img = checkerboard(S, cell=12)
     img[:10, :30] = [255, 255, 0]                               # break the symmetry
     res = bake_texture(template, scan, img, size=S)
@@ -146,8 +110,8 @@ def test_bake_between_rotated_layouts_rotates_the_image():
 
 def test_padding_fills_exactly_the_texels_within_padding_pixels():
     S, pad = 64, 5
-    scan = grid(4)
-    template = grid(4, uv=lambda xy: 0.25 + 0.5 * xy)   # island = texels 16..47
+    scan = uv_plane(4)
+    template = uv_plane(4, uv=lambda xy: 0.25 + 0.5 * xy)   # island = texels 16..47
     img = gradient_image(S)
     res = bake_texture(template, scan, img, size=S, padding=pad)
     cov = np.zeros((S, S), bool)
@@ -173,8 +137,8 @@ def test_padding_fills_exactly_the_texels_within_padding_pixels():
 
 
 def test_far_texels_are_not_covered():
-    scan = grid(4)
-    template = grid(8, scale=(2.0, 1.0))     # x in [0, 2]: right half is off the scan
+    scan = uv_plane(4)
+    template = uv_plane(8, scale=(2.0, 1.0))     # x in [0, 2]: right half is off the scan
     res = bake_texture(template, scan, gradient_image(32), size=40, max_distance=0.1,
                        padding=0)
     u = texel_centres(40, 40)[..., 0]
@@ -186,7 +150,7 @@ def test_far_texels_are_not_covered():
 
 
 def test_bake_checks_its_arguments():
-    mesh = grid(2)
+    mesh = uv_plane(2)
     img = gradient_image(8)
     with pytest.raises(ValueError, match="uint8"):
         bake_texture(mesh, mesh, img.astype(float))
@@ -194,7 +158,7 @@ def test_bake_checks_its_arguments():
         bake_texture(mesh, mesh, img, size=8, padding=-1)
     with pytest.raises(ValueError, match="template has no texture"):
         bake_texture(Mesh(mesh.vertices, mesh.faces_array()), mesh, img)
-    other = grid(3)
+    other = uv_plane(3)
     with pytest.raises(ValueError, match="tree"):
         bake_texture(mesh, mesh, img, size=8,
                      tree=ClosestPointTree(other.vertices, other.triangles))
@@ -222,7 +186,7 @@ def test_interpolate_images():
 
 
 def test_rasterize_in_small_chunks_gives_the_same_raster(monkeypatch):
-    mesh = grid(5, jitter=0.3)
+    mesh = uv_plane(5, jitter=0.3)
     whole = rasterize_uv(mesh, 40)
     monkeypatch.setattr(facewrap.texture.bake, "BLOCK_TEXELS", 7)
     parts = rasterize_uv(mesh, 40)

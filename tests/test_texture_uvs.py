@@ -7,26 +7,12 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
 from facewrap.texture import cylindrical_uvs, scan_uvs_at, transfer_uvs
 
-
-def grid(n, uv=lambda xy: xy, scale=(1.0, 1.0), jitter=0.0, seed=0):
-    """Unit-square plane (z = 0) of n x n quads; UVs = uv(xy) per vertex."""
-    g = np.linspace(0.0, 1.0, n + 1)
-    X, Y = np.meshgrid(g, g)
-    xy = np.stack([X.ravel(), Y.ravel()], axis=1)
-    if jitter:
-        inner = (xy > 0).all(axis=1) & (xy < 1).all(axis=1)
-        xy[inner] += np.random.default_rng(seed).uniform(-jitter, jitter,
-                                                         (inner.sum(), 2)) / n
-    i = np.arange(n)
-    a = (i[None, :] + (n + 1) * i[:, None]).ravel()
-    faces = np.stack([a, a + 1, a + n + 2, a + n + 1], axis=1)
-    V = np.column_stack([xy * np.asarray(scale), np.zeros(len(xy))])
-    return Mesh(V, faces, uvs=uv(xy), face_uvs=faces)
+from texture_cases import uv_plane
 
 
 def test_scan_uvs_at_reproduces_linear_fields_across_a_seam():
     # left half (x < 0.5) and right half map to two islands by different affine maps
-    plane = grid(6)
+    plane = uv_plane(6)
     V = plane.vertices
     faces = plane.faces_array()
     left = V[faces, 0].mean(axis=1) < 0.5
@@ -53,7 +39,7 @@ def test_scan_uvs_at_reproduces_linear_fields_across_a_seam():
 
 
 def test_scan_uvs_at_checks_its_arguments():
-    plane = grid(2)
+    plane = uv_plane(2)
     with pytest.raises(ValueError, match="triangles"):
         scan_uvs_at(plane, [len(plane.triangles)], [[1, 0, 0]])
     with pytest.raises(ValueError, match="barycentric"):
@@ -82,7 +68,7 @@ def test_cylindrical_uvs_lie_in_unit_square_and_follow_the_angle():
 
 
 def test_transfer_uvs_uses_scan_uvs_where_valid_and_cylinder_elsewhere():
-    scan = grid(8, uv=lambda xy: 0.1 + 0.8 * xy[:, ::-1])
+    scan = uv_plane(8, uv=lambda xy: 0.1 + 0.8 * xy[:, ::-1])
     rng = np.random.default_rng(3)
     verts = np.column_stack([rng.uniform(0, 1, (200, 2)), rng.normal(0, 0.01, 200)])
     mask = rng.random(200) < 0.7
@@ -99,7 +85,7 @@ def test_transfer_uvs_uses_scan_uvs_where_valid_and_cylinder_elsewhere():
 
 
 def test_transfer_uvs_treats_ray_misses_as_unmapped():
-    scan = grid(4)
+    scan = uv_plane(4)
     tree = ClosestPointTree(scan.vertices, scan.triangles)
     origins = np.array([[0.3, 0.6, 1.0], [3.0, 3.0, 1.0]])   # second one misses
     hits = tree.ray_hits(origins, [[0, 0, -1.0]] * 2)
