@@ -17,6 +17,7 @@ from facewrap.io.atomic import atomic_write
 
 __all__ = ["as_image", "to_uint8", "save_png", "load_image"]
 
+
 def as_image(image, name: str) -> np.ndarray:
     """An image argument checked: uint8, 1 to 4 channels, not empty.
 

@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = ["Identity", "face_identity"]
 
+
 @dataclass(frozen=True)
 class Identity:
     """Feature parameters of one face (defaults = the template's face).

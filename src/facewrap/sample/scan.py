@@ -29,6 +29,7 @@ from facewrap.sample.template import SampleTemplate, checked_resolution, make_te
 
 __all__ = ["checked_transform", "SampleScan", "make_scan"]
 
+
 def _stream(seed: int, purpose: int) -> np.random.Generator:
     """An independent random stream per purpose, so that e.g. ``noise=0`` and
     ``noise=0.2`` with one seed give the same topology and transform."""

@@ -8,6 +8,7 @@ from facewrap.sample.template import SampleTemplate, checked_resolution, make_te
 
 __all__ = ["make_sequence"]
 
+
 def make_sequence(template: SampleTemplate | None = None, frames: int = 10,
                   peak: dict[str, float] | None = None, **scan_kwargs) -> list[SampleScan]:
     """An expression ramp from neutral to ``peak``, one scan per frame (4-D capture).

@@ -11,6 +11,7 @@ from facewrap.sample.surface import ear_relief
 
 __all__ = ["skin_texture"]
 
+
 def _smooth_noise(rng, size, cells, order=3):
     """(size, size) smooth random field with about ``cells`` blobs across, std ~1."""
     from scipy.ndimage import zoom  # scipy.ndimage takes ~0.3 s to import; only scans need it

@@ -24,6 +24,7 @@ from facewrap.sample.surface import EXPRESSIONS, expression_offsets, head_surfac
 
 __all__ = ["checked_resolution", "SampleTemplate", "make_template"]
 
+
 def _grid_lines(anchors, rel, h0) -> np.ndarray:
     """Grid coordinates with local spacing ``h0 * rel(x)``, exact at ``anchors``."""
     out = [np.array([anchors[0]])]

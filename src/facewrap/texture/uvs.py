@@ -17,6 +17,7 @@ from facewrap.mesh import Mesh
 __all__ = ["checked_uv_mesh", "scan_uvs_at", "trusted_scan_uvs", "cylindrical_uvs",
            "transfer_uvs"]
 
+
 def checked_uv_mesh(mesh, name: str) -> Mesh:
     """``mesh`` checked to be a :class:`~facewrap.mesh.Mesh` with finite texture coordinates.
 
