@@ -7,7 +7,7 @@ from facewrap.animation import (FRAME_MATERIAL, interpolate_textures,
                                 interpolate_vertices, write_obj_sequence)
 from facewrap.io.obj import read_obj
 from facewrap.mesh import Mesh
-from facewrap.texture.bake import load_image
+from facewrap.texture import load_image
 
 
 def test_interpolate_vertices_ends_exact_midpoint_mean_and_linear():

@@ -1,4 +1,4 @@
-"""Evaluation: distances, landmarks, correspondence, triangle quality, the CLI."""
+"""Evaluation: surface distances, landmark and ground-truth errors, the summary, the CLI."""
 
 import argparse
 import json
@@ -7,26 +7,16 @@ import numpy as np
 import pytest
 
 from facewrap.errors import InputError
-from facewrap.evaluate import (correspondence_errors, evaluate, landmark_errors,
-                               surface_distances, triangle_quality, triangle_to_vertex)
+from facewrap.evaluate import evaluate, ground_truth_errors, landmark_errors, surface_distances
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
 
-
-def grid(n=11, size=10.0):
-    """A flat (n x n)-vertex square in the z = 0 plane, normals +z."""
-    s = np.linspace(0, size, n)
-    X, Y = np.meshgrid(s, s, indexing="ij")
-    V = np.stack([X.ravel(), Y.ravel(), np.zeros(n * n)], axis=1)
-    i = np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]
-    i = i.ravel()
-    T = np.concatenate([np.stack([i, i + n, i + n + 1], 1), np.stack([i, i + n + 1, i + 1], 1)])
-    return V, T
+from geometry_meshes import flat_square
 
 
 @pytest.fixture(scope="module")
 def sample():
-    from facewrap.sample.face import make_scan, make_template
+    from facewrap.sample import make_scan, make_template
     from facewrap.wrapping.stages import WrapSettings, wrap
     tpl = make_template(24)
     scan = make_scan(tpl, resolution=40, texture_size=8)
@@ -38,14 +28,14 @@ def sample():
 # -- surface distances ------------------------------------------------------------------
 
 def test_distance_of_a_mesh_to_itself_is_zero():
-    V, T = grid()
+    V, T = flat_square()
     d = surface_distances(V, (V, T), exclude_border=False)
     assert np.allclose(d.distances, 0, atol=1e-12)
     assert d.coverage == 1.0 and d.summary()["max"] < 1e-12
 
 
 def test_known_offset_gives_known_signed_distance():
-    V, T = grid()
+    V, T = flat_square()
     inner = (V[:, 0] > 2) & (V[:, 0] < 8) & (V[:, 1] > 2) & (V[:, 1] < 8)
     P = V[inner] + [0, 0, 0.7]
     Q = V[inner] - [0, 0, 0.3]
@@ -57,7 +47,7 @@ def test_known_offset_gives_known_signed_distance():
 
 
 def test_points_beyond_the_border_are_not_covered():
-    V, T = grid()
+    V, T = flat_square()
     P = np.array([[5.0, 5.0, 1.0], [15.0, 5.0, 0.0], [-3.0, -3.0, 0.0]])
     d = surface_distances(P, (V, T))
     assert d.covered.tolist() == [True, False, False]
@@ -84,14 +74,14 @@ def test_fit_summary_matches_wrap_fit_metrics(sample):
 
 
 def test_surface_distances_validates_points():
-    V, T = grid(3)
+    V, T = flat_square(3)
     with pytest.raises(ValueError, match="points"):
         surface_distances(np.zeros((2, 2)), (V, T))
     with pytest.raises(ValueError, match="mask"):
         surface_distances(np.zeros((2, 3)), (V, T), mask=np.ones(3, bool))
 
 
-# -- landmarks and correspondence -----------------------------------------------------------
+# -- landmarks and ground truth -----------------------------------------------------------
 
 def test_landmark_errors_known_values_and_summary():
     e = landmark_errors([[0, 0, 0], [1, 0, 0], [0, 0, 0]], [[0, 3, 4], [1, 0, 0], [0, 0, 1]],
@@ -104,63 +94,14 @@ def test_landmark_errors_known_values_and_summary():
         landmark_errors(np.zeros((2, 3)), np.zeros((3, 3)))
 
 
-def test_correspondence_skips_nan_truth_and_masked_vertices():
+def test_ground_truth_errors_skip_nan_truth_and_masked_vertices():
     V = np.zeros((4, 3))
     G = np.array([[0, 0, 1.0], [np.nan, 0, 0], [0, 2, 0], [3, 0, 0]])
-    e = correspondence_errors(V, G, mask=[0, 1, 2])
+    e = ground_truth_errors(V, G, mask=[0, 1, 2])
     assert np.isnan(e.errors[[1, 3]]).all() and e.errors[[0, 2]].tolist() == [1.0, 2.0]
     assert e.count == 2 and e.summary()["correspondence_mean"] == 1.5
     with pytest.raises(ValueError, match="ground_truth"):
-        correspondence_errors(V, G[:3])
-
-
-# -- triangles ------------------------------------------------------------------------------------
-
-def test_flipped_triangle_is_counted():
-    V, T = grid(5)
-    W = V.copy()
-    # push one interior vertex across a neighbour in-plane: its triangles fold over
-    v = 12
-    W[v, 0] += 4.0
-    q = triangle_quality(W, T, V)
-    assert q.flipped.sum() > 0
-    assert q.flipped.tolist() == (np.einsum(
-        "ij,ij->i", np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]]),
-        np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])) < 0).tolist()
-    assert triangle_quality(V, T, V).flipped.sum() == 0
-
-
-def test_similarity_of_reference_is_no_change():
-    V, T = grid(6)
-    V = V + np.random.default_rng(0).normal(0, 0.3, V.shape)   # not planar
-    a = 0.7
-    R = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-    W = 2.5 * V @ R.T + [10, -3, 4]
-    q = triangle_quality(W, T, V)
-    assert not q.flipped.any()
-    assert np.allclose(q.area_ratio, 1.0) and np.allclose(q.stretch, 1.0)
-    # without alignment, the global scale shows as area change but not as stretch
-    raw = triangle_quality(W, T, V, align=False)
-    assert np.allclose(raw.area_ratio, 2.5 ** 2) and np.allclose(raw.stretch, 1.0)
-
-
-def test_known_stretch_and_angles():
-    V = np.array([[0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0]])
-    q = triangle_quality(V, [[0, 1, 2]], V * [2.0, 1.0, 1.0], align=False)
-    assert q.min_angle[0] == pytest.approx(60.0)
-    assert q.stretch[0] == pytest.approx(2.0) and q.area_ratio[0] == pytest.approx(0.5)
-    deg = triangle_quality(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.]]), [[0, 1, 2]])
-    assert deg.degenerate.tolist() == [True] and deg.min_angle.tolist() == [0.0]
-    s = triangle_quality(V, [[0, 1, 2]], V).summary()
-    assert s["triangles_flipped"] == 0 and s["triangles_stretch_max"] == pytest.approx(1.0)
-
-
-def test_triangle_to_vertex_reductions():
-    T = np.array([[0, 1, 2], [0, 2, 3]])
-    assert triangle_to_vertex([1.0, 3.0], T, 4, "max").tolist() == [3.0, 1.0, 3.0, 3.0]
-    assert triangle_to_vertex([1.0, np.nan], T, 4).tolist()[:3] == [1.0, 1.0, 1.0]
-    with pytest.raises(ValueError, match="reduce"):
-        triangle_to_vertex([1.0, 3.0], T, 4, "sum")
+        ground_truth_errors(V, G[:3])
 
 
 # -- everything, and the command ------------------------------------------------------------
@@ -183,7 +124,7 @@ def test_evaluate_sample_summary_is_json(sample):
 
 
 def test_evaluate_pairs_named_landmarks_by_name():
-    V, T = grid()
+    V, T = flat_square()
     lm_r = Landmarks.from_vertices([0, 5, 60], names=["a", "b", "c"])
     lm_s = Landmarks.from_points(V[[60, 0]] + [0, 0, 2.0], names=["c", "a"])
     ev = evaluate((V, T), (V, T), result_landmarks=lm_r, scan_landmarks=lm_s)
@@ -216,7 +157,7 @@ def files(sample, tmp_path_factory):
 
 
 def test_cli_writes_json_and_heatmap(files, capsys):
-    from facewrap.texture.bake import load_image
+    from facewrap.texture import load_image
     d = files
     rc = _cli(["evaluate", str(d / "fit.obj"), str(d / "scan.obj"),
                "--ground-truth", str(d / "gt.npy"), "--reference", str(d / "template.obj"),

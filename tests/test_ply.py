@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from facewrap.errors import InputError
-from facewrap.io.ply import _distinct_rows, read_ply, write_ply
+from facewrap.io.ply import read_ply, write_ply
 from facewrap.mesh import Mesh
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -309,15 +309,21 @@ def test_crlf_blank_lines_and_trailing_spaces_in_ascii(tmp_path):
     assert m.faces_array().tolist() == [[0, 1, 2]]
 
 
-def test_distinct_rows_matches_numpy_unique():
+def test_per_corner_uvs_are_the_distinct_pairs_in_order_of_first_use(tmp_path):
     rng = np.random.default_rng(5)
-    for pairs in (rng.integers(0, 4, size=(500, 2)) / 4.0,  # float32-exact
-                  rng.integers(0, 4, size=(500, 2)) / 3.0,  # not float32-exact
-                  np.zeros((0, 2))):
-        table, idx = _distinct_rows(pairs)
-        assert np.array_equal(table[idx], pairs)
-        assert len(table) == len(np.unique(pairs, axis=0))
-        first_use = [int(np.argmax(idx == k)) for k in range(len(table))]
+    for denominator in (4.0, 3.0):        # float32-exact pairs, and pairs that are not
+        pairs = rng.integers(0, 4, size=(3 * 170, 2)) / denominator
+        faces = [([0, 1, 2], list(pairs[3 * k:3 * k + 3].ravel())) for k in range(170)]
+        path = tmp_path / f"uv{int(denominator)}.ply"
+        path.write_bytes(make_ply("binary_little_endian", [
+            ("vertex", ["double x", "double y", "double z"], TRI[:3]),
+            ("face", ["list uchar int vertex_indices", "list uchar double texcoord"],
+             faces)]))
+        m = read_ply(path)
+        idx = m.face_uvs
+        assert np.array_equal(m.uvs[idx], pairs)
+        assert len(m.uvs) == len(np.unique(pairs, axis=0))
+        first_use = [int(np.argmax(idx == k)) for k in range(len(m.uvs))]
         assert first_use == sorted(first_use)
 
 

@@ -1,4 +1,4 @@
-"""How good is a registration: distances, landmark and correspondence errors, triangles.
+"""How good is a registration: distances, landmark and ground-truth errors, triangles.
 
 This module owns the numbers by which a fitted mesh is judged (``facewrap evaluate``,
 tests and benchmarks), each from a small function that returns a result object with
@@ -10,11 +10,10 @@ per-item arrays (for pictures) and a ``summary()`` of JSON-able statistics:
   reaches beyond what a scanner saw (and a scan beyond the template).  Used both
   ways: result vertices → scan and scan vertices → result.
 * :func:`landmark_errors`: distances between paired landmark positions.
-* :func:`correspondence_errors`: per-vertex distance to a ground-truth mesh in the
+* :func:`ground_truth_errors`: per-vertex distance to a ground-truth mesh in the
   same topology (NaN rows of the truth, e.g. parts it does not cover, are skipped).
-* :func:`triangle_quality`: minimum angles, and against a reference mesh in the
-  same topology (similarity-aligned first) flipped triangles (normal dot < 0),
-  area change and stretch (anisotropy of each triangle's deformation).
+* triangle quality (:func:`facewrap.geometry.triangle_quality`): minimum angles,
+  and against a reference mesh flipped triangles, area change and stretch.
 
 :func:`evaluate` runs all that apply and returns an :class:`Evaluation`.
 Distances are in the meshes' units (millimetres for face scans).
@@ -25,18 +24,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
-from facewrap.geometry.similarity import similarity_transform
-from facewrap.geometry import ClosestPointTree
-from facewrap.geometry.checks import as_points, as_triangles, as_vertices
-from facewrap.geometry.normals import _cross_columns, _edge_vectors
+from facewrap.geometry import (ClosestPointTree, TriangleQuality, triangle_quality,
+                               triangle_to_vertex)
+from facewrap.geometry.checks import as_points, mesh_arrays
 from facewrap.landmarks import Landmarks, pair_landmarks
 
-__all__ = ["SurfaceDistances", "LandmarkErrors", "CorrespondenceErrors",
-           "TriangleQuality", "Evaluation", "surface_distances", "landmark_errors",
-           "correspondence_errors", "triangle_quality", "triangle_to_vertex",
-           "evaluate"]
+__all__ = ["SurfaceDistances", "LandmarkErrors", "GroundTruthErrors", "Evaluation",
+           "surface_distances", "landmark_errors", "ground_truth_errors", "evaluate"]
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -65,15 +60,6 @@ def _vertex_mask(mask, n: int, name: str = "mask") -> np.ndarray:
     out = np.zeros(n, dtype=bool)
     out[m] = True
     return out
-
-
-def _mesh_vt(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
-    if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
-        return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.triangles)
-    if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
-        V = as_vertices(mesh[0], f"{name} vertices")
-        return V, as_triangles(mesh[1], len(V), f"{name} triangles")
-    raise ValueError(f"{name} must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")
 
 
 # -- surface distances ----------------------------------------------------------------------
@@ -142,6 +128,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     Returns
     -------
     SurfaceDistances
+        One row per point, unsigned and signed, and which points are covered.
 
     Examples
     --------
@@ -153,7 +140,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     """
     P = as_points(points, "points")
     tree = surface if isinstance(surface, ClosestPointTree) else \
-        ClosestPointTree(*_mesh_vt(surface, "surface"))
+        ClosestPointTree(*mesh_arrays(surface, "surface"))
     covered = _vertex_mask(mask, len(P))
     if len(P) == 0:
         z = np.zeros(0)
@@ -221,10 +208,10 @@ def landmark_errors(positions, targets, names=None) -> LandmarkErrors:
     return LandmarkErrors(np.linalg.norm(A - B, axis=1), names)
 
 
-# -- correspondence --------------------------------------------------------------------------------
+# -- ground truth --------------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
-class CorrespondenceErrors:
+class GroundTruthErrors:
     """Per-vertex distance to ground truth in the same topology.
 
     Attributes
@@ -241,12 +228,18 @@ class CorrespondenceErrors:
         return int(np.isfinite(self.errors).sum())
 
     def summary(self, prefix: str = "correspondence_") -> dict:
+        """Statistics and the count, keys ``{prefix}mean`` ... ``{prefix}count``.
+
+        The default prefix is the key the report pages and ``facewrap evaluate``
+        read (``correspondence_mean``: how far each vertex is from its true
+        correspondent).
+        """
         s = {prefix + k: v for k, v in _stats(self.errors).items()}
         s[prefix + "count"] = self.count
         return s
 
 
-def correspondence_errors(vertices, ground_truth, mask=None) -> CorrespondenceErrors:
+def ground_truth_errors(vertices, ground_truth, mask=None) -> GroundTruthErrors:
     """Distance of each vertex to where it should be.
 
     Parameters
@@ -260,11 +253,11 @@ def correspondence_errors(vertices, ground_truth, mask=None) -> CorrespondenceEr
 
     Returns
     -------
-    CorrespondenceErrors
+    GroundTruthErrors
 
     Examples
     --------
-    >>> e = correspondence_errors([[0, 0, 0], [1, 0, 0.]], [[0, 0, 2], [np.nan] * 3])
+    >>> e = ground_truth_errors([[0, 0, 0], [1, 0, 0.]], [[0, 0, 2], [np.nan] * 3])
     >>> e.errors.tolist()[0], e.count
     (2.0, 1)
     """
@@ -275,200 +268,7 @@ def correspondence_errors(vertices, ground_truth, mask=None) -> CorrespondenceEr
     keep = _vertex_mask(mask, len(V)) & np.isfinite(G).all(axis=1)
     err = np.full(len(V), np.nan)
     err[keep] = np.linalg.norm(V[keep] - G[keep], axis=1)
-    return CorrespondenceErrors(err)
-
-
-# -- triangle quality ------------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class TriangleQuality:
-    """Shape of each triangle, and its change from a reference.
-
-    Attributes
-    ----------
-    min_angle : (t,) float64
-        Smallest interior angle, degrees (0 for degenerate triangles).
-    area : (t,) float64
-    degenerate : (t,) bool
-        Zero area (in the mesh or in the reference).
-    flipped : (t,) bool or None
-        Normal points against the aligned reference's (dot < 0).
-    area_ratio : (t,) float64 or None
-        Area over the aligned reference's area (1 = unchanged; the global scale of
-        the alignment is taken out); NaN for degenerate triangles.
-    stretch : (t,) float64 or None
-        Anisotropy of the in-plane deformation from the reference, ``s_max / s_min``
-        of its singular values (1 = shape kept, only scaled and rotated); NaN for
-        degenerate triangles.
-    """
-
-    min_angle: np.ndarray
-    area: np.ndarray
-    degenerate: np.ndarray
-    flipped: np.ndarray | None = None
-    area_ratio: np.ndarray | None = None
-    stretch: np.ndarray | None = None
-
-    def summary(self, prefix: str = "triangles_") -> dict:
-        """Counts and percentiles (JSON-able)."""
-        t = len(self.area)
-        s = {prefix + "count": int(t), prefix + "degenerate": int(self.degenerate.sum())}
-        ang = self.min_angle[~self.degenerate]
-        s[prefix + "min_angle_min"] = float(ang.min()) if len(ang) else None
-        s[prefix + "min_angle_p5"] = float(np.percentile(ang, 5)) if len(ang) else None
-        if self.flipped is not None:
-            s[prefix + "flipped"] = int(self.flipped.sum())
-            s[prefix + "flipped_fraction"] = float(self.flipped.mean()) if t else 0.0
-            r = self.area_ratio[np.isfinite(self.area_ratio)]
-            st = self.stretch[np.isfinite(self.stretch)]
-            for q in (5, 50, 95):
-                s[prefix + f"area_ratio_p{q}"] = float(np.percentile(r, q)) if len(r) else None
-            s[prefix + "stretch_p95"] = float(np.percentile(st, 95)) if len(st) else None
-            s[prefix + "stretch_max"] = float(st.max()) if len(st) else None
-        return s
-
-
-def _triangle_frames(V, T):
-    """Edges e1 = V1 - V0, e2 = V2 - V0 and doubled-area normals, each (3, t)."""
-    e1, e2 = _edge_vectors(V, T)
-    return e1, e2, _cross_columns(e1, e2)
-
-
-def _min_angles(V, T) -> np.ndarray:
-    e1, e2, n = _triangle_frames(V, T)
-    e3 = e2 - e1
-    two_a = np.sqrt(np.einsum("ij,ij->j", n, n))
-    angles = []
-    for a, b in ((e1, e2), (-e1, e3), (-e2, -e3)):
-        dot = np.einsum("ij,ij->j", a, b)
-        angles.append(np.arctan2(two_a, dot))
-    ang = np.degrees(np.min(angles, axis=0))
-    return np.where(two_a > 0, ang, 0.0)
-
-
-def triangle_quality(vertices, triangles, reference=None, *,
-                     align: bool = True) -> TriangleQuality:
-    """Shape quality of triangles, and their change from a reference.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    triangles : (t, 3) int
-        For a polygon mesh, its fan triangulation (``mesh.triangles``): a square
-        quad gives two 45-degree triangles.
-    reference : (n, 3) float, optional
-        The same mesh before fitting (e.g. the template).  With it, flipped
-        triangles, area ratios and stretch are computed.
-    align : bool
-        Fit the reference onto ``vertices`` with a similarity (Umeyama, all
-        vertices) first, so a global rotation, translation or scale counts as no
-        change.
-
-    Returns
-    -------
-    TriangleQuality
-
-    Examples
-    --------
-    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
-    >>> q = triangle_quality(V, [[0, 1, 2]], V[[0, 2, 1]] * [1, 1, 1], align=False)
-    >>> q.min_angle.round(6).tolist(), q.flipped.tolist(), q.area_ratio.tolist()
-    ([45.0], [True], [1.0])
-    """
-    V = as_vertices(vertices, "vertices")
-    T = as_triangles(triangles, len(V), "triangles")
-    _, _, n = _triangle_frames(V, T)
-    two_a = np.sqrt(np.einsum("ij,ij->j", n, n))
-    min_angle = _min_angles(V, T)
-    degenerate = two_a == 0
-    if reference is None:
-        return TriangleQuality(min_angle, 0.5 * two_a, degenerate)
-    Rf = as_vertices(reference, "reference")
-    if Rf.shape != V.shape:
-        raise ValueError(f"reference must have shape {V.shape}, got {Rf.shape}")
-    if align and len(V) >= 3:
-        Rf = similarity_transform(Rf, V).apply(Rf)
-    r1, r2, rn = _triangle_frames(Rf, T)
-    ref_two_a = np.sqrt(np.einsum("ij,ij->j", rn, rn))
-    degenerate = degenerate | (ref_two_a == 0)
-    flipped = np.einsum("ij,ij->j", n, rn) < 0
-    ok = ~degenerate
-    ratio = np.full(len(T), np.nan)
-    ratio[ok] = two_a[ok] / ref_two_a[ok]
-    stretch = np.full(len(T), np.nan)
-    stretch[ok] = _anisotropy(r1[:, ok], r2[:, ok], rn[:, ok], ref_two_a[ok],
-                              *_edge_vectors(V, T[ok]))
-    return TriangleQuality(min_angle, 0.5 * two_a, degenerate, flipped, ratio, stretch)
-
-
-def _anisotropy(r1, r2, rn, ref_two_a, f1, f2) -> np.ndarray:
-    """``s_max / s_min`` of the map from each reference triangle to the deformed one.
-
-    Reference edges in an orthonormal in-plane frame ``(u, w)``: ``E = [[a, b],
-    [0, c]]`` with ``a = |r1|``, ``b = r2 . u``, ``c = |rn| / a``; the Jacobian is
-    ``J = [f1 f2] E^-1`` (3 x 2) and its singular values come from the 2 x 2 Gram
-    matrix ``J^T J`` in closed form.  Inputs are (3, t) columns.
-    """
-    a = np.sqrt(np.einsum("ij,ij->j", r1, r1))
-    b = np.einsum("ij,ij->j", r2, r1) / a
-    c = ref_two_a / a
-    # E^-1 = [[1/a, -b/(a c)], [0, 1/c]]: columns of J
-    j1 = f1 / a
-    j2 = (f2 - f1 * (b / a)) / c
-    g11 = np.einsum("ij,ij->j", j1, j1)
-    g22 = np.einsum("ij,ij->j", j2, j2)
-    g12 = np.einsum("ij,ij->j", j1, j2)
-    mid = 0.5 * (g11 + g22)
-    rad = np.sqrt(np.maximum(0.25 * (g11 - g22) ** 2 + g12 ** 2, 0.0))
-    s_max = np.sqrt(mid + rad)
-    s_min = np.sqrt(np.maximum(mid - rad, 0.0))
-    return np.divide(s_max, s_min, out=np.full_like(s_max, np.inf), where=s_min > 0)
-
-
-def triangle_to_vertex(values, triangles, n_vertices: int, reduce: str = "mean"
-                       ) -> np.ndarray:
-    """Per-vertex values from per-triangle values (for pictures).
-
-    Parameters
-    ----------
-    values : (t,) float
-        NaN values are ignored.
-    triangles : (t, 3) int
-    n_vertices : int
-    reduce : {"mean", "max", "min"}
-        Over the triangles around each vertex.
-
-    Returns
-    -------
-    (n_vertices,) float64
-        NaN for vertices with no finite value around them.
-
-    Examples
-    --------
-    >>> triangle_to_vertex([1.0, 3.0], [[0, 1, 2], [0, 2, 3]], 5).tolist()
-    [2.0, 1.0, 2.0, 3.0, nan]
-    """
-    v = np.asarray(values, dtype=np.float64).reshape(-1)
-    T = as_triangles(triangles, n_vertices, "triangles")
-    if len(v) != len(T):
-        raise ValueError(f"values must have one entry per triangle ({len(T)}), "
-                         f"got {len(v)}")
-    ok = np.isfinite(v)
-    idx = T[ok].reshape(-1)
-    vals = np.repeat(v[ok], 3)
-    if reduce == "mean":
-        inc = sp.csr_matrix((np.ones(len(idx)), (idx, np.arange(len(idx)))),
-                            shape=(n_vertices, len(idx)))
-        total = inc @ vals
-        count = np.bincount(idx, minlength=n_vertices)
-        return np.divide(total, count, out=np.full(n_vertices, np.nan), where=count > 0)
-    if reduce in ("max", "min"):
-        fill = -np.inf if reduce == "max" else np.inf
-        out = np.full(n_vertices, fill)
-        (np.maximum if reduce == "max" else np.minimum).at(out, idx, vals)
-        out[out == fill] = np.nan
-        return out
-    raise ValueError(f"reduce must be 'mean', 'max' or 'min', got {reduce!r}")
+    return GroundTruthErrors(err)
 
 
 # -- everything ---------------------------------------------------------------------------------
@@ -486,7 +286,7 @@ class Evaluation:
         One row per scan vertex (distance to the result; covered where the closest
         result point is not on the result's border).
     landmarks : LandmarkErrors or None
-    correspondence : CorrespondenceErrors or None
+    ground_truth : GroundTruthErrors or None
     quality : TriangleQuality
         Of the result's triangulation (against the reference when one was given).
     triangles : (t, 3) int64
@@ -498,7 +298,7 @@ class Evaluation:
     result_to_scan: SurfaceDistances
     scan_to_result: SurfaceDistances
     landmarks: LandmarkErrors | None
-    correspondence: CorrespondenceErrors | None
+    ground_truth: GroundTruthErrors | None
     quality: TriangleQuality
     triangles: np.ndarray
     n_vertices: int
@@ -515,8 +315,8 @@ class Evaluation:
         out.update(self.scan_to_result.summary("scan_to_result_"))
         if self.landmarks is not None:
             out.update(self.landmarks.summary())
-        if self.correspondence is not None:
-            out.update(self.correspondence.summary())
+        if self.ground_truth is not None:
+            out.update(self.ground_truth.summary())
         out.update(self.quality.summary())
         return out
 
@@ -530,8 +330,8 @@ class Evaluation:
         """
         out = {"fit": self.result_to_scan.values(),
                "fit_signed": self.result_to_scan.values(signed=True)}
-        if self.correspondence is not None:
-            out["correspondence"] = self.correspondence.errors.copy()
+        if self.ground_truth is not None:
+            out["correspondence"] = self.ground_truth.errors.copy()
         tq = self.quality
         if tq.flipped is not None:
             T, n = self.triangles, self.n_vertices
@@ -570,7 +370,7 @@ def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,
         The template before fitting, same topology: enables flipped triangles,
         area change and stretch.
     mask : (n,) bool or int ids, optional
-        Result vertices to evaluate (fit distances and correspondence), e.g. the
+        Result vertices to evaluate (fit distances and ground-truth errors), e.g. the
         face without eyeballs.
     exclude_border : bool
         Leave points whose closest point is on the other mesh's border out of the
@@ -582,8 +382,8 @@ def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,
     -------
     Evaluation
     """
-    V, T = _mesh_vt(result, "result")
-    SV, ST = _mesh_vt(scan, "scan")
+    V, T = mesh_arrays(result, "result")
+    SV, ST = mesh_arrays(scan, "scan")
     tree = scan_tree if scan_tree is not None else ClosestPointTree(SV, ST)
     r2s = surface_distances(V, tree, exclude_border=exclude_border, mask=mask)
     s2r = surface_distances(SV, ClosestPointTree(V, T), exclude_border=exclude_border)
@@ -603,12 +403,12 @@ def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,
                 raise ValueError(f"landmark counts differ: {len(A)} vs {len(B)}")
             ia = ib = np.arange(len(A))
         lm = landmark_errors(A[ia], B[ib], names)
-    corr = None
+    truth = None
     if ground_truth is not None:
         G = ground_truth.vertices if hasattr(ground_truth, "vertices") else ground_truth
-        corr = correspondence_errors(V, G, mask=mask)
+        truth = ground_truth_errors(V, G, mask=mask)
     ref = None
     if reference is not None:
         ref = reference.vertices if hasattr(reference, "vertices") else reference
     tq = triangle_quality(V, T, ref)
-    return Evaluation(r2s, s2r, lm, corr, tq, np.asarray(T, dtype=np.int64), len(V))
+    return Evaluation(r2s, s2r, lm, truth, tq, np.asarray(T, dtype=np.int64), len(V))

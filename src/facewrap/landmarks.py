@@ -210,7 +210,7 @@ def snap_to_surface(landmarks: Landmarks, vertices, triangles
     distances : (k,) float64
         How far each landmark moved (0 for those already on the mesh).
     """
-    from facewrap.geometry import ClosestPointTree
+    from facewrap.geometry import ClosestPointTree  # loads libigl (~0.2 s): only snapping needs it
     free = ~((landmarks.vertex >= 0) | (landmarks.triangle >= 0))
     dist = np.zeros(len(landmarks))
     if not free.any():

@@ -18,11 +18,17 @@ Laplacians (:mod:`.laplacian`), positive semi-definite
     :func:`cotangent_laplacian`, :func:`uniform_laplacian`, :func:`mass_matrix`
 Similarity transforms (:mod:`.similarity`)
     :class:`Similarity`, :func:`similarity_transform` (Umeyama)
-Triangles that turned (:mod:`.quality`)
-    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`
+Triangle quality (:mod:`.quality`)
+    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles` (the one flip
+    test), :func:`triangle_quality`, :class:`TriangleQuality`, :func:`triangle_to_vertex`
 Sampling (:mod:`.sampling`)
     :func:`sample_surface`, :func:`farthest_point_sampling`,
     :func:`poisson_disk_vertices`
+
+For code inside the package: argument checks at the door (:mod:`.checks`, e.g.
+:func:`~.checks.as_mesh_arrays`, :func:`~.checks.mesh_arrays`) and trusted array
+primitives behind it (:mod:`.arrays`; ``trusted_*`` kernels in :mod:`.normals`,
+:func:`~.adjacency.adjacency_matrix`, :func:`~.adjacency.unique_edges`).
 """
 
 from facewrap.geometry.closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
@@ -32,9 +38,11 @@ from facewrap.geometry.adjacency import (
     edges_of_polygons, triangle_adjacency, vertex_adjacency,
 )
 from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
-from facewrap.geometry.quality import flipped_triangles, turned, turned_triangles
+from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_quality,
+                                       triangle_to_vertex, turned, turned_triangles)
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.geometry.sampling import farthest_point_sampling, poisson_disk_vertices, sample_surface
+from facewrap.geometry.sampling import (farthest_point_sampling, poisson_disk_vertices,
+                                        sample_surface)
 
 __all__ = [
     # closest points and rays
@@ -46,8 +54,11 @@ __all__ = [
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
     # Laplacians
     "cotangent_laplacian", "uniform_laplacian", "mass_matrix",
-    # similarity transforms, turned triangles
-    "Similarity", "similarity_transform", "turned", "turned_triangles", "flipped_triangles",
+    # similarity transforms
+    "Similarity", "similarity_transform",
+    # triangle quality
+    "turned", "turned_triangles", "flipped_triangles", "TriangleQuality", "triangle_quality",
+    "triangle_to_vertex",
     # sampling
     "sample_surface", "farthest_point_sampling", "poisson_disk_vertices",
 ]

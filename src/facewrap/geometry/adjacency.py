@@ -19,7 +19,8 @@ from scipy.sparse import csgraph
 from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
 
 __all__ = [
-    "edges", "edges_of_polygons", "vertex_adjacency", "triangle_adjacency",
+    "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
+    "triangle_adjacency",
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
 ]
 
@@ -45,14 +46,42 @@ def _edges(T: np.ndarray) -> np.ndarray:
     return _unique_undirected(*_half_edges(T))
 
 
-def _adjacency(E: np.ndarray, n: int) -> sp.csr_matrix:
-    """Symmetric (n, n) csr with 1.0 at each unique edge of ``E`` (e, 2)."""
+def adjacency_matrix(E: np.ndarray, n: int) -> sp.csr_matrix:
+    """Adjacency matrix of unique edges, without input checks.
+
+    Parameters
+    ----------
+    E : (e, 2) int64
+        Unique undirected edges (each once, no self-loops), indices in ``[0, n)``;
+        for example from :func:`unique_edges`.
+    n : int
+        Number of vertices.
+
+    Returns
+    -------
+    A : (n, n) scipy.sparse.csr_matrix
+        Symmetric, 1.0 at each edge.
+    """
     rows = np.concatenate([E[:, 0], E[:, 1]])
     cols = np.concatenate([E[:, 1], E[:, 0]])
     return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
-def _edges_from(T_or_edges: np.ndarray, columns: int) -> np.ndarray:
+def unique_edges(T_or_edges: np.ndarray, columns: int) -> np.ndarray:
+    """Unique undirected edges of triangles or of an edge list, without input checks.
+
+    Parameters
+    ----------
+    T_or_edges : (t, 3) int64 or (e, 2) int64
+        As returned by :func:`~facewrap.geometry.checks.as_triangles_or_edges`.
+    columns : {3, 2}
+        Its number of columns (3: triangles, 2: edges).
+
+    Returns
+    -------
+    E : (u, 2) int64
+        Sorted pairs ``i < j``, each once, no self-loops.
+    """
     if columns == 3:
         return _edges(T_or_edges)
     return _unique_undirected(T_or_edges[:, 0], T_or_edges[:, 1])
@@ -73,6 +102,7 @@ def edges(T) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; an edge shared by several of them is returned once.
 
     Returns
     -------
@@ -148,7 +178,7 @@ def vertex_adjacency(T_or_edges, n) -> sp.csr_matrix:
     """
     n = as_count(n)
     arr, columns = as_triangles_or_edges(T_or_edges, n)
-    return _adjacency(_edges_from(arr, columns), n)
+    return adjacency_matrix(unique_edges(arr, columns), n)
 
 
 def triangle_adjacency(T) -> np.ndarray:
@@ -157,6 +187,7 @@ def triangle_adjacency(T) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; edge ``j`` of triangle ``i`` runs from corner ``j`` to ``j + 1``.
 
     Returns
     -------
@@ -224,8 +255,9 @@ def boundary_vertices(T, n) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; an edge used by one of them only is a boundary edge.
     n : int
-        Number of vertices.
+        Number of vertices (the mask's length).
 
     Returns
     -------
@@ -349,8 +381,9 @@ def connected_components(T, n) -> np.ndarray:
     Parameters
     ----------
     T : (t, 3) int64
+        Triangles; two vertices are connected when an edge path joins them.
     n : int
-        Number of vertices.
+        Number of vertices, isolated ones included.
 
     Returns
     -------
@@ -365,5 +398,6 @@ def connected_components(T, n) -> np.ndarray:
     """
     n = as_count(n)
     T = as_triangles(T, n)
-    _, labels = csgraph.connected_components(_adjacency(_edges(T), n), directed=False)
+    A = adjacency_matrix(_edges(T), n)
+    _, labels = csgraph.connected_components(A, directed=False)
     return labels.astype(np.int64)

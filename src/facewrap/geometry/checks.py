@@ -50,6 +50,12 @@ def as_triangles(T, n: int | None = None, name: str = "T") -> np.ndarray:
     return as_index_array(T, 3, n, name)
 
 
+def as_mesh_arrays(V, T) -> tuple[np.ndarray, np.ndarray]:
+    """``V`` as (n, 3) finite float64 and ``T`` as (t, 3) int64 indices into it."""
+    V = as_vertices(V)
+    return V, as_triangles(T, len(V))
+
+
 def as_count(n, name: str = "n") -> int:
     """A non-negative Python int."""
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
@@ -76,3 +82,32 @@ def as_triangles_or_edges(T_or_edges, n: int, name: str = "T_or_edges"
     if arr.ndim != 2 or arr.shape[1] not in (2, 3):
         raise ValueError(f"{name} must have shape (t, 3) or (e, 2), got {arr.shape}")
     return as_index_array(arr, arr.shape[1], n, name), arr.shape[1]
+
+
+def mesh_arrays(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """``(V, T)`` of a :class:`~facewrap.mesh.Mesh` or of a ``(V, T)`` pair, checked.
+
+    Parameters
+    ----------
+    mesh : Mesh or (V, T)
+        ``V : (n, 3) float``, ``T : (t, 3) int``.  Polygons of a Mesh are taken as
+        its fan triangulation (:attr:`~facewrap.mesh.Mesh.triangles`).
+    name : str
+        The argument's name, for error messages.
+
+    Returns
+    -------
+    V : (n, 3) float64
+        Finite.
+    T : (t, 3) int64
+        Indices into ``V``.
+    """
+    if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
+        V = np.asarray(mesh.vertices, dtype=np.float64)
+        if not np.all(np.isfinite(V)):
+            raise ValueError(f"{name} vertices must be finite (found NaN or inf)")
+        return V, np.asarray(mesh.triangles)
+    if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
+        V = as_vertices(mesh[0], f"{name} vertices")
+        return V, as_triangles(mesh[1], len(V), f"{name} triangles")
+    raise ValueError(f"{name} must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")

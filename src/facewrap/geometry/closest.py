@@ -28,9 +28,10 @@ from typing import NamedTuple
 import igl
 import numpy as np
 
-from facewrap.geometry.checks import as_points, as_triangles, as_vertices
+from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
 from facewrap.geometry.adjacency import triangle_adjacency
-from facewrap.geometry.normals import _cross_rows, _normalize_rows, _vertex_normals
+from facewrap.geometry.arrays import cross_rows, normalize_rows
+from facewrap.geometry.normals import trusted_vertex_normals
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -111,12 +112,12 @@ def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """
     a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e0, e1, p = b - a, c - a, X - a
-    n = _cross_rows(e0, e1)
+    n = cross_rows(e0, e1)
     nn = np.einsum("ij,ij->i", n, n)
     # lambda_1 = ((p x e1) . n) / |n|^2, lambda_2 = ((e0 x p) . n) / |n|^2: exact for
     # points in the plane, and well conditioned (no Gram-determinant cancellation)
-    l1 = np.einsum("ij,ij->i", _cross_rows(p, e1), n)
-    l2 = np.einsum("ij,ij->i", _cross_rows(e0, p), n)
+    l1 = np.einsum("ij,ij->i", cross_rows(p, e1), n)
+    l2 = np.einsum("ij,ij->i", cross_rows(e0, p), n)
     edge_sq = np.stack([np.einsum("ij,ij->i", e, e) for e in (e0, c - b, e1)], axis=1)
     longest_sq = edge_sq.max(axis=1)
     flat = nn <= (_FLAT * longest_sq) ** 2
@@ -191,14 +192,13 @@ class ClosestPointTree:
     """
 
     def __init__(self, V, T, vertex_normals=None):
-        V = as_vertices(V)
-        T = as_triangles(T, len(V))
+        V, T = as_mesh_arrays(V, T)
         if len(T) == 0:
             raise ValueError("T must hold at least one triangle")
         self.vertices = _readonly(V)
         self.triangles = _readonly(T)
         if vertex_normals is None:
-            normals = _vertex_normals(self.vertices, self.triangles, "angle")
+            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
         else:
             normals = as_vertices(vertex_normals, "vertex_normals")
             if normals.shape != V.shape:
@@ -236,7 +236,7 @@ class ClosestPointTree:
         Parameters
         ----------
         points : (k, 3) float64
-            Query points.
+            Query points, anywhere in space (no distance limit).
 
         Returns
         -------
@@ -259,11 +259,11 @@ class ClosestPointTree:
 
     def _interpolate_normals(self, ids: np.ndarray, bary: np.ndarray) -> np.ndarray:
         summed = np.einsum("kc,kcd->kd", bary, self.vertex_normals[ids])
-        normals, norm = _normalize_rows(summed)
+        normals, norm = normalize_rows(summed)
         bad = norm <= 1e-12
         if np.any(bad):
             corners = self.vertices[ids[bad]]
-            normals[bad] = _normalize_rows(_cross_rows(corners[:, 1] - corners[:, 0],
+            normals[bad] = normalize_rows(cross_rows(corners[:, 1] - corners[:, 0],
                                                        corners[:, 2] - corners[:, 0]))[0]
         return normals
 
@@ -295,7 +295,7 @@ class ClosestPointTree:
         max_distance = float(max_distance)
         if not max_distance >= 0:
             raise ValueError(f"max_distance must be >= 0, got {max_distance}")
-        D, length = _normalize_rows(D)
+        D, length = normalize_rows(D)
         valid = length > 0
         k = len(O)
         best_tri = np.full(k, -1, dtype=np.int64)
@@ -321,8 +321,8 @@ class ClosestPointTree:
     def _line_plane_t(self, O, D, tri, t_fallback):
         """Signed t of the line's intersection with each triangle's plane, float64."""
         corners = self.vertices[self.triangles[tri]]
-        n = _cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        n, _ = _normalize_rows(n)
+        n = cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        n, _ = normalize_rows(n)
         cos = np.einsum("ij,ij->i", n, D)
         grazing = np.abs(cos) < 1e-9   # line (nearly) in the plane: keep libigl's t
         num = np.einsum("ij,ij->i", n, corners[:, 0] - O)
@@ -359,6 +359,8 @@ def closest_points(V, T, points) -> ClosestPoints:
     Returns
     -------
     ClosestPoints
+        One row per query point (a tree is built and dropped: use
+        :class:`ClosestPointTree` for repeated queries).
 
     Examples
     --------

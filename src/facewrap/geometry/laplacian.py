@@ -15,9 +15,9 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.geometry.checks import as_count, as_triangles, as_triangles_or_edges, as_vertices
-from facewrap.geometry.adjacency import _adjacency, _edges_from
-from facewrap.geometry.normals import _column_norms, _cross_columns, _edge_vectors
+from facewrap.geometry.checks import as_count, as_mesh_arrays, as_triangles_or_edges
+from facewrap.geometry.adjacency import adjacency_matrix, unique_edges
+from facewrap.geometry.arrays import column_norms, cross_columns, edge_vectors
 
 __all__ = ["cotangent_laplacian", "uniform_laplacian", "mass_matrix"]
 
@@ -33,8 +33,8 @@ _MASS_TYPES = {
 
 def _cotangent_laplacian(V: np.ndarray, T: np.ndarray) -> sp.csr_matrix:
     n = len(V)
-    e01, e02 = _edge_vectors(V, T)
-    double_area = _column_norms(_cross_columns(e01, e02))
+    e01, e02 = edge_vectors(V, T)
+    double_area = column_norms(cross_columns(e01, e02))
     l01_sq = np.einsum("ij,ij->j", e01, e01)
     l02_sq = np.einsum("ij,ij->j", e02, e02)
     d0 = np.einsum("ij,ij->j", e01, e02)       # at corner 0
@@ -61,7 +61,9 @@ def cotangent_laplacian(V, T) -> sp.csr_matrix:
     Parameters
     ----------
     V : (n, 3) float64
+        Vertex positions; the weights depend on the triangles' angles.
     T : (t, 3) int64
+        Triangles; degenerate ones contribute nothing.
 
     Returns
     -------
@@ -77,8 +79,7 @@ def cotangent_laplacian(V, T) -> sp.csr_matrix:
     >>> cotangent_laplacian(V, [[0, 1, 2]]).toarray().tolist()
     [[1.0, -0.5, -0.5], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     return _cotangent_laplacian(V, T)
 
 
@@ -105,7 +106,7 @@ def uniform_laplacian(T_or_edges, n) -> sp.csr_matrix:
     """
     n = as_count(n)
     arr, columns = as_triangles_or_edges(T_or_edges, n)
-    A = _adjacency(_edges_from(arr, columns), n)
+    A = adjacency_matrix(unique_edges(arr, columns), n)
     degree = np.asarray(A.sum(axis=1)).ravel()
     return (sp.diags(degree, format="csr") - A).tocsr()
 
@@ -117,6 +118,7 @@ def mass_matrix(V, T, kind: str = "voronoi") -> sp.csr_matrix:
     ----------
     V : (n, 3) float64
     T : (t, 3) int64
+        Triangles; a vertex in none of them has mass 0.
     kind : {"voronoi", "barycentric"}
         ``"voronoi"``: mixed Voronoi areas (Meyer et al. 2003; barycentric-like split
         on obtuse triangles); ``"barycentric"``: a third of each triangle's area to
@@ -134,8 +136,7 @@ def mass_matrix(V, T, kind: str = "voronoi") -> sp.csr_matrix:
     >>> mass_matrix(V, [[0, 1, 2]], "barycentric").diagonal().round(4).tolist()
     [0.1667, 0.1667, 0.1667]
     """
-    V = as_vertices(V)
-    T = as_triangles(T, len(V))
+    V, T = as_mesh_arrays(V, T)
     if kind not in _MASS_TYPES:
         raise ValueError(f'kind must be "voronoi" or "barycentric", got {kind!r}')
     n = len(V)

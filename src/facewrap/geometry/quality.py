@@ -1,4 +1,4 @@
-"""Triangles that turned: the one flip test of wrapping, transfer, avatar and evaluation.
+"""Triangle quality: the one flip test, and shape and change measures of triangles.
 
 A triangle *turned* past an angle when the angle between its normal before and
 after a deformation exceeds it; *flipped* is the 90° case (the normal points
@@ -6,15 +6,26 @@ backwards).  Degenerate triangles (a zero normal on either side) have no
 direction and never count as turned.  Every caller — the projection's fold guard,
 the transfer's flip repair, the evaluation's flipped-triangle count — asks this
 module, each with its own angle.
+
+:func:`triangle_quality` measures each triangle (minimum angle, area) and, against
+a reference mesh in the same topology (similarity-aligned first), its flip, area
+change and stretch (anisotropy of its deformation); :func:`triangle_to_vertex`
+spreads such per-triangle values to vertices for pictures.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import scipy.sparse as sp
 
+from facewrap.geometry.arrays import cross_columns, edge_vectors
 from facewrap.geometry.checks import as_triangles, as_vertices
+from facewrap.geometry.similarity import similarity_transform
 
-__all__ = ["turned", "turned_triangles", "flipped_triangles"]
+__all__ = ["turned", "turned_triangles", "flipped_triangles", "TriangleQuality",
+           "triangle_quality", "triangle_to_vertex"]
 
 
 def turned(normals_before, normals_after, angle: float = 90.0) -> np.ndarray:
@@ -107,3 +118,196 @@ def _normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Unnormalised triangle normals, (..., t, 3), for one pose or a stack."""
     a, b, c = V[..., T[:, 0], :], V[..., T[:, 1], :], V[..., T[:, 2], :]
     return np.cross(b - a, c - a)
+
+
+@dataclass(frozen=True, eq=False)
+class TriangleQuality:
+    """Shape of each triangle, and its change from a reference.
+
+    Attributes
+    ----------
+    min_angle : (t,) float64
+        Smallest interior angle, degrees (0 for degenerate triangles).
+    area : (t,) float64
+    degenerate : (t,) bool
+        Zero area (in the mesh or in the reference).
+    flipped : (t,) bool or None
+        Normal turned more than 90 degrees from the aligned reference's
+        (:func:`turned`; never for degenerate triangles).
+    area_ratio : (t,) float64 or None
+        Area over the aligned reference's area (1 = unchanged; the global scale of
+        the alignment is taken out); NaN for degenerate triangles.
+    stretch : (t,) float64 or None
+        Anisotropy of the in-plane deformation from the reference, ``s_max / s_min``
+        of its singular values (1 = shape kept, only scaled and rotated); NaN for
+        degenerate triangles.
+    """
+
+    min_angle: np.ndarray
+    area: np.ndarray
+    degenerate: np.ndarray
+    flipped: np.ndarray | None = None
+    area_ratio: np.ndarray | None = None
+    stretch: np.ndarray | None = None
+
+    def summary(self, prefix: str = "triangles_") -> dict:
+        """Counts and percentiles (JSON-able)."""
+        t = len(self.area)
+        s = {prefix + "count": int(t), prefix + "degenerate": int(self.degenerate.sum())}
+        ang = self.min_angle[~self.degenerate]
+        s[prefix + "min_angle_min"] = float(ang.min()) if len(ang) else None
+        s[prefix + "min_angle_p5"] = float(np.percentile(ang, 5)) if len(ang) else None
+        if self.flipped is not None:
+            s[prefix + "flipped"] = int(self.flipped.sum())
+            s[prefix + "flipped_fraction"] = float(self.flipped.mean()) if t else 0.0
+            r = self.area_ratio[np.isfinite(self.area_ratio)]
+            st = self.stretch[np.isfinite(self.stretch)]
+            for q in (5, 50, 95):
+                s[prefix + f"area_ratio_p{q}"] = float(np.percentile(r, q)) if len(r) else None
+            s[prefix + "stretch_p95"] = float(np.percentile(st, 95)) if len(st) else None
+            s[prefix + "stretch_max"] = float(st.max()) if len(st) else None
+        return s
+
+
+def _triangle_frames(V, T):
+    """Edges e1 = V1 - V0, e2 = V2 - V0 and doubled-area normals, each (3, t)."""
+    e1, e2 = edge_vectors(V, T)
+    return e1, e2, cross_columns(e1, e2)
+
+
+def _min_angles(V, T) -> np.ndarray:
+    e1, e2, n = _triangle_frames(V, T)
+    e3 = e2 - e1
+    two_a = np.sqrt(np.einsum("ij,ij->j", n, n))
+    angles = []
+    for a, b in ((e1, e2), (-e1, e3), (-e2, -e3)):
+        dot = np.einsum("ij,ij->j", a, b)
+        angles.append(np.arctan2(two_a, dot))
+    ang = np.degrees(np.min(angles, axis=0))
+    return np.where(two_a > 0, ang, 0.0)
+
+
+def triangle_quality(vertices, triangles, reference=None, *,
+                     align: bool = True) -> TriangleQuality:
+    """Shape quality of triangles, and their change from a reference.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    triangles : (t, 3) int
+        For a polygon mesh, its fan triangulation (``mesh.triangles``): a square
+        quad gives two 45-degree triangles.
+    reference : (n, 3) float, optional
+        The same mesh before fitting (e.g. the template).  With it, flipped
+        triangles, area ratios and stretch are computed.
+    align : bool
+        Fit the reference onto ``vertices`` with a similarity (Umeyama, all
+        vertices) first, so a global rotation, translation or scale counts as no
+        change.
+
+    Returns
+    -------
+    TriangleQuality
+        Per-triangle arrays; the reference-based ones are None without a reference.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
+    >>> q = triangle_quality(V, [[0, 1, 2]], V[[0, 2, 1]] * [1, 1, 1], align=False)
+    >>> q.min_angle.round(6).tolist(), q.flipped.tolist(), q.area_ratio.tolist()
+    ([45.0], [True], [1.0])
+    """
+    V = as_vertices(vertices, "vertices")
+    T = as_triangles(triangles, len(V), "triangles")
+    _, _, n = _triangle_frames(V, T)
+    two_a = np.sqrt(np.einsum("ij,ij->j", n, n))
+    min_angle = _min_angles(V, T)
+    degenerate = two_a == 0
+    if reference is None:
+        return TriangleQuality(min_angle, 0.5 * two_a, degenerate)
+    Rf = as_vertices(reference, "reference")
+    if Rf.shape != V.shape:
+        raise ValueError(f"reference must have shape {V.shape}, got {Rf.shape}")
+    if align and len(V) >= 3:
+        Rf = similarity_transform(Rf, V).apply(Rf)
+    r1, r2, rn = _triangle_frames(Rf, T)
+    ref_two_a = np.sqrt(np.einsum("ij,ij->j", rn, rn))
+    degenerate = degenerate | (ref_two_a == 0)
+    flipped = turned(rn.T, n.T, 90.0)
+    ok = ~degenerate
+    ratio = np.full(len(T), np.nan)
+    ratio[ok] = two_a[ok] / ref_two_a[ok]
+    stretch = np.full(len(T), np.nan)
+    stretch[ok] = _anisotropy(r1[:, ok], r2[:, ok], rn[:, ok], ref_two_a[ok],
+                              *edge_vectors(V, T[ok]))
+    return TriangleQuality(min_angle, 0.5 * two_a, degenerate, flipped, ratio, stretch)
+
+
+def _anisotropy(r1, r2, rn, ref_two_a, f1, f2) -> np.ndarray:
+    """``s_max / s_min`` of the map from each reference triangle to the deformed one.
+
+    Reference edges in an orthonormal in-plane frame ``(u, w)``: ``E = [[a, b],
+    [0, c]]`` with ``a = |r1|``, ``b = r2 . u``, ``c = |rn| / a``; the Jacobian is
+    ``J = [f1 f2] E^-1`` (3 x 2) and its singular values come from the 2 x 2 Gram
+    matrix ``J^T J`` in closed form.  Inputs are (3, t) columns.
+    """
+    a = np.sqrt(np.einsum("ij,ij->j", r1, r1))
+    b = np.einsum("ij,ij->j", r2, r1) / a
+    c = ref_two_a / a
+    # E^-1 = [[1/a, -b/(a c)], [0, 1/c]]: columns of J
+    j1 = f1 / a
+    j2 = (f2 - f1 * (b / a)) / c
+    g11 = np.einsum("ij,ij->j", j1, j1)
+    g22 = np.einsum("ij,ij->j", j2, j2)
+    g12 = np.einsum("ij,ij->j", j1, j2)
+    mid = 0.5 * (g11 + g22)
+    rad = np.sqrt(np.maximum(0.25 * (g11 - g22) ** 2 + g12 ** 2, 0.0))
+    s_max = np.sqrt(mid + rad)
+    s_min = np.sqrt(np.maximum(mid - rad, 0.0))
+    return np.divide(s_max, s_min, out=np.full_like(s_max, np.inf), where=s_min > 0)
+
+
+def triangle_to_vertex(values, triangles, n_vertices: int, reduce: str = "mean"
+                       ) -> np.ndarray:
+    """Per-vertex values from per-triangle values (for pictures).
+
+    Parameters
+    ----------
+    values : (t,) float
+        NaN values are ignored.
+    triangles : (t, 3) int
+    n_vertices : int
+    reduce : {"mean", "max", "min"}
+        Over the triangles around each vertex.
+
+    Returns
+    -------
+    (n_vertices,) float64
+        NaN for vertices with no finite value around them.
+
+    Examples
+    --------
+    >>> triangle_to_vertex([1.0, 3.0], [[0, 1, 2], [0, 2, 3]], 5).tolist()
+    [2.0, 1.0, 2.0, 3.0, nan]
+    """
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    T = as_triangles(triangles, n_vertices, "triangles")
+    if len(v) != len(T):
+        raise ValueError(f"values must have one entry per triangle ({len(T)}), "
+                         f"got {len(v)}")
+    ok = np.isfinite(v)
+    idx = T[ok].reshape(-1)
+    vals = np.repeat(v[ok], 3)
+    if reduce == "mean":
+        inc = sp.csr_matrix((np.ones(len(idx)), (idx, np.arange(len(idx)))),
+                            shape=(n_vertices, len(idx)))
+        total = inc @ vals
+        count = np.bincount(idx, minlength=n_vertices)
+        return np.divide(total, count, out=np.full(n_vertices, np.nan), where=count > 0)
+    if reduce in ("max", "min"):
+        fill = -np.inf if reduce == "max" else np.inf
+        out = np.full(n_vertices, fill)
+        (np.maximum if reduce == "max" else np.minimum).at(out, idx, vals)
+        out[out == fill] = np.nan
+        return out
+    raise ValueError(f"reduce must be 'mean', 'max' or 'min', got {reduce!r}")

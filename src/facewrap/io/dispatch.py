@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 
 from facewrap.errors import InputError
+from facewrap.io.obj import read_obj, write_obj
+from facewrap.io.ply import read_ply, write_ply
 from facewrap.mesh import Mesh
 
 __all__ = ["read_mesh", "write_mesh"]
@@ -29,9 +31,7 @@ def read_mesh(path) -> Mesh:
     if not os.path.isfile(path):
         raise InputError("no such file", path)
     if ext == ".obj":
-        from facewrap.io.obj import read_obj
         return read_obj(path)
-    from facewrap.io.ply import read_ply
     return read_ply(path)
 
 
@@ -42,8 +42,6 @@ def write_mesh(path, mesh: Mesh) -> None:
         raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
                          "use .obj or .ply", path)
     if ext == ".obj":
-        from facewrap.io.obj import write_obj
         write_obj(path, mesh)
     else:
-        from facewrap.io.ply import write_ply
         write_ply(path, mesh)

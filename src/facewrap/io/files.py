@@ -6,7 +6,7 @@ import json
 
 from facewrap.errors import InputError
 
-__all__ = ["read_file_bytes", "read_json"]
+__all__ = ["read_file_bytes", "read_json", "read_format_items"]
 
 
 def read_file_bytes(path, text: bool = False) -> bytes:
@@ -38,3 +38,40 @@ def read_json(path):
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+
+
+def read_format_items(path, format_name: str, key: str, what: str) -> list:
+    """The list of items of a facewrap JSON file, checked to be of its format.
+
+    facewrap's own JSON files (landmarks, face parts) are objects that name their
+    format (``{"format": "facewrap.landmarks", "landmarks": [...]}``), so a file of
+    another kind is refused with one clear message.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    format_name : str
+        The expected ``"format"`` value, e.g. ``"facewrap.landmarks"``.
+    key : str
+        The key of the item list, e.g. ``"landmarks"``.
+    what : str
+        What the file holds, for the message ("landmark", "parts").
+
+    Returns
+    -------
+    list
+        The non-empty list under ``key`` (items not checked).
+
+    Raises
+    ------
+    InputError
+        Naming the file: missing, invalid JSON, another format, or no items.
+    """
+    d = read_json(path)
+    if not isinstance(d, dict) or d.get("format") != format_name:
+        raise InputError(f'not a facewrap {what} file ("format": "{format_name}" missing)',
+                         path)
+    items = d.get(key)
+    if not isinstance(items, list) or not items:
+        raise InputError(f"'{key}' must be a non-empty list", path)
+    return items

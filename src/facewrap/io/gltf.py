@@ -29,7 +29,7 @@ _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 def _pygltflib():
     try:
-        import pygltflib
+        import pygltflib  # ~0.1 s to import, and only glTF files need it
     except ImportError:  # pragma: no cover - optional dependency
         raise ImportError("writing glTF needs pygltflib: pip install pygltflib") from None
     return pygltflib

@@ -37,11 +37,12 @@ import os
 import re
 
 import numpy as np
+import yaml
 
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import read_file_bytes, read_json
+from facewrap.io.files import read_file_bytes, read_format_items, read_json
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
@@ -253,13 +254,7 @@ def _menpo_face_to_ibug68(lm: Landmarks) -> Landmarks:
 
 def read_landmarks_json(path) -> Landmarks:
     """Read the facewrap landmark JSON format (see the module docstring)."""
-    d = read_json(path)
-    if not isinstance(d, dict) or d.get("format") != "facewrap.landmarks":
-        raise InputError("not a facewrap landmark file (\"format\": "
-                         "\"facewrap.landmarks\" missing)", path)
-    items = d.get("landmarks")
-    if not isinstance(items, list) or not items:
-        raise InputError("'landmarks' must be a non-empty list", path)
+    items = read_format_items(path, "facewrap.landmarks", "landmarks", "landmark")
     k = len(items)
     vertex, triangle = np.full(k, -1), np.full(k, -1)
     bary, points = np.zeros((k, 3)), np.full((k, 3), np.nan)
@@ -415,7 +410,6 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _read_markers_yaml(path):
-    import yaml
     try:
         d = yaml.safe_load(_text(path))
     except yaml.YAMLError as exc:

@@ -238,10 +238,12 @@ def read_obj(path) -> Mesh:
     Parameters
     ----------
     path : str or os.PathLike
+        A text file of ``v``, ``vt``, ``vn``, ``f`` (and ``usemtl``, ``g``, ``o``,
+        ``mtllib``) lines; relative (negative) indices are resolved.
 
     Returns
     -------
-    Mesh
+    mesh : Mesh
         Vertices in file order, polygons as written, per-corner UV and normal indices
         when the file has ``vt``/``vn``, materials from ``usemtl``, groups from
         ``g``/``o``, ``mtllib`` names.  Free-form curves, lines and points are
@@ -267,70 +269,18 @@ def read_obj(path) -> Mesh:
     sizes, corner = _parse_corners(f, path)
     offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])
-    face_of_corner = _Lazy(lambda: np.repeat(np.arange(len(sizes)), sizes))
-
-    def corner_line(c):
-        return f.line(face_of_corner()[c])
-
-    def resolve(col, rows, total, what):
-        idx = corner[:, col]
-        neg = idx < 0
-        if neg.any():  # relative: counts elements defined before the face's line
-            line0 = f.numbers[face_of_corner()]
-            out = np.where(neg, np.searchsorted(rows.numbers, line0) + idx, idx - 1)
-        else:
-            out = idx - 1
-        bad = (out < 0) | (out >= total)
-        if bad.any():
-            c = int(np.argmax(bad))
-            shown = (f"{idx[c]} out of range" if abs(int(idx[c])) < np.iinfo(np.int64).max
-                     else "beyond the int64 range")
-            raise InputError(f"{what} index {shown} (the file has {total})", path,
-                             corner_line(c))
-        return out
-
+    corners = _Corners(corner, sizes, f, path)
     if np.any(corner[:, 0] == 0):
         raise InputError("face index 0 (OBJ indices start at 1)", path,
-                         corner_line(np.argmax(corner[:, 0] == 0)))
-    faces = resolve(0, v, len(vertices), "vertex")
-    face_uvs = face_normals = None
-    has_vt, has_vn = corner[:, 1] != 0, corner[:, 2] != 0
-    if uvs is not None and has_vt.any():
-        if not has_vt.all():
-            raise InputError("some face corners have texture coordinates and some do "
-                             "not", path, corner_line(np.argmax(~has_vt)))
-        face_uvs = resolve(1, vt, len(uvs), "texture coordinate")
-    elif has_vt.any():
-        raise InputError("faces refer to texture coordinates but there are no 'vt' "
-                         "lines", path, corner_line(np.argmax(has_vt)))
-    if normals is not None and has_vn.all():
-        face_normals = resolve(2, vn, len(normals), "normal")
-    elif has_vn.any() and normals is None:
-        raise InputError("faces refer to normals but there are no 'vn' lines", path,
-                         corner_line(np.argmax(has_vn)))
+                         corners.line(np.argmax(corner[:, 0] == 0)))
+    faces = corners.resolve(0, v, len(vertices), "vertex")
+    face_uvs, face_normals = _corner_attributes(corners, vt, uvs, vn, normals)
 
-    first = lines.c[0]
-    maybe = np.flatnonzero((first == 117) | (first == 103) | (first == 111)
-                           | (first == 109))  # u g o m
-    named = [(int(i), key, rest.strip()) for i, (key, _, rest) in
-             ((i, lines.text(i).strip().partition(" ")) for i in maybe)
-             if key in _NAMED]
+    named = _named_statements(lines)
     # usemtl / g / o apply to the faces that follow them.
     mtllib = [n for _, k, n in named if k == "mtllib" and n]
-
-    def per_face(keys):
-        events = [(i, n) for i, k, n in named if k in keys]
-        if not events:
-            return None, ()
-        names = list(dict.fromkeys(n for _, n in events))
-        lut = {n: j for j, n in enumerate(names)}
-        ev_line = np.array([i for i, _ in events], dtype=np.int64)
-        ev_id = np.array([lut[n] for _, n in events] + [-1], dtype=np.int64)
-        pos = np.searchsorted(ev_line, f.numbers) - 1  # last event before each face
-        return ev_id[pos], tuple(names)
-
-    face_materials, materials = per_face(("usemtl",))
-    face_groups, groups = per_face(("g", "o"))
+    face_materials, materials = _per_face(named, ("usemtl",), f)
+    face_groups, groups = _per_face(named, ("g", "o"), f)
     return Mesh(vertices, (offsets, faces),
                 uvs=uvs if face_uvs is not None else None,
                 face_uvs=(offsets, face_uvs) if face_uvs is not None else None,
@@ -339,6 +289,83 @@ def read_obj(path) -> Mesh:
                 face_materials=face_materials, materials=materials,
                 face_groups=face_groups, groups=groups, mtllib=mtllib,
                 vertex_colors=colors)
+
+
+class _Corners:
+    """The face corners of an OBJ file: ``(c, 3)`` raw v/vt/vn indices and their lines."""
+
+    def __init__(self, corner: np.ndarray, sizes: np.ndarray, f: "_Rows", path):
+        self.corner, self.f, self.path = corner, f, path
+        self.face_of_corner = _Lazy(lambda: np.repeat(np.arange(len(sizes)), sizes))
+
+    def line(self, c) -> int:
+        """File line of corner ``c`` (for error messages)."""
+        return self.f.line(self.face_of_corner()[c])
+
+    def resolve(self, col: int, rows: "_Rows", total: int, what: str) -> np.ndarray:
+        """0-based indices of column ``col`` (0 v, 1 vt, 2 vn), relative ones resolved.
+
+        A negative index counts the ``rows`` defined before the face's line.
+        """
+        idx = self.corner[:, col]
+        neg = idx < 0
+        if neg.any():
+            line0 = self.f.numbers[self.face_of_corner()]
+            out = np.where(neg, np.searchsorted(rows.numbers, line0) + idx, idx - 1)
+        else:
+            out = idx - 1
+        bad = (out < 0) | (out >= total)
+        if bad.any():
+            c = int(np.argmax(bad))
+            shown = (f"{idx[c]} out of range" if abs(int(idx[c])) < np.iinfo(np.int64).max
+                     else "beyond the int64 range")
+            raise InputError(f"{what} index {shown} (the file has {total})", self.path,
+                             self.line(c))
+        return out
+
+
+def _corner_attributes(corners: _Corners, vt, uvs, vn, normals):
+    """Per-corner UV and normal indices (or None), checked against the vt/vn lines."""
+    path, corner = corners.path, corners.corner
+    face_uvs = face_normals = None
+    has_vt, has_vn = corner[:, 1] != 0, corner[:, 2] != 0
+    if uvs is not None and has_vt.any():
+        if not has_vt.all():
+            raise InputError("some face corners have texture coordinates and some do "
+                             "not", path, corners.line(np.argmax(~has_vt)))
+        face_uvs = corners.resolve(1, vt, len(uvs), "texture coordinate")
+    elif has_vt.any():
+        raise InputError("faces refer to texture coordinates but there are no 'vt' "
+                         "lines", path, corners.line(np.argmax(has_vt)))
+    if normals is not None and has_vn.all():
+        face_normals = corners.resolve(2, vn, len(normals), "normal")
+    elif has_vn.any() and normals is None:
+        raise InputError("faces refer to normals but there are no 'vn' lines", path,
+                         corners.line(np.argmax(has_vn)))
+    return face_uvs, face_normals
+
+
+def _named_statements(lines: "_Lines") -> list[tuple[int, str, str]]:
+    """``(line index, keyword, name)`` of every usemtl / g / o / mtllib statement."""
+    first = lines.c[0]
+    maybe = np.flatnonzero((first == 117) | (first == 103) | (first == 111)
+                           | (first == 109))  # u g o m
+    return [(int(i), key, rest.strip()) for i, (key, _, rest) in
+            ((i, lines.text(i).strip().partition(" ")) for i in maybe)
+            if key in _NAMED]
+
+
+def _per_face(named, keys, f: "_Rows"):
+    """Per-face ids of the last ``keys`` statement before each face, and the names."""
+    events = [(i, n) for i, k, n in named if k in keys]
+    if not events:
+        return None, ()
+    names = list(dict.fromkeys(n for _, n in events))
+    lut = {n: j for j, n in enumerate(names)}
+    ev_line = np.array([i for i, _ in events], dtype=np.int64)
+    ev_id = np.array([lut[n] for _, n in events] + [-1], dtype=np.int64)
+    pos = np.searchsorted(ev_line, f.numbers) - 1  # last event before each face
+    return ev_id[pos], tuple(names)
 
 
 def _format_rows(prefix: str, values: np.ndarray) -> str:

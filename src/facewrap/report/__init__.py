@@ -2,9 +2,12 @@
 
 Rendering (:mod:`.render`): a vectorised numpy software rasteriser, deterministic
 and free of system dependencies
-    :func:`render_mesh`, :func:`rasterize`, :class:`Raster`, :func:`view_rotation`,
-    :func:`frame_from_axes`, :func:`fit_pixel_size`, :data:`VIEWS`
-Colours (:mod:`.render`)
+    :func:`render_mesh`
+Cameras (:mod:`.cameras`)
+    :func:`view_rotation`, :func:`frame_from_axes`, :func:`fit_pixel_size`, :data:`VIEWS`
+The z-buffer (:mod:`.raster`)
+    :func:`rasterize`, :class:`Raster`
+Colours (:mod:`.colors`)
     :func:`colormap`, :func:`apply_colormap`, :data:`COLORMAPS`
 Figures (:mod:`.figures`): text, colour bars, grids
     :func:`heatmap_figure`, :func:`render_views`, :func:`side_by_side`,
@@ -15,7 +18,7 @@ Files
 
 Examples
 --------
->>> from facewrap.sample.face import make_template
+>>> from facewrap.sample import make_template
 >>> tpl = make_template(24)
 >>> img = heatmap_figure(tpl.mesh, tpl.mesh.vertices[:, 2], units="mm",
 ...                      title="depth", size=(120, 140))
@@ -25,10 +28,11 @@ Examples
 
 from facewrap.texture import save_png
 from facewrap.report.figures import (blendshape_sheet, colorbar, heatmap_figure, image_grid,
-                      nice_ticks, render_views, robust_clim, side_by_side)
-from facewrap.report.render import (COLORMAPS, VIEWS, Raster, apply_colormap, colormap,
-                     fit_pixel_size, frame_from_axes, rasterize, render_mesh,
-                     view_rotation)
+                                     nice_ticks, render_views, robust_clim, side_by_side)
+from facewrap.report.cameras import VIEWS, fit_pixel_size, frame_from_axes, view_rotation
+from facewrap.report.colors import COLORMAPS, apply_colormap, colormap
+from facewrap.report.raster import Raster, rasterize
+from facewrap.report.render import render_mesh
 
 from facewrap.report.html import write_html_report
 

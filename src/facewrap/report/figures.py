@@ -18,9 +18,12 @@ import math
 from typing import Mapping, Sequence
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
-from facewrap.report.render import (_clim, _color, _size, apply_colormap, colormap, fit_pixel_size,
-                     mesh_arrays, render_mesh)
+from facewrap.geometry.checks import mesh_arrays
+from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
+from facewrap.report.colors import apply_colormap, as_rgb, color_limits, colormap
+from facewrap.report.render import render_mesh
 
 __all__ = ["nice_ticks", "robust_clim", "colorbar", "render_views", "heatmap_figure",
            "side_by_side", "image_grid", "blendshape_sheet"]
@@ -34,7 +37,6 @@ _DEFAULT_VIEWS = ("front", "three_quarter", "side")
 
 def _font(size: int):
     """Pillow's built-in scalable font at ``size`` px (bitmap font without FreeType)."""
-    from PIL import ImageFont
     try:
         return ImageFont.load_default(size=max(int(size), 6))
     except (TypeError, OSError, ImportError, AttributeError):   # Pillow < 10.1 or no FreeType
@@ -58,13 +60,11 @@ def _draw_text(draw, xy, text: str, font, fill=_TEXT, align: str = "left",
 
 
 def _canvas(width: int, height: int, background):
-    from PIL import Image
-    bg = tuple(int(round(c * 255)) for c in _color(background, "background"))
+    bg = tuple(int(round(c * 255)) for c in as_rgb(background, "background"))
     return Image.new("RGB", (int(width), int(height)), bg), bg
 
 
 def _to_pil(image):
-    from PIL import Image
     a = np.asarray(image)
     if a.dtype != np.uint8 or a.ndim not in (2, 3):
         raise ValueError(f"images must be uint8 (H, W[, C]) arrays, got {a.dtype} "
@@ -193,6 +193,7 @@ def colorbar(cmap="viridis", clim=(0.0, 1.0), *, height: int = 360, units: str =
     Returns
     -------
     (height, w, 3) uint8
+        ``w`` fits the bar, the tick labels and the title.
 
     Examples
     --------
@@ -200,8 +201,7 @@ def colorbar(cmap="viridis", clim=(0.0, 1.0), *, height: int = 360, units: str =
     >>> img.shape[0], img.dtype.name
     (200, 'uint8')
     """
-    from PIL import ImageDraw
-    lo, hi = _clim(np.zeros(0), clim)
+    lo, hi = color_limits(np.zeros(0), clim)
     if extend not in ("neither", "max", "min", "both"):
         raise ValueError(f"extend must be 'neither', 'max', 'min' or 'both', got "
                          f"{extend!r}")
@@ -290,7 +290,7 @@ def render_views(meshes, views=_DEFAULT_VIEWS, *, size=(400, 480), margin=0.06,
     if isinstance(views, str) or (len(views) == 2 and not isinstance(views[0], str)):
         views = [views]
     arrays = [mesh_arrays(m) for m in meshes]
-    w, h = _size(size)
+    w, h = image_size(size)
     pixel_size = fit_pixel_size([V for V, _ in arrays], views, (w, h), margin, frame)
     # one centre per view for all meshes: the middle of their joint projected box
     out = []
@@ -303,7 +303,6 @@ def render_views(meshes, views=_DEFAULT_VIEWS, *, size=(400, 480), margin=0.06,
 
 
 def _joint_center(arrays, view, frame) -> np.ndarray:
-    from facewrap.report.render import view_rotation
     R = view_rotation(view, frame)
     lo = np.min([(V @ R.T).min(axis=0) for V, _ in arrays], axis=0)
     hi = np.max([(V @ R.T).max(axis=0) for V, _ in arrays], axis=0)
@@ -348,19 +347,18 @@ def heatmap_figure(mesh, values, *, units: str = "mm", title: str | None = None,
     -------
     (H, W, 3) uint8
     """
-    from PIL import ImageDraw
     V, T = mesh_arrays(mesh)
     vals = np.asarray(values, dtype=np.float64).reshape(-1)
     finite = vals[np.isfinite(vals)]
     if cmap is None:
         cmap = "coolwarm" if len(finite) and finite.min() < 0 < finite.max() else "viridis"
-    lo, hi = robust_clim(vals) if clim is None else _clim(vals, clim)
+    lo, hi = robust_clim(vals) if clim is None else color_limits(vals, clim)
     extend = {(False, False): "neither", (False, True): "max", (True, False): "min",
               (True, True): "both"}[(bool(len(finite) and finite.min() < lo),
                                      bool(len(finite) and finite.max() > hi))]
     if isinstance(views, str) or (len(views) == 2 and not isinstance(views[0], str)):
         views = [views]
-    w, h = _size(size)
+    w, h = image_size(size)
     pictures = render_views((V, T), views, size=(w, h), frame=frame, scalars=vals,
                             cmap=cmap, clim=(lo, hi), background=background,
                             nan_color=nan_color)
@@ -406,6 +404,7 @@ def side_by_side(images: Sequence, labels: Sequence[str] | None = None, *,
     Returns
     -------
     (H, W, 3) uint8
+        The row of images with their labels on top.
 
     Examples
     --------
@@ -445,7 +444,6 @@ def image_grid(images: Sequence, labels: Sequence[str] | None = None, *,
     -------
     (H, W, 3) uint8
     """
-    from PIL import ImageDraw
     images = [np.asarray(im) for im in images]
     if not images:
         raise ValueError("images must not be empty")
@@ -532,7 +530,7 @@ def blendshape_sheet(neutral, shapes: Mapping[str, np.ndarray], *, columns: int 
         names, positions = ["neutral"] + names, [V] + positions
     if not positions:
         raise ValueError("shapes is empty and include_neutral is False")
-    w, h = _size(cell_size)
+    w, h = image_size(cell_size)
     pixel_size = fit_pixel_size(positions, [view], (w, h), 0.05, frame)
     arrays = [(P, T) for P in positions]
     center = _joint_center(arrays, view, frame)

@@ -1,79 +1,39 @@
-"""Texture coordinates and texture images for fitted templates (SPEC §1.4).
+"""Re-baking a scan's texture into the template's UV layout (SPEC §1.4).
 
-Two ways to give a fitted template the scan's texture:
-
-* **Per-vertex UVs from the scan** (:func:`transfer_uvs`): each template vertex takes
-  the scan's UV interpolated at its projection on the scan,
-  ``(u, v) = sum_k beta_k uv_{I,k}`` (:func:`scan_uvs_at`), with a cylindrical
-  projection (:func:`cylindrical_uvs`) for vertices that have no valid projection.
-  The template then points into the scan's own image.
-* **Re-baking into the template's layout** (:func:`bake_texture`): every texel of the
-  template's UV layout (:func:`rasterize_uv`) is followed to its 3-D point on the
-  fitted template, to the closest scan point, to the scan's UV and into the scan
-  image.  Every subject then has one image in one shared layout, padded across UV
-  seams so mip-mapping shows no seams.
+Every texel of the template's UV layout (:func:`rasterize_uv`) is followed to its
+3-D point on the fitted template, to the closest scan point, to the scan's UV and
+into the scan image (:func:`bake_texture`).  Every subject then has one image in
+one shared layout, padded across UV seams so mip-mapping shows no seams.
 
 Image convention (OBJ): ``v = 0`` is the bottom row of an image; texel
 ``(row, col)`` of an ``(H, W)`` image has its centre at
 ``u = (col + 0.5) / W``, ``v = 1 - (row + 0.5) / H``.  Images are ``uint8`` arrays
-``(H, W, 3)`` (RGB) or ``(H, W, 4)`` (RGBA); :func:`load_image` and :func:`save_png`
-read and write them with Pillow.
+``(H, W, 3)`` (RGB) or ``(H, W, 4)`` (RGBA), read and written by
+:mod:`facewrap.io.images`.
 """
 
 from __future__ import annotations
 
-import io
-import os
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
-from facewrap.errors import InputError
-from facewrap.io.atomic import atomic_write
-from facewrap.geometry.checks import as_points
+from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.arrays import blocks_by_budget
+from facewrap.io.images import as_image, to_uint8
 from facewrap.mesh import Mesh
+from facewrap.texture.uvs import checked_uv_mesh, trusted_scan_uvs
 
-__all__ = [
-    "UVRaster", "BakeResult",
-    "scan_uvs_at", "cylindrical_uvs", "transfer_uvs",
-    "rasterize_uv", "sample_image", "bake_texture",
-    "interpolate_images", "save_png", "load_image",
-]
+__all__ = ["BLOCK_TEXELS", "UVRaster", "rasterize_uv", "sample_image", "BakeResult",
+           "bake_texture", "interpolate_images"]
 
 # A texel centre counts as inside a UV triangle when its barycentric coordinates are
 # all >= -_INSIDE_TOL: texel centres exactly on a shared edge then belong to both
 # triangles despite rounding (no cracks), and one of them is chosen as the owner.
 _INSIDE_TOL = 1e-7
-# Bounding-box texels enumerated at once while rasterising (bounds peak memory).
-_CHUNK_TEXELS = 1 << 22
-
-
-# -- argument checks (at the door) --------------------------------------------------
-
-def _uv_mesh(mesh, name: str) -> Mesh:
-    if not isinstance(mesh, Mesh):
-        raise ValueError(f"{name} must be a facewrap Mesh, got {type(mesh).__name__}")
-    if mesh.uvs is None or mesh.face_uvs is None:
-        raise ValueError(f"{name} has no texture coordinates (uvs/face_uvs)")
-    if not np.all(np.isfinite(mesh.uvs)):
-        raise ValueError(f"{name} has NaN or infinite texture coordinates")
-    return mesh
-
-
-def _image(image, name: str) -> np.ndarray:
-    """uint8 (H, W, C) with C in 1..4; a 2-D array is taken as one grey channel."""
-    image = np.asarray(image)
-    if image.dtype != np.uint8:
-        raise ValueError(f"{name} must be a uint8 image, got dtype {image.dtype}")
-    if image.ndim == 2:
-        image = image[:, :, None]
-    if image.ndim != 3 or image.shape[2] not in (1, 3, 4):
-        raise ValueError(f"{name} must have shape (H, W), (H, W, 3) or (H, W, 4), "
-                         f"got {image.shape}")
-    if image.shape[0] == 0 or image.shape[1] == 0:
-        raise ValueError(f"{name} is empty, shape {image.shape}")
-    return image
+#: Bounding-box texels enumerated at once while rasterising (bounds peak memory).
+BLOCK_TEXELS = 1 << 22
 
 
 def _rgb(image: np.ndarray) -> np.ndarray:
@@ -101,200 +61,6 @@ def _non_negative(x, name: str) -> float:
     return x
 
 
-# -- per-vertex texture coordinates ---------------------------------------------------
-
-def scan_uvs_at(scan: Mesh, triangles, barycentric) -> np.ndarray:
-    """The scan's texture coordinates at points given in its triangles.
-
-    ``(u, v) = sum_k beta_k uv_{I,k}`` (SPEC §1.4), with the UVs of the corners of
-    triangle ``I`` of ``scan.triangles`` taken per corner (:attr:`Mesh.triangle_uvs`),
-    so points next to a UV seam take the UVs of their own side.
-
-    Parameters
-    ----------
-    scan : Mesh
-        With texture coordinates.
-    triangles : (k,) int
-        Indices into ``scan.triangles``.
-    barycentric : (k, 3) float
-        Coordinates of each point in its triangle.
-
-    Returns
-    -------
-    (k, 2) float64
-
-    Examples
-    --------
-    >>> scan = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]],
-    ...             uvs=[[0, 0], [1, 0], [0, 1.]], face_uvs=[[0, 1, 2]])
-    >>> scan_uvs_at(scan, [0], [[0.5, 0.25, 0.25]]).tolist()
-    [[0.25, 0.25]]
-    """
-    scan = _uv_mesh(scan, "scan")
-    tri = np.asarray(triangles)
-    if tri.ndim != 1 or not (np.issubdtype(tri.dtype, np.integer) or tri.size == 0):
-        raise ValueError(f"triangles must be a 1-D int array, got shape {tri.shape} "
-                         f"and dtype {tri.dtype}")
-    tri = tri.astype(np.int64, copy=False)
-    n_tri = len(scan.triangles)
-    if tri.size and (tri.min() < 0 or tri.max() >= n_tri):
-        raise ValueError(f"triangles must lie in [0, {n_tri}), got range "
-                         f"[{tri.min()}, {tri.max()}]")
-    bary = np.asarray(barycentric, dtype=np.float64)
-    if bary.shape != (len(tri), 3):
-        raise ValueError(f"barycentric must have shape ({len(tri)}, 3), got {bary.shape}")
-    return _scan_uvs(scan, tri, bary)
-
-
-def _scan_uvs(scan: Mesh, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    corner_uvs = scan.uvs[scan.triangle_uvs[tri]]          # (k, 3, 2)
-    return np.einsum("kc,kcd->kd", bary, corner_uvs)
-
-
-def cylindrical_uvs(points, axis=(0.0, 1.0, 0.0), center=None) -> np.ndarray:
-    """Cylindrical texture coordinates around a vertical axis, in [0, 1].
-
-    ``u`` is the angle around ``axis`` (through ``center``) mapped to [0, 1], with
-    the front direction at ``u = 0.5`` and the seam ``u = 0 / 1`` behind.  The front
-    is +z made perpendicular to ``axis`` (+y when ``axis`` is within ~25 degrees of
-    z); ``u`` grows towards ``axis x front`` (+x for the default axis).  ``v`` is the height along
-    ``axis``, normalised by the point set's extent (0 at the lowest point, 1 at the
-    highest; 0.5 for all when the points have no height extent).  A point on the
-    axis gets ``u = 0.5``.
-
-    Parameters
-    ----------
-    points : (k, 3) float
-    axis : (3,) float
-        Direction of the cylinder axis (normalised internally).
-    center : (3,) float, optional
-        A point on the axis; by default the centre of the points' bounding box.
-
-    Returns
-    -------
-    (k, 2) float64
-        In [0, 1].
-
-    Examples
-    --------
-    >>> cylindrical_uvs([[0, 0, 1], [1, 2, 0], [0, 4, -1.]], center=[0, 0, 0]
-    ...                 ).round(3).tolist()
-    [[0.5, 0.0], [0.75, 0.5], [1.0, 1.0]]
-    """
-    P = as_points(points, "points")
-    a = np.asarray(axis, dtype=np.float64)
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
-        raise ValueError(f"axis must be a finite non-zero 3-vector, got {axis!r}")
-    a = a / np.linalg.norm(a)
-    if len(P) == 0:
-        return np.zeros((0, 2))
-    if center is None:
-        c = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    else:
-        c = np.asarray(center, dtype=np.float64)
-        if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise ValueError(f"center must be a finite 3-vector, got {center!r}")
-    # frame: front (u = 0.5) and side (+u) directions perpendicular to the axis
-    ref = np.array([0.0, 0.0, 1.0]) if abs(a[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    front = ref - (ref @ a) * a
-    front /= np.linalg.norm(front)
-    side = np.cross(a, front)
-    d = P - c
-    angle = np.arctan2(d @ side, d @ front)               # (-pi, pi], 0 in front
-    u = 0.5 + angle / (2 * np.pi)
-    h = d @ a
-    extent = h.max() - h.min()
-    v = (h - h.min()) / extent if extent > 0 else np.full(len(P), 0.5)
-    return np.clip(np.stack([u, v], axis=1), 0.0, 1.0)
-
-
-def transfer_uvs(scan: Mesh, points_or_closest, mask=None, *, vertices=None,
-                 tree=None, axis=(0.0, 1.0, 0.0)) -> np.ndarray:
-    """Per-vertex texture coordinates for a template from the scan it was fitted to.
-
-    Vertices with a valid projection on the scan take the scan's UV there
-    (:func:`scan_uvs_at`); the others take :func:`cylindrical_uvs` of the template
-    vertices (height normalised over all of them).
-
-    Parameters
-    ----------
-    scan : Mesh
-        With texture coordinates.
-    points_or_closest : (n, 3) float, or a projection result
-        Either template vertex positions, projected here on the scan by closest
-        point, or the projection already made: any object with ``triangles (n,)``
-        and ``barycentric (n, 3)`` in ``scan.triangles`` and ``points (n, 3)``, such
-        as :class:`facewrap.geometry.ClosestPoints` or a ``RayHits`` (whose ``hit``
-        is then and-ed into ``mask`` and whose ``triangles == -1`` rows count as
-        unmapped).
-    mask : (n,) bool, optional
-        Which projections are valid; all by default.
-    vertices : (n, 3) float, optional
-        Template vertex positions for the cylindrical fallback when a projection
-        result is given; by default its ``points`` (which must then be finite).
-    tree : facewrap.geometry.ClosestPointTree, optional
-        A tree already built on the scan, used when positions are given.
-    axis : (3,) float
-        Cylinder axis for the fallback.
-
-    Returns
-    -------
-    (n, 2) float64
-
-    Examples
-    --------
-    >>> scan = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]],
-    ...             uvs=[[0, 0], [1, 0], [0, 1.]], face_uvs=[[0, 1, 2]])
-    >>> transfer_uvs(scan, [[0.5, 0.25, 0.1], [0, 0, 9.]], mask=[True, False]
-    ...              ).round(3).tolist()
-    [[0.5, 0.25], [0.491, 0.0]]
-    """
-    scan = _uv_mesh(scan, "scan")
-    if hasattr(points_or_closest, "triangles") and hasattr(points_or_closest,
-                                                           "barycentric"):
-        proj = points_or_closest
-        tri = np.asarray(proj.triangles)
-        if tri.ndim != 1:
-            raise ValueError(f"projection triangles must be 1-D, got shape {tri.shape}")
-        n = len(tri)
-        valid = tri >= 0
-        if hasattr(proj, "hit"):
-            valid &= np.asarray(proj.hit, dtype=bool)
-        P = as_points(vertices if vertices is not None else proj.points,
-                    "vertices" if vertices is not None
-                    else "projection points (pass vertices=)")
-        bary = np.asarray(proj.barycentric, dtype=np.float64)
-        if bary.shape != (n, 3):
-            raise ValueError(f"projection barycentric must have shape ({n}, 3), "
-                             f"got {bary.shape}")
-    else:
-        from facewrap.geometry import ClosestPointTree  # geometry imports igl: load on use
-        P = as_points(points_or_closest, "points_or_closest")
-        if tree is None:
-            tree = ClosestPointTree(scan.vertices, scan.triangles)
-        elif tree.triangles.shape != scan.triangles.shape:
-            raise ValueError("tree was not built on scan (triangle counts differ)")
-        cp = tree.query(P)
-        n, tri, bary = len(P), cp.triangles, cp.barycentric
-        valid = np.ones(n, dtype=bool)
-    if P.shape != (n, 3):
-        raise ValueError(f"vertices must have shape ({n}, 3), got {P.shape}")
-    if mask is not None:
-        mask = np.asarray(mask)
-        if mask.shape != (n,) or mask.dtype != bool:
-            raise ValueError(f"mask must be a bool array of shape ({n},), "
-                             f"got {mask.dtype} {mask.shape}")
-        valid = valid & mask
-    tri = tri.astype(np.int64, copy=False)
-    if np.any(tri[valid] >= len(scan.triangles)):
-        raise ValueError("projection triangles out of range for scan.triangles")
-    out = cylindrical_uvs(P, axis=axis)
-    out[valid] = _scan_uvs(scan, tri[valid], bary[valid])
-    return out
-
-
-# -- rasterising a UV layout ----------------------------------------------------------
-
 @dataclass(frozen=True, eq=False)
 class UVRaster:
     """Which triangle covers each texel of a UV layout, and where in it.
@@ -318,7 +84,8 @@ class UVRaster:
     mask: np.ndarray
 
     def __len__(self) -> int:
-        return len(self.triangles)
+        """Number of covered texels."""
+        return self.pixels.shape[0]
 
 
 def rasterize_uv(mesh: Mesh, size) -> UVRaster:
@@ -345,6 +112,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     Returns
     -------
     UVRaster
+        Covered texels in row-major order, with their triangle and coordinates.
 
     Examples
     --------
@@ -356,7 +124,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     >>> r.pixels[0].tolist(), int(r.triangles[0])   # top-left texel: u small, v big
     ([0, 0], 1)
     """
-    mesh = _uv_mesh(mesh, "mesh")
+    mesh = checked_uv_mesh(mesh, "mesh")
     H, W = _size(size)
     # corners in pixel coordinates: x = column, y = row, texel centres at integers
     uv = mesh.uvs[mesh.triangle_uvs]                        # (t, 3, 2)
@@ -374,7 +142,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     counts = width * np.maximum(r1 - r0 + 1, 0)
     counts[det == 0] = 0                                   # no area in UV space
     keys, tris, barys, scores = [], [], [], []
-    for sel in _chunks(counts, _CHUNK_TEXELS):
+    for sel in blocks_by_budget(counts, BLOCK_TEXELS):
         cnt = counts[sel]
         tri = np.repeat(sel, cnt)
         start = np.cumsum(cnt) - cnt
@@ -417,20 +185,6 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
                     mask=mask.reshape(H, W))
 
 
-def _chunks(counts: np.ndarray, budget: int):
-    """Index arrays of consecutive non-empty items whose counts sum to about budget."""
-    nz = np.flatnonzero(counts)
-    if len(nz) == 0:
-        return
-    cum = np.cumsum(counts[nz])
-    cuts = np.searchsorted(cum, np.arange(budget, cum[-1], budget), side="right")
-    for part in np.split(nz, np.unique(cuts)):
-        if len(part):
-            yield part
-
-
-# -- sampling and baking ----------------------------------------------------------------
-
 def sample_image(image, uvs) -> np.ndarray:
     """Bilinear samples of an image at texture coordinates (OBJ convention).
 
@@ -454,7 +208,7 @@ def sample_image(image, uvs) -> np.ndarray:
     >>> sample_image(img, [[0.25, 0.75], [0.5, 0.5], [-1, 9]]).ravel().tolist()
     [0.0, 138.75, 0.0]
     """
-    image = _image(image, "image")
+    image = as_image(image, "image")
     uvs = np.asarray(uvs, dtype=np.float64)
     if uvs.ndim != 2 or uvs.shape[1] != 2 or not np.all(np.isfinite(uvs)):
         raise ValueError(f"uvs must be a finite array of shape (k, 2), got {uvs.shape}")
@@ -473,10 +227,6 @@ def _bilinear(image: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     top = flat[y0 * W + x0] * (1.0 - fx) + flat[y0 * W + x1] * fx
     bottom = flat[y1 * W + x0] * (1.0 - fx) + flat[y1 * W + x1] * fx
     return top * (1.0 - fy) + bottom * fy
-
-
-def _to_uint8(values: np.ndarray) -> np.ndarray:
-    return np.clip(np.rint(values), 0, 255).astype(np.uint8)
 
 
 @dataclass(frozen=True, eq=False)
@@ -546,6 +296,7 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     Returns
     -------
     BakeResult
+        The image, which texels the scan covered and which were padded.
 
     Examples
     --------
@@ -556,16 +307,15 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     >>> bool((res.image == img).all()), res.filled_fraction
     (True, 1.0)
     """
-    template = _uv_mesh(template, "template")
-    scan = _uv_mesh(scan, "scan")
-    scan_image = _image(scan_image, "scan_image")
+    template = checked_uv_mesh(template, "template")
+    scan = checked_uv_mesh(scan, "scan")
+    scan_image = as_image(scan_image, "scan_image")
     H, W = _size(size)
     if (isinstance(padding, (bool, np.bool_)) or not isinstance(padding, (int, np.integer))
             or padding < 0):
         raise ValueError(f"padding must be a non-negative int, got {padding!r}")
     max_distance = (0.05 * template.scale() if max_distance is None
                     else _non_negative(max_distance, "max_distance"))
-    from facewrap.geometry import ClosestPointTree  # geometry imports igl: load on use
     if tree is None:
         tree = ClosestPointTree(scan.vertices, scan.triangles)
     elif (tree.triangles.shape != scan.triangles.shape
@@ -577,13 +327,13 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     points = np.einsum("pc,pcd->pd", raster.barycentric, corners)
     cp = tree.query(points)
     near = cp.distances <= max_distance
-    uv = _scan_uvs(scan, cp.triangles[near], cp.barycentric[near])
+    uv = trusted_scan_uvs(scan, cp.triangles[near], cp.barycentric[near])
     colours = _bilinear(_rgb(scan_image), uv)
 
     image = np.zeros((H, W, 3), dtype=np.uint8)
     coverage = np.zeros((H, W), dtype=bool)
     rows, cols = raster.pixels[near, 0], raster.pixels[near, 1]
-    image[rows, cols] = _to_uint8(colours)
+    image[rows, cols] = to_uint8(colours)
     coverage[rows, cols] = True
     image, padded = _pad(image, coverage, padding)
     n_layout = int(raster.mask.sum())
@@ -604,11 +354,9 @@ def _pad(image: np.ndarray, coverage: np.ndarray, padding: int):
     out = image.copy()
     out[padded] = image[ri[padded], ci[padded]]
     rest = ~coverage & ~padded
-    out[rest] = _to_uint8(image[coverage].mean(axis=0))
+    out[rest] = to_uint8(image[coverage].mean(axis=0))
     return out, padded
 
-
-# -- images --------------------------------------------------------------------------
 
 def interpolate_images(a, b, t: float) -> np.ndarray:
     """Blend two images: ``round((1 - t) a + t b)`` (SPEC §1.5, for textures).
@@ -640,69 +388,4 @@ def interpolate_images(a, b, t: float) -> np.ndarray:
     t = float(t)
     if not 0.0 <= t <= 1.0:
         raise ValueError(f"t must lie in [0, 1], got {t}")
-    return _to_uint8((1.0 - t) * a.astype(np.float64) + t * b.astype(np.float64))
-
-
-def save_png(path, image) -> None:
-    """Write an image as PNG, atomically (complete file or none).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Destination; its folder is created when missing.
-    image : (H, W), (H, W, 3) or (H, W, 4) uint8
-        Grey, RGB or RGBA; row 0 is the top of the picture.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> p = pathlib.Path(tempfile.mkdtemp()) / "a.png"
-    >>> save_png(p, np.full((2, 3, 3), 7, np.uint8))
-    >>> load_image(p).shape
-    (2, 3, 3)
-    """
-    from PIL import Image
-    image = _image(image, "image")
-    if image.shape[2] == 1:
-        image = image[:, :, 0]
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with atomic_write(path, "wb") as fh:
-        fh.write(buf.getvalue())
-
-
-def load_image(path) -> np.ndarray:
-    """Read an image file (any format Pillow reads) as RGB.
-
-    Grey and palette images are expanded to RGB, alpha is dropped, 16-bit grey is
-    scaled to 8 bits.  No EXIF orientation is applied (textures are stored as laid
-    out in UV space).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    (H, W, 3) uint8
-
-    Raises
-    ------
-    InputError
-        Naming the file, when it is missing, unreadable, not an image or corrupt.
-    """
-    from PIL import Image
-    try:
-        with Image.open(path) as img:
-            img.load()
-            if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
-                grey = np.asarray(img).astype(np.float64)
-                grey = grey / 257.0 if grey.max(initial=0) > 255 else grey
-                return np.repeat(_to_uint8(grey)[:, :, None], 3, axis=2)
-            return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
-    except FileNotFoundError:
-        raise InputError("image file not found", path) from None
-    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
-        raise InputError(f"cannot read image ({type(exc).__name__}: {exc})",
-                         path) from None
+    return to_uint8((1.0 - t) * a.astype(np.float64) + t * b.astype(np.float64))

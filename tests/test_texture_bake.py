@@ -1,129 +1,22 @@
-"""Texture coordinates, UV rasterisation, baking and image files (SPEC §1.4)."""
+"""facewrap.texture.bake: UV rasterisation, image sampling and baking (SPEC §1.4)."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from facewrap.errors import InputError
+import facewrap.texture.bake
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.texture.bake import (bake_texture, cylindrical_uvs, interpolate_images,
-                              load_image, rasterize_uv, sample_image, save_png,
-                              scan_uvs_at, transfer_uvs)
+from facewrap.texture import (bake_texture, interpolate_images, load_image, rasterize_uv,
+                              sample_image)
 
-
-def grid(n, uv=lambda xy: xy, scale=(1.0, 1.0), jitter=0.0, seed=0):
-    """Unit-square plane (z = 0) of n x n quads; UVs = uv(xy) per vertex."""
-    g = np.linspace(0.0, 1.0, n + 1)
-    X, Y = np.meshgrid(g, g)
-    xy = np.stack([X.ravel(), Y.ravel()], axis=1)
-    if jitter:
-        inner = (xy > 0).all(axis=1) & (xy < 1).all(axis=1)
-        xy[inner] += np.random.default_rng(seed).uniform(-jitter, jitter,
-                                                         (inner.sum(), 2)) / n
-    i = np.arange(n)
-    a = (i[None, :] + (n + 1) * i[:, None]).ravel()
-    faces = np.stack([a, a + 1, a + n + 2, a + n + 1], axis=1)
-    V = np.column_stack([xy * np.asarray(scale), np.zeros(len(xy))])
-    return Mesh(V, faces, uvs=uv(xy), face_uvs=faces)
-
-
-def texel_centres(H, W):
-    r, c = np.mgrid[0:H, 0:W]
-    return np.stack([(c + 0.5) / W, 1 - (r + 0.5) / H], axis=-1)  # (H, W, 2) uv
-
-
-def test_scan_uvs_at_reproduces_linear_fields_across_a_seam():
-    # left half (x < 0.5) and right half map to two islands by different affine maps
-    plane = grid(6)
-    V = plane.vertices
-    faces = plane.faces_array()
-    left = V[faces, 0].mean(axis=1) < 0.5
-
-    def f_left(p):
-        return np.stack([0.05 + 0.8 * p[:, 0], 0.1 + 0.4 * p[:, 1] + 0.1 * p[:, 0]], 1)
-
-    def f_right(p):
-        return np.stack([0.9 - 0.3 * p[:, 1], 0.55 + 0.8 * (p[:, 0] - 0.5)], 1)
-
-    n = len(V)
-    face_uvs = np.where(left[:, None], faces, faces + n)
-    scan = Mesh(V, faces, uvs=np.vstack([f_left(V), f_right(V)]), face_uvs=face_uvs)
-    rng = np.random.default_rng(1)
-    tri = rng.integers(0, len(scan.triangles), 500)
-    bary = rng.dirichlet([1, 1, 1], 500)
-    bary[:50] = [0.5, 0.5, 0.0]                      # points on edges, incl. the seam
-    points = np.einsum("kc,kcd->kd", bary, V[scan.triangles[tri]])
-    on_left = left[scan.triangle_faces[tri]]
-    expected = np.where(on_left[:, None], f_left(points), f_right(points))
-    np.testing.assert_allclose(scan_uvs_at(scan, tri, bary), expected, atol=1e-12)
-    # the seam is real: the same 3-D point has different UVs on its two sides
-    assert np.abs(f_left(points[:1]) - f_right(points[:1])).max() > 0.1
-
-
-def test_scan_uvs_at_checks_its_arguments():
-    plane = grid(2)
-    with pytest.raises(ValueError, match="triangles"):
-        scan_uvs_at(plane, [len(plane.triangles)], [[1, 0, 0]])
-    with pytest.raises(ValueError, match="barycentric"):
-        scan_uvs_at(plane, [0, 1], [[1, 0, 0]])
-    bare = Mesh(plane.vertices, plane.faces_array())
-    with pytest.raises(ValueError, match="scan has no texture"):
-        scan_uvs_at(bare, [0], [[1, 0, 0]])
-
-
-def test_cylindrical_uvs_lie_in_unit_square_and_follow_the_angle():
-    rng = np.random.default_rng(2)
-    P = rng.normal(size=(1000, 3)) * [1, 3, 1] + [5, -2, 7]
-    for axis in [(0, 1, 0), (0, 0, 1), (1, 1, 0)]:
-        uv = cylindrical_uvs(P, axis=axis)
-        assert uv.shape == (1000, 2)
-        assert uv.min() >= 0 and uv.max() <= 1
-        assert uv[:, 1].min() == 0 and uv[:, 1].max() == 1
-    # default axis y: front (+z) at u = 0.5, +x at 0.75, -x at 0.25
-    ring = np.array([[0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 1.]])
-    uv = cylindrical_uvs(ring, center=[0, 0, 0])
-    np.testing.assert_allclose(uv[:, 0], [0.5, 0.75, 0.25, 0.5])
-    np.testing.assert_allclose(uv[:, 1], [0, 0, 0, 1])
-    P_before = P.copy()
-    cylindrical_uvs(P)
-    np.testing.assert_array_equal(P, P_before)
-
-
-def test_transfer_uvs_uses_scan_uvs_where_valid_and_cylinder_elsewhere():
-    scan = grid(8, uv=lambda xy: 0.1 + 0.8 * xy[:, ::-1])
-    rng = np.random.default_rng(3)
-    verts = np.column_stack([rng.uniform(0, 1, (200, 2)), rng.normal(0, 0.01, 200)])
-    mask = rng.random(200) < 0.7
-    uv = transfer_uvs(scan, verts, mask)
-    np.testing.assert_allclose(uv[mask], 0.1 + 0.8 * verts[mask][:, [1, 0]], atol=1e-12)
-    np.testing.assert_allclose(uv[~mask], cylindrical_uvs(verts)[~mask])
-    # the same from a projection made beforehand (with a tree built once)
-    tree = ClosestPointTree(scan.vertices, scan.triangles)
-    cp = tree.query(verts)
-    np.testing.assert_allclose(transfer_uvs(scan, cp, mask, vertices=verts), uv)
-    np.testing.assert_allclose(transfer_uvs(scan, verts, mask, tree=tree), uv)
-    with pytest.raises(ValueError, match="mask"):
-        transfer_uvs(scan, verts, mask[:10])
-
-
-def test_transfer_uvs_treats_ray_misses_as_unmapped():
-    scan = grid(4)
-    tree = ClosestPointTree(scan.vertices, scan.triangles)
-    origins = np.array([[0.3, 0.6, 1.0], [3.0, 3.0, 1.0]])   # second one misses
-    hits = tree.ray_hits(origins, [[0, 0, -1.0]] * 2)
-    assert hits.hit.tolist() == [True, False]
-    with pytest.raises(ValueError, match="vertices="):
-        transfer_uvs(scan, hits)                               # NaN points for the miss
-    uv = transfer_uvs(scan, hits, vertices=origins)
-    np.testing.assert_allclose(uv[0], [0.3, 0.6])
-    np.testing.assert_allclose(uv[1], cylindrical_uvs(origins)[1])
+from texture_cases import checkerboard, gradient_image, texel_centres, uv_plane
 
 
 @pytest.mark.parametrize("size", [64, (48, 80), 50])
 @pytest.mark.parametrize("jitter", [0.0, 0.35])
 def test_full_square_layout_covers_every_texel_exactly_once(size, jitter):
-    mesh = grid(7, jitter=jitter)            # 7 does not divide the sizes: edges cut texels
+    mesh = uv_plane(7, jitter=jitter)            # 7 does not divide the sizes: edges cut texels
     r = rasterize_uv(mesh, size)
     H, W = (size, size) if np.ndim(size) == 0 else size
     assert r.mask.shape == (H, W) and r.mask.all()
@@ -145,7 +38,7 @@ def test_partial_layout_coverage_matches_area_and_a_brute_force_oracle():
         n = np.linalg.norm(d, axis=1, keepdims=True)
         return 0.45 + 0.4 * np.divide(d * r, n, out=np.zeros_like(d), where=n > 0)
 
-    mesh = grid(6, uv=squeeze)
+    mesh = uv_plane(6, uv=squeeze)
     S = 96
     r = rasterize_uv(mesh, S)
     uvt = mesh.uvs[mesh.triangle_uvs]                    # (t, 3, 2)
@@ -169,7 +62,7 @@ def test_partial_layout_coverage_matches_area_and_a_brute_force_oracle():
 
 
 def test_rasterize_ignores_uvs_outside_the_unit_square_and_checks_size():
-    mesh = grid(2, uv=lambda xy: xy + 2.0)
+    mesh = uv_plane(2, uv=lambda xy: xy + 2.0)
     r = rasterize_uv(mesh, 16)
     assert len(r) == 0 and not r.mask.any()
     for bad in (0, -3, 2.5, (4, 0), (1, 2, 3), True):
@@ -177,26 +70,9 @@ def test_rasterize_ignores_uvs_outside_the_unit_square_and_checks_size():
             rasterize_uv(mesh, bad)
 
 
-def gradient_image(S, channels=3):
-    r, c = np.mgrid[0:S, 0:S]
-    img = np.stack([c * 255 / (S - 1), r * 255 / (S - 1), (r + c) * 127.0 / (S - 1)], -1)
-    img = np.rint(img).astype(np.uint8)
-    if channels == 4:
-        img = np.concatenate([img, np.full((S, S, 1), 9, np.uint8)], axis=2)
-    return img
-
-
-def checkerboard(S, cell=8):
-    r, c = np.mgrid[0:S, 0:S]
-    on = ((r // cell + c // cell) % 2).astype(bool)
-    img = np.where(on[..., None], [230, 40, 90], [20, 200, 60]).astype(np.uint8)
-    img[..., 2] = (np.arange(S) * 255 // (S - 1)).astype(np.uint8)[None, :]
-    return img
-
-
 @pytest.mark.parametrize("image", [checkerboard(128), gradient_image(128, 4)])
 def test_bake_mesh_onto_itself_reproduces_the_image(image):
-    mesh = grid(9, jitter=0.3)
+    mesh = uv_plane(9, jitter=0.3)
     image_ro = image.copy()
     image_ro.setflags(write=False)
     res = bake_texture(mesh, mesh, image_ro, size=128)
@@ -208,7 +84,7 @@ def test_bake_mesh_onto_itself_reproduces_the_image(image):
 
 
 def test_bake_resamples_a_smooth_image_at_another_size():
-    mesh = grid(5)
+    mesh = uv_plane(5)
     img = gradient_image(200)
     res = bake_texture(mesh, mesh, img, size=64)
     # the gradient is linear, so the bilinear sample equals the analytic value
@@ -221,8 +97,8 @@ def test_bake_resamples_a_smooth_image_at_another_size():
 
 def test_bake_between_rotated_layouts_rotates_the_image():
     S = 96
-    scan = grid(6)                                              # uv = (x, y)
-    template = grid(5, uv=lambda xy: np.stack([1 - xy[:, 1], xy[:, 0]], 1))  # 90 deg
+    scan = uv_plane(6)                                              # uv = (x, y)
+    template = uv_plane(5, uv=lambda xy: np.stack([1 - xy[:, 1], xy[:, 0]], 1))  # 90 deg
     img = checkerboard(S, cell=12)
     img[:10, :30] = [255, 255, 0]                               # break the symmetry
     res = bake_texture(template, scan, img, size=S)
@@ -234,8 +110,8 @@ def test_bake_between_rotated_layouts_rotates_the_image():
 
 def test_padding_fills_exactly_the_texels_within_padding_pixels():
     S, pad = 64, 5
-    scan = grid(4)
-    template = grid(4, uv=lambda xy: 0.25 + 0.5 * xy)   # island = texels 16..47
+    scan = uv_plane(4)
+    template = uv_plane(4, uv=lambda xy: 0.25 + 0.5 * xy)   # island = texels 16..47
     img = gradient_image(S)
     res = bake_texture(template, scan, img, size=S, padding=pad)
     cov = np.zeros((S, S), bool)
@@ -261,8 +137,8 @@ def test_padding_fills_exactly_the_texels_within_padding_pixels():
 
 
 def test_far_texels_are_not_covered():
-    scan = grid(4)
-    template = grid(8, scale=(2.0, 1.0))     # x in [0, 2]: right half is off the scan
+    scan = uv_plane(4)
+    template = uv_plane(8, scale=(2.0, 1.0))     # x in [0, 2]: right half is off the scan
     res = bake_texture(template, scan, gradient_image(32), size=40, max_distance=0.1,
                        padding=0)
     u = texel_centres(40, 40)[..., 0]
@@ -274,7 +150,7 @@ def test_far_texels_are_not_covered():
 
 
 def test_bake_checks_its_arguments():
-    mesh = grid(2)
+    mesh = uv_plane(2)
     img = gradient_image(8)
     with pytest.raises(ValueError, match="uint8"):
         bake_texture(mesh, mesh, img.astype(float))
@@ -282,7 +158,7 @@ def test_bake_checks_its_arguments():
         bake_texture(mesh, mesh, img, size=8, padding=-1)
     with pytest.raises(ValueError, match="template has no texture"):
         bake_texture(Mesh(mesh.vertices, mesh.faces_array()), mesh, img)
-    other = grid(3)
+    other = uv_plane(3)
     with pytest.raises(ValueError, match="tree"):
         bake_texture(mesh, mesh, img, size=8,
                      tree=ClosestPointTree(other.vertices, other.triangles))
@@ -309,36 +185,10 @@ def test_interpolate_images():
         interpolate_images(a, b, 1.5)
 
 
-def test_png_round_trip_and_image_errors(tmp_path):
-    rgb = gradient_image(17)
-    save_png(tmp_path / "sub" / "a.png", rgb)
-    np.testing.assert_array_equal(load_image(tmp_path / "sub" / "a.png"), rgb)
-    rgba = gradient_image(9, channels=4)
-    save_png(tmp_path / "b.png", rgba)
-    np.testing.assert_array_equal(load_image(tmp_path / "b.png"), rgba[..., :3])
-    grey = rgb[..., 0]
-    save_png(tmp_path / "g.png", grey)
-    np.testing.assert_array_equal(load_image(tmp_path / "g.png"),
-                                  np.repeat(grey[..., None], 3, axis=2))
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.png", "g.png", "sub"]
-    with pytest.raises(InputError, match="missing.png"):
-        load_image(tmp_path / "missing.png")
-    (tmp_path / "bad.png").write_bytes(b"not an image at all")
-    with pytest.raises(InputError, match="bad.png"):
-        load_image(tmp_path / "bad.png")
-    good = (tmp_path / "sub" / "a.png").read_bytes()
-    (tmp_path / "cut.png").write_bytes(good[: len(good) // 2])
-    with pytest.raises(InputError, match="cut.png"):
-        load_image(tmp_path / "cut.png")
-    with pytest.raises(ValueError, match="uint8"):
-        save_png(tmp_path / "f.png", rgb.astype(np.float32))
-
-
 def test_rasterize_in_small_chunks_gives_the_same_raster(monkeypatch):
-    import facewrap.texture.bake as texture
-    mesh = grid(5, jitter=0.3)
+    mesh = uv_plane(5, jitter=0.3)
     whole = rasterize_uv(mesh, 40)
-    monkeypatch.setattr(texture, "_CHUNK_TEXELS", 7)
+    monkeypatch.setattr(facewrap.texture.bake, "BLOCK_TEXELS", 7)
     parts = rasterize_uv(mesh, 40)
     np.testing.assert_array_equal(parts.pixels, whole.pixels)
     np.testing.assert_array_equal(parts.triangles, whole.triangles)

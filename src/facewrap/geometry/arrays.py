@@ -1,0 +1,190 @@
+"""Trusted array primitives shared by the geometry, texture and report modules.
+
+These functions take clean arrays (float64 positions, int64 indices in range) and do
+no validation: the public functions that call them check their input once, at the
+door.  The bulk work runs on coordinate-major ``(3, t)`` arrays where it can: on
+large meshes contiguous rows per coordinate beat row-major ``(t, 3)`` arithmetic
+and fancy indexing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+__all__ = ["cross_rows", "normalize_rows", "safe_inverse", "edge_vectors",
+           "cross_columns", "column_norms", "blocks_by_budget"]
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product (faster than ``np.cross``).
+
+    Parameters
+    ----------
+    a, b : (..., 3) float64
+        Broadcast against each other.
+
+    Returns
+    -------
+    (..., 3) float64
+
+    Examples
+    --------
+    >>> cross_rows(np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]])).tolist()
+    [[0.0, 0.0, 1.0]]
+    """
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def normalize_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit rows and row norms; zero rows stay zero (no NaN).
+
+    Parameters
+    ----------
+    a : (k, 3) float64
+        Not changed.
+
+    Returns
+    -------
+    unit : (k, 3) float64
+        ``a`` divided by its row norms, a new array.
+    norm : (k,) float64
+        Euclidean length of each row of ``a``.
+
+    Examples
+    --------
+    >>> unit, norm = normalize_rows(np.array([[0, 0, 2.0], [0, 0, 0]]))
+    >>> unit.tolist(), norm.tolist()
+    ([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]], [2.0, 0.0])
+    """
+    norm = np.sqrt(np.einsum("ij,ij->i", a, a))
+    return a * safe_inverse(norm)[:, None], norm
+
+
+def safe_inverse(x: np.ndarray) -> np.ndarray:
+    """``1 / x`` where ``x > 0``, else 0.
+
+    Parameters
+    ----------
+    x : (k,) float64
+
+    Returns
+    -------
+    (k,) float64
+
+    Examples
+    --------
+    >>> safe_inverse(np.array([2.0, 0.0, -1.0])).tolist()
+    [0.5, 0.0, 0.0]
+    """
+    return np.divide(1.0, x, out=np.zeros_like(x), where=x > 0)
+
+
+def edge_vectors(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edges ``V1 - V0`` and ``V2 - V0`` of each triangle, coordinate-major.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+        Indices in range.
+
+    Returns
+    -------
+    e01, e02 : (3, t) float64
+        Coordinate-major, contiguous: row ``k`` holds coordinate ``k`` of every edge.
+
+    Examples
+    --------
+    >>> e01, e02 = edge_vectors(np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0.]]),
+    ...                         np.array([[0, 1, 2]]))
+    >>> e01.T.tolist(), e02.T.tolist()
+    ([[2.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    """
+    Vt = np.ascontiguousarray(V.T)
+    Tt = np.ascontiguousarray(T.T)
+    p0 = np.take(Vt, Tt[0], axis=1)
+    return np.take(Vt, Tt[1], axis=1) - p0, np.take(Vt, Tt[2], axis=1) - p0
+
+
+def cross_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of the columns of two coordinate-major arrays.
+
+    Parameters
+    ----------
+    a, b : (3, t) float64
+
+    Returns
+    -------
+    (3, t) float64
+
+    Examples
+    --------
+    >>> cross_columns(np.array([[1.0], [0], [0]]), np.array([[0], [1.0], [0]])).T.tolist()
+    [[0.0, 0.0, 1.0]]
+    """
+    out = np.empty(a.shape)
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(a[i] * b[j], a[j] * b[i], out=out[k])
+    return out
+
+
+def column_norms(a: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each column.
+
+    Parameters
+    ----------
+    a : (3, t) float64
+
+    Returns
+    -------
+    (t,) float64
+
+    Examples
+    --------
+    >>> column_norms(np.array([[3.0], [4.0], [0.0]])).tolist()
+    [5.0]
+    """
+    return np.sqrt(np.einsum("ij,ij->j", a, a))
+
+
+def blocks_by_budget(counts: np.ndarray, budget: int) -> Iterator[np.ndarray]:
+    """Split items into runs whose work adds up to about ``budget``.
+
+    Rasterisers enumerate candidate pixels per triangle; processing all triangles at
+    once would need memory proportional to all candidates, one at a time would be
+    slow in Python.  Consecutive blocks of about ``budget`` candidates keep both in
+    check.
+
+    Parameters
+    ----------
+    counts : (k,) int
+        Work of each item (e.g. candidate pixels per triangle); items with 0 are
+        left out.
+    budget : int
+        Work per block (a block holds at least one item, so it may exceed this).
+
+    Yields
+    ------
+    (j,) int64
+        Indices of the non-empty items of one block, increasing; the blocks cover
+        every non-empty item once, in order.
+
+    Examples
+    --------
+    >>> [b.tolist() for b in blocks_by_budget(np.array([2, 0, 3, 1, 4]), 4)]
+    [[0], [2, 3], [4]]
+    """
+    nz = np.flatnonzero(counts)
+    if len(nz) == 0:
+        return
+    cum = np.cumsum(counts[nz])
+    cuts = np.searchsorted(cum, np.arange(budget, cum[-1], budget), side="right")
+    for part in np.split(nz, np.unique(cuts)):
+        if len(part):
+            yield part

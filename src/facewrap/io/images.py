@@ -1,0 +1,125 @@
+"""Image files: reading any format Pillow reads as RGB, writing PNG atomically.
+
+Images are ``uint8`` arrays ``(H, W)`` (grey), ``(H, W, 3)`` (RGB) or ``(H, W, 4)``
+(RGBA), row 0 at the top of the picture.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+
+import numpy as np
+from PIL import Image
+
+from facewrap.errors import InputError
+from facewrap.io.atomic import atomic_write
+
+__all__ = ["as_image", "to_uint8", "save_png", "load_image"]
+
+
+def as_image(image, name: str) -> np.ndarray:
+    """An image argument checked: uint8, 1 to 4 channels, not empty.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, C) uint8
+        A 2-D array is taken as one grey channel.
+    name : str
+        The argument's name, for the error message.
+
+    Returns
+    -------
+    (H, W, C) uint8
+        C in (1, 3, 4); a view of ``image`` where possible.
+
+    Raises
+    ------
+    ValueError
+        When the dtype or the shape is wrong.
+    """
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        raise ValueError(f"{name} must be a uint8 image, got dtype {image.dtype}")
+    if image.ndim == 2:
+        image = image[:, :, None]
+    if image.ndim != 3 or image.shape[2] not in (1, 3, 4):
+        raise ValueError(f"{name} must have shape (H, W), (H, W, 3) or (H, W, 4), "
+                         f"got {image.shape}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise ValueError(f"{name} is empty, shape {image.shape}")
+    return image
+
+
+def to_uint8(values: np.ndarray) -> np.ndarray:
+    """Pixel values rounded to the nearest integer and clipped to [0, 255], any shape.
+
+    Examples
+    --------
+    >>> to_uint8(np.array([-3.0, 127.5, 300.0])).tolist()
+    [0, 128, 255]
+    """
+    return np.clip(np.rint(values), 0, 255).astype(np.uint8)
+
+
+def save_png(path, image) -> None:
+    """Write an image as PNG, atomically (complete file or none).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination; its folder is created when missing.
+    image : (H, W), (H, W, 3) or (H, W, 4) uint8
+        Grey, RGB or RGBA; row 0 is the top of the picture.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+    >>> save_png(p, np.full((2, 3, 3), 7, np.uint8))
+    >>> load_image(p).shape
+    (2, 3, 3)
+    """
+    image = as_image(image, "image")
+    if image.shape[2] == 1:
+        image = image[:, :, 0]
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with atomic_write(path, "wb") as fh:
+        fh.write(buf.getvalue())
+
+
+def load_image(path) -> np.ndarray:
+    """Read an image file (any format Pillow reads) as RGB.
+
+    Grey and palette images are expanded to RGB, alpha is dropped, 16-bit grey is
+    scaled to 8 bits.  No EXIF orientation is applied (textures are stored as laid
+    out in UV space).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    (H, W, 3) uint8
+
+    Raises
+    ------
+    InputError
+        Naming the file, when it is missing, unreadable, not an image or corrupt.
+    """
+    try:
+        with Image.open(path) as img:
+            img.load()
+            if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
+                grey = np.asarray(img).astype(np.float64)
+                grey = grey / 257.0 if grey.max(initial=0) > 255 else grey
+                return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
+            return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
+    except FileNotFoundError:
+        raise InputError("image file not found", path) from None
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
+        raise InputError(f"cannot read image ({type(exc).__name__}: {exc})",
+                         path) from None

@@ -1,0 +1,87 @@
+"""Writing the sample as plain files that any tool (or the CLI) can read."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from facewrap.io.atomic import atomic_write
+from facewrap.io.images import save_png
+from facewrap.io.landmarks import write_points, write_vertex_indices
+from facewrap.io.obj import write_obj
+from facewrap.mesh import Mesh
+from facewrap.sample.scan import SampleScan, make_scan
+from facewrap.sample.template import SampleTemplate, make_template
+
+__all__ = ["write_sample"]
+
+_MTL = "newmtl skin\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\nmap_Kd scan_texture.png\n"
+
+
+def write_sample(folder, template: SampleTemplate | None = None,
+                 scan: SampleScan | None = None) -> dict[str, Path]:
+    """Write the sample as plain files that any tool (or the CLI) can read.
+
+    Files: ``template.obj``, ``template_landmarks.txt`` (0-based vertex ids, one per
+    line), ``blendshapes/<name>.obj``, ``scan.obj`` (``mtllib scan.mtl``, UVs),
+    ``scan.mtl`` and ``scan_texture.png``, ``scan_landmarks.txt`` (``x y z`` lines,
+    in :data:`LANDMARK_NAMES` order) and ``ground_truth.npy`` ((n_template, 3),
+    NaN for the eyeballs).  Each file is replaced atomically.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Created if missing.
+    template : SampleTemplate, optional
+        Default ``make_template()``.
+    scan : SampleScan, optional
+        Default ``make_scan(template)``.
+
+    Returns
+    -------
+    dict of str to Path
+        ``"template"``, ``"template_landmarks"``, ``"blendshapes/<name>"`` for each
+        expression, ``"scan"``, ``"scan_mtl"``, ``"scan_texture"``,
+        ``"scan_landmarks"``, ``"ground_truth"``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> tpl = make_template(24)
+    >>> paths = write_sample(tempfile.mkdtemp(), tpl,
+    ...                      make_scan(tpl, resolution=24, texture_size=8))
+    >>> paths["scan"].read_text().splitlines()[1]
+    'mtllib scan.mtl'
+    >>> paths["blendshapes/blink"].relative_to(paths["scan"].parent).as_posix()
+    'blendshapes/blink.obj'
+    """
+    folder = Path(os.fspath(folder))
+    (folder / "blendshapes").mkdir(parents=True, exist_ok=True)
+    template = make_template() if template is None else template
+    scan = make_scan(template) if scan is None else scan
+    paths = {"template": folder / "template.obj",
+             "template_landmarks": folder / "template_landmarks.txt"}
+    write_obj(paths["template"], template.mesh, header="facewrap sample template")
+    write_vertex_indices(paths["template_landmarks"], template.landmarks)
+    for name, V in template.blendshapes.items():
+        paths[f"blendshapes/{name}"] = folder / "blendshapes" / f"{name}.obj"
+        write_obj(paths[f"blendshapes/{name}"], template.mesh.with_vertices(V),
+                  header=f"facewrap sample blendshape {name}")
+    m = scan.mesh
+    textured = Mesh(m.vertices, (m.face_offsets, m.face_indices), uvs=m.uvs,
+                    mtllib=("scan.mtl",), materials=("skin",),
+                    face_materials=np.zeros(m.n_faces, dtype=np.int64))
+    paths.update(scan=folder / "scan.obj", scan_mtl=folder / "scan.mtl",
+                 scan_texture=folder / "scan_texture.png",
+                 scan_landmarks=folder / "scan_landmarks.txt",
+                 ground_truth=folder / "ground_truth.npy")
+    write_obj(paths["scan"], textured, header="facewrap sample scan")
+    with atomic_write(paths["scan_mtl"], "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(_MTL)
+    save_png(paths["scan_texture"], np.asarray(scan.texture, dtype=np.uint8))
+    write_points(paths["scan_landmarks"], scan.landmarks.points)
+    with atomic_write(paths["ground_truth"], "wb") as fh:
+        np.save(fh, np.asarray(scan.ground_truth))
+    return paths

@@ -1,0 +1,34 @@
+"""facewrap.io.images: PNG writing and image reading, with clear errors."""
+
+import numpy as np
+import pytest
+
+from facewrap.errors import InputError
+from facewrap.io.images import load_image, save_png
+
+from texture_cases import gradient_image
+
+
+def test_png_round_trip_and_image_errors(tmp_path):
+    rgb = gradient_image(17)
+    save_png(tmp_path / "sub" / "a.png", rgb)
+    np.testing.assert_array_equal(load_image(tmp_path / "sub" / "a.png"), rgb)
+    rgba = gradient_image(9, channels=4)
+    save_png(tmp_path / "b.png", rgba)
+    np.testing.assert_array_equal(load_image(tmp_path / "b.png"), rgba[..., :3])
+    grey = rgb[..., 0]
+    save_png(tmp_path / "g.png", grey)
+    np.testing.assert_array_equal(load_image(tmp_path / "g.png"),
+                                  np.repeat(grey[..., None], 3, axis=2))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.png", "g.png", "sub"]
+    with pytest.raises(InputError, match="missing.png"):
+        load_image(tmp_path / "missing.png")
+    (tmp_path / "bad.png").write_bytes(b"not an image at all")
+    with pytest.raises(InputError, match="bad.png"):
+        load_image(tmp_path / "bad.png")
+    good = (tmp_path / "sub" / "a.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(good[: len(good) // 2])
+    with pytest.raises(InputError, match="cut.png"):
+        load_image(tmp_path / "cut.png")
+    with pytest.raises(ValueError, match="uint8"):
+        save_png(tmp_path / "f.png", rgb.astype(np.float32))
