@@ -26,7 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_nicp as nicp  # noqa: E402
 from _nicp_cases import Case  # noqa: E402
-from facewrap.evaluate import surface_distances, triangle_quality  # noqa: E402
+from facewrap.evaluate import surface_distances  # noqa: E402
+from facewrap.geometry import triangle_quality  # noqa: E402
 from facewrap.geometry import face_normals  # noqa: E402
 from facewrap.landmarks import pair_landmarks, snap_to_surface  # noqa: E402
 from facewrap.transfer import adjacent_triangle_pairs  # noqa: E402

@@ -15,7 +15,7 @@ from facewrap.solve.block_jacobian import BlockJacobian
 
 @pytest.fixture(scope="module")
 def face():
-    from facewrap.sample.face import make_template
+    from facewrap.sample import make_template
     t = make_template(resolution=24)
     V = t.mesh.vertices
     c = V.mean(0)

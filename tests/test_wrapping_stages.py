@@ -9,7 +9,7 @@ import pytest
 from facewrap.cli import main
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
-from facewrap.sample.face import make_scan, make_template, write_sample
+from facewrap.sample import make_scan, make_template, write_sample
 from facewrap.wrapping import GraphCache, WrapSettings, fit_metrics, wrap
 from facewrap.wrapping.stages import (align, fit_model, prepare_wrap, project,
                                       pull_landmarks)

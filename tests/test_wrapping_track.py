@@ -15,7 +15,7 @@ PEAK = {"jaw_open": 0.8, "blink": 1.0, "smile": 0.3}
 
 @pytest.fixture(scope="module")
 def ramp():
-    from facewrap.sample.face import make_sequence, make_template
+    from facewrap.sample import make_sequence, make_template
     template = make_template(resolution=32)
     return template, make_sequence(template, frames=10, peak=PEAK, resolution=48)
 
@@ -53,7 +53,7 @@ def test_track_recovers_every_frame_within_single_frame_accuracy(ramp):
 def test_track_cli_writes_sequence_weights_and_report(ramp, tmp_path):
     from facewrap.cli import main
     from facewrap.io import read_mesh, write_mesh
-    from facewrap.sample.face import write_sample
+    from facewrap.sample import write_sample
     template, seq = ramp
     paths = write_sample(tmp_path / "in", template, seq[0])
     scans = tmp_path / "scans"

@@ -13,7 +13,7 @@ from conftest import needs_data, DATA
 
 @pytest.fixture(scope="module")
 def sample():
-    from facewrap.sample.face import make_scan, make_template
+    from facewrap.sample import make_scan, make_template
     template = make_template()
     return template, make_scan(template)
 
@@ -56,7 +56,7 @@ def test_excluded_vertices_are_not_projected(sample):
 @pytest.mark.slow
 def test_cli_wrap_writes_outputs_and_report(sample, tmp_path):
     from facewrap.io import read_mesh
-    from facewrap.sample.face import write_sample
+    from facewrap.sample import write_sample
     template, scan = sample
     paths = write_sample(tmp_path / "in", template, scan)
     out = tmp_path / "fit.obj"
@@ -76,7 +76,7 @@ def test_cli_wrap_writes_outputs_and_report(sample, tmp_path):
 
 
 def test_cli_wrap_rejects_mismatched_landmarks(sample, tmp_path, capsys):
-    from facewrap.sample.face import write_sample
+    from facewrap.sample import write_sample
     template, scan = sample
     paths = write_sample(tmp_path / "in", template, scan)
     few = tmp_path / "few.txt"
@@ -96,7 +96,7 @@ def test_ict_face_onto_james(tmp_path):
     from facewrap.datasets import ICTFaceKit
     from facewrap.io import read_mesh
     from facewrap.io.landmarks import read_ljson
-    from facewrap.texture.bake import bake_texture, load_image
+    from facewrap.texture import bake_texture, load_image
     kit = ICTFaceKit(DATA / "ict-facekit" / "FaceXModel")
     face = kit.part_mesh("face")
     scan = read_mesh(DATA / "scans/james/james.obj")

@@ -5,7 +5,7 @@ The public API, grouped (see ``docs/architecture.md`` for how data flows):
 
 * mesh model and files: :class:`Mesh`, :func:`read_mesh`, :func:`write_mesh`
 * landmarks: :class:`Landmarks`, :func:`read_landmarks`, :func:`pair_landmarks`
-* built-in sample: :mod:`facewrap.sample.face`; real data sets: :mod:`facewrap.datasets`
+* built-in sample: :mod:`facewrap.sample`; real data sets: :mod:`facewrap.datasets`
 * geometry queries: :mod:`facewrap.geometry`
 * wrapping a template onto a scan: :func:`wrap`, :class:`WrapSettings`
 * textures and sequences: :mod:`facewrap.texture.bake`, :mod:`facewrap.animation`
