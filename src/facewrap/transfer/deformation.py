@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from facewrap.geometry import vertex_adjacency
 from facewrap.geometry.checks import as_triangles, as_vertices
 from facewrap.mesh import Mesh
-from facewrap.solve import factorize
+from facewrap.solve import FixedSystem, factorize
 from facewrap.transfer.correspondence import _TETHER, Correspondence, untethered_vertices
 from facewrap.transfer.gradients import (GradientOperator, _fourth_offsets, _typical_edge,
                         adjacent_triangle_pairs, gradient_operator)
@@ -629,14 +629,9 @@ class DeformationTransfer:
         H_red = (H_red + sp.diags(tether)).tocsr()
         self._H_red = H_red
         self._tether_rhs = tether[:, None] * target.vertices
-        free = np.ones(n, dtype=bool)
-        free[anchor] = False
-        self._free = np.flatnonzero(free)
         self._anchor = anchor
-        self._H_fa = np.asarray(H_red[self._free][:, [anchor]].todense()).ravel()
         self._identity_rhs = np.asarray(
             G.T @ (np.repeat(orphans, 3)[:, None] * np.tile(np.eye(3), (op.n_triangles, 1))))
-        H_ff = H_red[self._free][:, self._free]
         # The right-hand side is linear in the source poses: Gₜᵀ (M ⊗ I₃) G_s applied
         # to the poses' vertices and fourth vertices, then reduced like H.  One sparse
         # map, built once, so a pose costs one sparse product and one back-substitution.
@@ -650,7 +645,9 @@ class DeformationTransfer:
                   for X, ids in ((source.vertices, m[:, 0]), (target.vertices, m[:, 1]))]
         self._marker_scale = spread[1] / spread[0] if spread[0] > 0 else 1.0
         t1 = time.perf_counter()
-        self.factor_ = factorize(H_ff)
+        # the anchor is known (at rest): one factor of the free block for every pose
+        self._system = FixedSystem(H_red, [anchor])
+        self.factor_ = self._system.factor
         self._repair = _FlipRepair(target.vertices, target.triangles, self._source_op,
                                    source.vertices, self._pairs, fixed=[anchor])
         self.timings_ = {"build": t1 - t0, "factor": time.perf_counter() - t1}
@@ -691,14 +688,10 @@ class DeformationTransfer:
         """
         P, single = as_pose_stack(poses, self.source_.n_vertices)
         k = len(P)
-        n = self.target_.n_vertices
         rhs = self._rhs_map @ extend_poses(self._source_op, P)
         rhs += np.tile(self._const_rhs, (1, k))
         xa = np.tile(self.target_.vertices[self._anchor], k)
-        rhs_f = rhs[self._free] - self._H_fa[:, None] * xa[None, :]
-        x = np.empty((n, 3 * k))
-        x[self._free] = self.factor_.solve(rhs_f)
-        x[self._anchor] = xa
+        x = self._system.solve(rhs, xa[None, :])
         if self.fix_flips:
             out, self.repairs_ = self._repair.repair_poses(self._H_red, rhs, x, P)
         else:
