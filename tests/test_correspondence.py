@@ -12,7 +12,7 @@ from facewrap.geometry import ClosestPointTree, vertex_normals
 from facewrap.sample.face import make_scan, make_template
 from facewrap.solve.factor import factorize
 from facewrap.transfer.correspondence import (_TETHER, SUMNER_SCHEDULE, CorrespondenceStage,
-                                              _FreeSystem, _nearest_compatible, _pcg,
+                                              _FreeSystem, _nearest_compatible,
                                               closest_valid_points, deform_toward,
                                               untethered_vertices)
 from facewrap.transfer.gradients import (adjacent_triangle_pairs, gradient_operator,
@@ -131,30 +131,6 @@ def test_free_system_assembles_the_sliced_matrix():
     x = system.solve(0.7, 2.5, d, rhs, np.zeros_like(rhs))
     expect = np.linalg.solve(want, rhs - full[np.ix_(free, np.flatnonzero(fixed))] @ P)
     np.testing.assert_allclose(x, expect, rtol=0, atol=1e-8 * np.abs(expect).max())
-
-
-def _laplacian_2d(k):
-    L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))
-    I = sp.identity(k)
-    return (sp.kron(L, I) + sp.kron(I, L)).tocsr()
-
-
-def test_pcg_reuses_a_nearby_factor_and_gives_up_on_a_far_one():
-    L = _laplacian_2d(20)
-    H0 = (L @ L + 1e-3 * sp.identity(L.shape[0])).tocsr()
-    M = factorize(H0)
-    rng = np.random.default_rng(0)
-    b = rng.normal(size=(H0.shape[0], 3))
-    # a small diagonal change: converges to the exact answer in a few iterations
-    near = (H0 + sp.diags(rng.uniform(0, 1e-3, H0.shape[0]))).tocsr()
-    x, its = _pcg(near, b, np.zeros_like(b), M, 1e-10, 40)
-    assert x is not None and 0 < its < 15
-    np.testing.assert_allclose(x, spla.spsolve(near.tocsc(), b), rtol=0,
-                               atol=1e-8 * np.abs(x).max())
-    # a diagonal that dominates the smooth modes: predicted over budget, gives up early
-    far = (H0 + 100.0 * sp.identity(H0.shape[0])).tocsr()
-    x, its = _pcg(far, b, np.zeros_like(b), M, 1e-10, 40)
-    assert x is None and its < 40
 
 
 def _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance):

@@ -39,7 +39,7 @@ from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
 from facewrap.mesh import Mesh
-from facewrap.solve import factorize, refactorize
+from facewrap.solve import conjugate_gradients, factorize, refactorize
 from facewrap.transfer.gradients import adjacent_triangle_pairs, gradient_operator, \
     triangle_smoothness_operator
 
@@ -502,11 +502,13 @@ class _FreeSystem:
             if outliers <= _CG_BUDGET // 2 and (
                     last is None or last[1] <= 0
                     or last[0] * np.sqrt(change / last[1]) <= _CG_BUDGET):
-                x, its = _pcg(H, b, x0, self._factor, _CG_TOLERANCE, _CG_BUDGET)
-                self.cg_iterations += its
-                if x is not None:
-                    self._last_run = (its, change)
-                    return x
+                run = conjugate_gradients(H, b, x0, self._factor, rtol=_CG_TOLERANCE,
+                                          max_iterations=_CG_BUDGET, stop="error",
+                                          give_up=True)
+                self.cg_iterations += run.iterations
+                if run.converged:
+                    self._last_run = (run.iterations, change)
+                    return run.x
         self._factor = (factorize(H, solves="few") if self._factor is None
                         else refactorize(self._factor, H))     # one pattern throughout
         self._factor_weights = (w_smooth, w_identity)
@@ -515,67 +517,6 @@ class _FreeSystem:
         self._last_run = None
         self.factorizations += 1
         return self._factor.solve(b)
-
-
-def _pcg(A, b: np.ndarray, x0: np.ndarray, M, tol: float, budget: int):
-    """Preconditioned conjugate gradients on the columns of ``b`` together.
-
-    Columns run independent recurrences (their own step lengths) but share one
-    back-substitution ``M.solve`` per iteration.  Stops when the preconditioned
-    residual, an estimate of the error, is below ``tol`` times the largest
-    coordinate; gives up (returns ``None``) on a breakdown or as soon as the
-    mean convergence rate so far says more than ``budget`` iterations would be
-    needed.
-
-    Parameters
-    ----------
-    A : (f, f) sparse, symmetric positive definite
-    b, x0 : (f, k) float64
-    M : Factor
-        Of a matrix near ``A``.
-    tol : float
-    budget : int
-
-    Returns
-    -------
-    x : (f, k) float64 or None
-    iterations : int
-    """
-    x = np.array(x0, dtype=np.float64)
-    r = b - A @ x
-    z = M.solve(r)
-    errors = []
-    p = rz_old = None
-    for it in range(budget + 1):
-        scale = max(float(np.abs(x).max()), 1e-300)
-        err = float(np.abs(z).max()) / scale
-        if not np.isfinite(err):
-            return None, it
-        if err <= tol:
-            return x, it
-        errors.append(err)
-        if it == budget:
-            return None, it
-        if it >= 6:
-            # mean rate so far (the estimate oscillates; CG slows down rather than
-            # speeds up here, so this is optimistic) → iterations still needed
-            best = min(errors)
-            rate = (best / errors[0]) ** (1.0 / it)
-            if rate >= 1 or it + np.log(tol / best) / np.log(rate) > budget:
-                return None, it
-        rz = np.einsum("ij,ij->j", r, z)
-        p = z if p is None else z + np.divide(rz, rz_old, out=np.zeros_like(rz),
-                                               where=rz_old != 0) * p
-        rz_old = rz
-        Ap = A @ p
-        pAp = np.einsum("ij,ij->j", p, Ap)
-        if np.any(pAp < 0):
-            return None, it
-        alpha = np.divide(rz, pAp, out=np.zeros_like(rz), where=pAp > 0)
-        x += alpha * p
-        r -= alpha * Ap
-        z = M.solve(r)
-    return None, budget
 
 
 def deform_toward(moving_V, moving_T, fixed_V, fixed_T, moving_ids, fixed_points,
