@@ -7,14 +7,13 @@ import pytest
 from scipy.spatial import cKDTree
 
 from conftest import needs_data, DATA
-from facewrap.geometry.similarity import Similarity
 from facewrap.errors import InputError
-from facewrap.geometry import face_normals, vertex_normals
+from facewrap.geometry import Similarity, face_normals, vertex_normals
 from facewrap.sample.face import make_scan, make_template
-from facewrap.avatar import IBUG51_PARTS, AvatarTransfer, FacePart, read_parts
-from facewrap.transfer import flipped_triangles
-from facewrap.avatar.shapes import part_frame, part_motions
-from facewrap.transfer.deformation import complete_pairs, pair_matrix
+from facewrap.avatar import (IBUG51_PARTS, AvatarTransfer, FacePart, part_frame, part_motions,
+                             read_parts)
+from facewrap.geometry import flipped_triangles
+from facewrap.transfer import complete_pairs, pair_matrix
 
 R90 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])   # 90° about y
 MOVE = Similarity(R90, np.array([100.0, -20, 3]), 2.5)
@@ -78,7 +77,7 @@ def test_self_transfer_reproduces_shapes(template):
     P = np.stack([shapes["jaw_open"], shapes["blink"]])
     expect = MOVE.apply(P.reshape(-1, 3)).reshape(P.shape)
     tol = 1e-4 * copy.scale()
-    exact = AvatarTransfer(w_s=0, w_i=0).fit(face, lm51, copy, lm51)
+    exact = AvatarTransfer(smoothness_weight=0, identity_weight=0).fit(face, lm51, copy, lm51)
     np.testing.assert_allclose(exact.transfer(P), expect, atol=tol)
     plain = AvatarTransfer(landmark_guided=False).fit(
         face, lm51, copy, lm51, correspondence=exact.correspondence_)
@@ -211,6 +210,7 @@ def test_guided_repair_unfolds_the_lids_and_keeps_them_closing(template, avatar)
     assert g_fixed < 0.5 and abs(g_fixed - g_plain) < 0.1
 
 
+@pytest.mark.slow
 @needs_data
 def test_onizuka_repair_leaves_no_new_flips():
     """Mario has no lid geometry, so the guided transfer folds the skin around his

@@ -1,4 +1,4 @@
-"""Correspondence solver internals: the reused-factorisation path against a plain
+"""Correspondence solver pieces: the reused-factorisation path against a plain
 solve of the same normal equations, and the two-phase triangle matching against a
 brute-force search."""
 
@@ -8,15 +8,15 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
+import facewrap.solve.factor
 from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.geometry.matching import closest_compatible_points
 from facewrap.sample.face import make_scan, make_template
-from facewrap.solve.factor import factorize
-from facewrap.transfer.correspondence import (_TETHER, SUMNER_SCHEDULE, CorrespondenceStage,
-                                              _FreeSystem, _nearest_compatible,
-                                              closest_valid_points, deform_toward,
-                                              untethered_vertices)
-from facewrap.transfer.gradients import (adjacent_triangle_pairs, gradient_operator,
-                                         triangle_smoothness_operator)
+from facewrap.transfer import (SUMNER_SCHEDULE, TETHER_WEIGHT, CorrespondenceStage,
+                               adjacent_triangle_pairs, deform_toward, gradient_operator,
+                               triangle_smoothness_operator, untethered_vertices)
+from facewrap.transfer.marker_deformation import WeightedFreeSystem
+from facewrap.transfer.triangle_matching import nearest_compatible_triangles
 
 
 @pytest.fixture(scope="module")
@@ -54,22 +54,25 @@ def _reference_deform(moving_V, moving_T, fixed_V, fixed_T, ids, points, schedul
     x[ids] = points
     loose = np.zeros(N)
     loose[:n] = untethered_vertices(moving_T, n, ids)
-    tether = _TETHER * float(GtG.diagonal().mean() + DtD.diagonal().mean()) * loose
+    tether = TETHER_WEIGHT * float(GtG.diagonal().mean() + DtD.diagonal().mean()) * loose
     tether_rhs = tether[:, None] * op.extend(moving_V)
     tree = ClosestPointTree(fixed_V, fixed_T)
     kd = cKDTree(fixed_V)
     for stage in schedule:
         for _ in range(stage.iterations):
             w = np.zeros(N)
-            rhs = stage.w_identity * identity_rhs + tether_rhs
-            if stage.w_closest > 0:
-                cp, valid = closest_valid_points(tree, kd, x[:n],
-                                                 vertex_normals(x[:n], moving_T),
-                                                 neighbours)
+            rhs = stage.identity_weight * identity_rhs + tether_rhs
+            if stage.closest_weight > 0:
+                m = closest_compatible_points(tree, x[:n], vertex_normals(x[:n], moving_T),
+                                              max_normal_angle=90.0, fallback=kd,
+                                              neighbours=neighbours)
+                valid = m.accepted.copy()
+                cp = x[:n].copy()
+                cp[m.index] = m.points
                 valid[ids] = False
-                w[:n] = stage.w_closest * valid
+                w[:n] = stage.closest_weight * valid
                 rhs[:n] += w[:n, None] * cp
-            H = (stage.w_smooth * DtD + stage.w_identity * GtG
+            H = (stage.smoothness_weight * DtD + stage.identity_weight * GtG
                  + sp.diags(tether + w)).tocsc()
             b = rhs[free] - H[free][:, ids] @ x[ids]
             x[free] = spla.spsolve(H[free][:, free].tocsc(), b)
@@ -87,9 +90,8 @@ def test_deform_toward_equals_reference_solve(normalised_pair, schedule, backend
     """Both ways of solving the steps give the same deformed vertices (to 1e-6) as
     a fresh factorisation of every step: CHOLMOD refactorisations on one symbolic
     analysis, or (cholespy only) reused factors preconditioning CG."""
-    import facewrap.solve.factor
-    if backend == "cholespy":
-        monkeypatch.setattr(facewrap.solve.factor, "_cholmod", lambda A: None)
+    if backend == "cholespy":                 # as if cvxopt were not installed
+        monkeypatch.setattr(facewrap.solve.factor, "cholmod", None)
     mV, mT, fV, fT, ids, points = normalised_pair
     got, stats = deform_toward(mV, mT, fV, fT, ids, points, schedule)
     want = _reference_deform(mV, mT, fV, fT, ids, points, schedule)
@@ -119,7 +121,7 @@ def test_free_system_assembles_the_sliced_matrix():
     fixed = np.zeros(N, dtype=bool)
     fixed[[3, 17, 30]] = True
     P = rng.normal(size=(3, 3))
-    system = _FreeSystem(A, B, fixed, P)
+    system = WeightedFreeSystem(A, B, fixed, P)
     free = np.flatnonzero(~fixed)
     d = rng.uniform(0, 2, size=len(free))
     got = system.matrix(0.7, 2.5, d).toarray()
@@ -133,7 +135,7 @@ def test_free_system_assembles_the_sliced_matrix():
     np.testing.assert_allclose(x, expect, rtol=0, atol=1e-8 * np.abs(expect).max())
 
 
-def _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance):
+def _brutenearest_compatible_triangles(qc, qn, c, nrm, k, max_distance):
     d = np.linalg.norm(qc[:, None] - c[None], axis=2)
     order = np.argsort(d, axis=1, kind="stable")[:, :k]
     out = np.full(len(qc), -1)
@@ -157,8 +159,8 @@ def test_nearest_compatible_equals_brute_force(max_distance):
     qc = rng.uniform(size=(200, 3))
     qn = rng.normal(size=(200, 3))
     for k in (1, 4, 16):
-        got = _nearest_compatible(qc, qn, cKDTree(c), nrm, k, max_distance)
-        want = _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance)
+        got = nearest_compatible_triangles(qc, qn, cKDTree(c), nrm, k, max_distance)
+        want = _brutenearest_compatible_triangles(qc, qn, c, nrm, k, max_distance)
         np.testing.assert_array_equal(got, want)
     # random normals: about half the nearest are incompatible, so both phases ran
     assert (want == -1).sum() < len(qc) // 2

@@ -83,3 +83,15 @@ def test_wrong_sizes_are_refused():
         FixedSystem(A, np.ones(5, dtype=bool))
     with pytest.raises(ValueError, match="out of range"):
         FixedSystem(A, [6])
+
+
+def test_free_rows_alone_give_the_same_system():
+    A, rng = _spd(20, seed=5)
+    known = np.ones(20, dtype=bool)
+    known[[4, 5, 6, 11]] = False
+    b, y = rng.standard_normal((20, 3)), rng.standard_normal((16, 3))
+    whole = FixedSystem(A, known)
+    part = FixedSystem.from_free_rows(A[np.flatnonzero(~known)], known)
+    np.testing.assert_allclose(part.solve(b, y), whole.solve(b, y), atol=1e-12)
+    with pytest.raises(ValueError, match="free unknowns"):
+        FixedSystem.from_free_rows(A[:3], known)

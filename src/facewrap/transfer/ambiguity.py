@@ -26,7 +26,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from facewrap.mesh import Mesh
-from facewrap.transfer.correspondence import Correspondence, _centroids_normals
+from facewrap.transfer.correspondence import Correspondence
+from facewrap.transfer.triangle_matching import triangle_centroids_normals
 from facewrap.transfer.gradients import gradient_operator
 from facewrap.transfer.deformation import as_pose_stack, source_gradient_blocks
 
@@ -73,11 +74,11 @@ def partner_ambiguity(correspondence: Correspondence, source: Mesh, target: Mesh
     P, _ = as_pose_stack(poses, source.n_vertices)
     k = max(1, min(int(neighbours), len(source.triangles)))
     if correspondence.deformed_mesh == "source":
-        cs, ns = _centroids_normals(correspondence.deformed, source.triangles)
-        ct, nt = _centroids_normals(target.vertices, target.triangles)
+        cs, ns = triangle_centroids_normals(correspondence.deformed, source.triangles)
+        ct, nt = triangle_centroids_normals(target.vertices, target.triangles)
     else:
-        cs, ns = _centroids_normals(source.vertices, source.triangles)
-        ct, nt = _centroids_normals(correspondence.deformed, target.triangles)
+        cs, ns = triangle_centroids_normals(source.vertices, source.triangles)
+        ct, nt = triangle_centroids_normals(correspondence.deformed, target.triangles)
     _, nb = cKDTree(cs).query(ct, k=k)
     nb = nb.reshape(len(ct), k)
     ok = np.einsum("ikj,ij->ik", ns[nb], nt) > 0
