@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from facewrap.geometry import triangle_adjacency
 from facewrap.geometry.checks import as_triangles, as_vertices
 
 __all__ = ["GradientOperator", "gradient_operator", "fourth_vertices",
@@ -323,7 +324,6 @@ def triangle_smoothness_operator(op: GradientOperator, pairs) -> sp.csr_matrix:
 
 def adjacent_triangle_pairs(T) -> np.ndarray:
     """(p, 2) int64 pairs ``i < j`` of triangles sharing an edge."""
-    from facewrap.geometry import triangle_adjacency
     TT = triangle_adjacency(T)
     i = np.repeat(np.arange(len(TT), dtype=np.int64), 3)
     j = TT.reshape(-1)

@@ -1,6 +1,5 @@
-"""Correspondence solver pieces: the reused-factorisation path against a plain
-solve of the same normal equations, and the two-phase triangle matching against a
-brute-force search."""
+"""facewrap.transfer.marker_deformation: the reused-factorisation path against a
+plain solve of the same normal equations, and the free-block assembly."""
 
 import numpy as np
 import pytest
@@ -13,10 +12,10 @@ from facewrap.geometry import ClosestPointTree, vertex_normals
 from facewrap.geometry.matching import closest_compatible_points
 from facewrap.sample.face import make_scan, make_template
 from facewrap.transfer import (SUMNER_SCHEDULE, TETHER_WEIGHT, CorrespondenceStage,
-                               adjacent_triangle_pairs, deform_toward, gradient_operator,
-                               triangle_smoothness_operator, untethered_vertices)
+                               adjacent_triangle_pairs, deform_toward,
+                               gradient_operator, triangle_smoothness_operator,
+                               untethered_vertices)
 from facewrap.transfer.marker_deformation import WeightedFreeSystem
-from facewrap.transfer.triangle_matching import nearest_compatible_triangles
 
 
 @pytest.fixture(scope="module")
@@ -133,34 +132,3 @@ def test_free_system_assembles_the_sliced_matrix():
     x = system.solve(0.7, 2.5, d, rhs, np.zeros_like(rhs))
     expect = np.linalg.solve(want, rhs - full[np.ix_(free, np.flatnonzero(fixed))] @ P)
     np.testing.assert_allclose(x, expect, rtol=0, atol=1e-8 * np.abs(expect).max())
-
-
-def _brutenearest_compatible_triangles(qc, qn, c, nrm, k, max_distance):
-    d = np.linalg.norm(qc[:, None] - c[None], axis=2)
-    order = np.argsort(d, axis=1, kind="stable")[:, :k]
-    out = np.full(len(qc), -1)
-    for i in range(len(qc)):
-        for j in order[i]:
-            if d[i, j] > max_distance:
-                break
-            if nrm[j] @ qn[i] > 0:
-                out[i] = j
-                break
-    return out
-
-
-@pytest.mark.parametrize("max_distance", [np.inf, 0.25])
-def test_nearest_compatible_equals_brute_force(max_distance):
-    """Nearest-first, then k candidates only where the nearest is incompatible:
-    the same as examining the k nearest for every query."""
-    rng = np.random.default_rng(7)
-    c = rng.uniform(size=(300, 3))
-    nrm = rng.normal(size=(300, 3))
-    qc = rng.uniform(size=(200, 3))
-    qn = rng.normal(size=(200, 3))
-    for k in (1, 4, 16):
-        got = nearest_compatible_triangles(qc, qn, cKDTree(c), nrm, k, max_distance)
-        want = _brutenearest_compatible_triangles(qc, qn, c, nrm, k, max_distance)
-        np.testing.assert_array_equal(got, want)
-    # random normals: about half the nearest are incompatible, so both phases ran
-    assert (want == -1).sum() < len(qc) // 2
