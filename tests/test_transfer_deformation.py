@@ -131,3 +131,18 @@ def test_cat_to_lion_against_sumners_result():
     out = dt.transfer(np.stack(s.poses))
     err = np.linalg.norm(out - np.stack(t.poses), axis=2).mean(axis=1) / t.reference.scale()
     assert err.max() < 0.035 and err.mean() < 0.02
+
+
+def test_fix_flips_can_be_switched_between_transfers(pair):
+    face, scan, _, shapes, corr = pair
+    dt = DeformationTransfer(anchor=0).fit(face, scan, corr)
+    P = shapes["jaw_open"]
+    dt.fix_flips = False
+    plain = dt.transfer(P)
+    np.testing.assert_allclose(
+        plain, DeformationTransfer(anchor=0, fix_flips=False).fit(face, scan, corr)
+        .transfer(P), atol=1e-12)
+    with pytest.raises(ValueError, match="fix_flips"):
+        dt.fix_flips = "no"
+    with pytest.raises(AttributeError):
+        dt.anchor = 3

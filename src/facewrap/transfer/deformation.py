@@ -29,7 +29,7 @@ poses without one keep the plain back-substitution, bit for bit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -240,8 +240,13 @@ class DeformationTransfer:
 
     @property
     def fix_flips(self) -> bool:
-        """The flip-repair setting (read-only)."""
+        """The flip-repair setting.  It only changes what :meth:`transfer` does, so
+        it may be switched between transfers (checked like the constructor's)."""
         return self.settings.fix_flips
+
+    @fix_flips.setter
+    def fix_flips(self, value: bool) -> None:
+        self.settings = replace(self.settings, fix_flips=value)
 
     def fit(self, source: Mesh, target: Mesh,
             correspondence: Correspondence) -> "DeformationTransfer":
