@@ -138,7 +138,8 @@ def _bordered_step(S_rows, D, b, damping: float) -> np.ndarray:
     """Gauss–Newton step of a sparse system with a few dense columns (blend
     weights): ``[A B; Bᵀ C]`` solved by one sparse Cholesky of ``A`` and the
     Schur complement ``C − Bᵀ A⁻¹ B`` (K×K, dense).  For graphs of a few hundred
-    nodes ``A`` is ~7 % full, so this beats assembling and factoring densely."""
+    nodes ``A`` is only a few per cent full, so this beats assembling and
+    factoring densely."""
     n_sparse, K = S_rows[0].shape[1], D.shape[1]
     A = sp.csr_matrix((n_sparse, n_sparse))
     g1 = np.zeros(n_sparse)

@@ -11,12 +11,12 @@ deformation, and the result depends on exactly how the correspondence slid.
 the source pose gradients over its ``k`` nearest compatible source triangles (the
 candidates the match chose from), averaged over the poses.  It is a
 dimensionless strain: 0.1 means candidates a few triangles apart deform 10 %
-differently.  On Sumner's cat → lion poses (``benchmarks/bench_transfer.py``) it
-ranks the error of the transferred lion gradients against Sumner's own results
-with a Spearman correlation of 0.84, the 10 % most ambiguous triangles carry 4.6×
-the error of the rest, and the suggested marker places are the lower flanks and
-belly, where the study in ``benchmarks/studies/cat_lion_oracle`` found half of
-the error.  :func:`ambiguity_summary` turns it into the few target
+differently.  On Sumner's cat → lion poses it ranks
+the error of the transferred lion gradients against Sumner's own results well, the
+most ambiguous triangles carry several times the error of the rest, and the
+suggested marker places are the lower flanks and belly, where the study in
+``benchmarks/studies/cat_lion_oracle`` found half of the error (figures in
+docs/benchmarks.md, from ``benchmarks/bench_transfer.py``).  :func:`ambiguity_summary` turns it into the few target
 vertices where more markers would help most.
 """
 
