@@ -328,11 +328,14 @@ class FlipRepair:
                           shape=(len(ends), N))
         J = np.flatnonzero(free)
         E_J = E[:, J]
-        b = rhs.copy()
-        b[J] += E_J.T @ (c[:, None] * goal)
         system = FixedSystem.from_free_rows(H[J] + E_J.T @ sp.diags(c) @ E, ~free,
                                             solves="few", check=False)
-        return system.solve(b, x[system.known])
+        # the term's right-hand side only touches the free rows: added there, so
+        # the full right-hand side is not copied every round
+        b_free = system.free_rhs(rhs, x[system.known]) + E_J.T @ (c[:, None] * goal)
+        x = x.copy()
+        x[J] = system.factor.solve(b_free)
+        return x
 
 
 class _CopiedFlips:
@@ -390,8 +393,16 @@ def nearest_proper_maps(F, basis, margin: float) -> np.ndarray:
 
 
 def _normals(X: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Unnormalised normals (t, 3) of triangles ``T`` over one pose ``X`` (n, 3)."""
-    return np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+    """Unnormalised normals (t, 3) of triangles ``T`` over one pose ``X`` (n, 3).
+
+    Coordinate by coordinate (the edges' cross product written out): contiguous
+    1-D arrays, several times faster than ``np.cross`` of gathered rows.
+    """
+    T0, T1, T2 = T[:, 0], T[:, 1], T[:, 2]
+    x, y, z = (np.ascontiguousarray(X[:, d]) for d in range(3))
+    ax, ay, az = x[T1] - x[T0], y[T1] - y[T0], z[T1] - z[T0]
+    bx, by, bz = x[T2] - x[T0], y[T2] - y[T0], z[T2] - z[T0]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
 
 
 def _flipped(poses: np.ndarray, rest_normals: np.ndarray, T: np.ndarray) -> np.ndarray:
