@@ -18,7 +18,7 @@ def test_self_transfer_reproduces_shapes(template):
     P = np.stack([shapes["jaw_open"], shapes["blink"]])
     expect = MOVE.apply(P.reshape(-1, 3)).reshape(P.shape)
     tol = 1e-4 * copy.scale()
-    exact = AvatarTransfer(smoothness_weight=0, identity_weight=0).fit(face, lm51, copy, lm51)
+    exact = AvatarTransfer(smooth_weight=0, identity_weight=0).fit(face, lm51, copy, lm51)
     np.testing.assert_allclose(exact.transfer(P), expect, atol=tol)
     plain = AvatarTransfer(landmark_guided=False).fit(
         face, lm51, copy, lm51, correspondence=exact.correspondence_)

@@ -64,8 +64,8 @@ def test_markers_out_of_range_raise(pair):
 def test_settings_validate():
     with pytest.raises(ValueError, match="closest_weight"):
         CorrespondenceStage(closest_weight=-1)
-    with pytest.raises(ValueError, match="smoothness_weight"):
-        CorrespondenceStage(smoothness_weight=0, identity_weight=0)
+    with pytest.raises(ValueError, match="smooth_weight"):
+        CorrespondenceStage(smooth_weight=0, identity_weight=0)
     with pytest.raises(ValueError, match="deform"):
         CorrespondenceSettings(deform="both")
     with pytest.raises(ValueError, match="anchor"):

@@ -71,7 +71,7 @@ def _reference_deform(moving_V, moving_T, fixed_V, fixed_T, ids, points, schedul
                 valid[ids] = False
                 w[:n] = stage.closest_weight * valid
                 rhs[:n] += w[:n, None] * cp
-            H = (stage.smoothness_weight * DtD + stage.identity_weight * GtG
+            H = (stage.smooth_weight * DtD + stage.identity_weight * GtG
                  + sp.diags(tether + w)).tocsc()
             b = rhs[free] - H[free][:, ids] @ x[ids]
             x[free] = spla.spsolve(H[free][:, free].tocsc(), b)

@@ -17,7 +17,7 @@ a few corresponding landmarks.  :class:`AvatarTransfer`:
 
    (deformation gradients over the matched pairs, weight ``gradient_weight``;
    landmark motion, ``landmark_weight``; equal gradients of neighbouring avatar
-   triangles, ``smoothness_weight``; gradients near the identity,
+   triangles, ``smooth_weight``; gradients near the identity,
    ``identity_weight``) and solves one back-substitution per key shape;
 4. unfolds triangles the solve flipped where the source does not (``fix_flips``):
    the landmark term pulls lids shut, and on an avatar whose eye area has no lid
@@ -59,8 +59,8 @@ _PAPER_DIAGONAL = 380.0
 #: w_I=0.001, w_C=1 in the paper's units (template diagonal ≈ 380 mm); here w_C is in
 #: units of the source's bounding-box diagonal, 1 mm² of theirs ≈ 1/380² of ours.
 ONIZUKA_SCHEDULE: tuple[CorrespondenceStage, ...] = (
-    CorrespondenceStage(smoothness_weight=1.0, identity_weight=0.1, closest_weight=0.0),
-    *(CorrespondenceStage(smoothness_weight=1.0, identity_weight=0.001,
+    CorrespondenceStage(smooth_weight=1.0, identity_weight=0.1, closest_weight=0.0),
+    *(CorrespondenceStage(smooth_weight=1.0, identity_weight=0.001,
                           closest_weight=_PAPER_DIAGONAL ** 2) for _ in range(3)),
 )
 
@@ -87,7 +87,7 @@ class AvatarSettings:
 
     Attributes
     ----------
-    gradient_weight, landmark_weight, smoothness_weight, identity_weight : float
+    gradient_weight, landmark_weight, smooth_weight, identity_weight : float
         ``w_d, w_l, w_s, w_i``: weights of gradient matching, landmark motion,
         smoothness and identity (lengths measured with the source's bounding-box
         diagonal counting 380, as the paper's template in mm, so the defaults keep
@@ -106,7 +106,7 @@ class AvatarSettings:
 
     gradient_weight: float = 1.0
     landmark_weight: float = 100.0
-    smoothness_weight: float = 10.0
+    smooth_weight: float = 10.0
     identity_weight: float = 1.0
     landmark_guided: bool = True
     parts: tuple = IBUG51_PARTS
@@ -116,7 +116,7 @@ class AvatarSettings:
     constraints = {
         "gradient_weight": Interval(float, 0, None),
         "landmark_weight": Interval(float, 0, None, closed="neither"),
-        "smoothness_weight": Interval(float, 0, None),
+        "smooth_weight": Interval(float, 0, None),
         "identity_weight": Interval(float, 0, None),
         "landmark_guided": Flag(),
         "parts": Instances(FacePart),
@@ -134,7 +134,7 @@ class AvatarTransfer:
 
     Parameters
     ----------
-    gradient_weight, landmark_weight, smoothness_weight, identity_weight : float
+    gradient_weight, landmark_weight, smooth_weight, identity_weight : float
         Weights of gradient matching, landmark motion, smoothness and identity
         (see :class:`AvatarSettings`).
     landmark_guided : bool
@@ -166,13 +166,13 @@ class AvatarTransfer:
     """
 
     def __init__(self, gradient_weight: float = 1.0, landmark_weight: float = 100.0,
-                 smoothness_weight: float = 10.0, identity_weight: float = 1.0,
+                 smooth_weight: float = 10.0, identity_weight: float = 1.0,
                  landmark_guided: bool = True, parts=IBUG51_PARTS,
                  correspondence: CorrespondenceSettings | None = None,
                  fix_flips: bool = True):
         #: the checked constructor arguments (read-only)
         self.settings = AvatarSettings(gradient_weight, landmark_weight,
-                                       smoothness_weight, identity_weight,
+                                       smooth_weight, identity_weight,
                                        landmark_guided, parts, correspondence, fix_flips)
 
     def fit(self, source: Mesh, source_landmarks, avatar: Mesh, avatar_landmarks, *,
@@ -248,7 +248,7 @@ class AvatarTransfer:
         np.add.at(lm_w, la, 1.0)
         s = self.settings
         H = (s.gradient_weight * (G.T @ sp.diags(np.repeat(counts, 3)) @ G)
-             + s.smoothness_weight * (D.T @ D) + s.identity_weight * (G.T @ G)
+             + s.smooth_weight * (D.T @ D) + s.identity_weight * (G.T @ G)
              + sp.diags(s.landmark_weight * lm_w / self._unit ** 2))
         # components without landmarks: a tiny pull toward rest fixes translation
         loose = np.zeros(op.n_unknowns)

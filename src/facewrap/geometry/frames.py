@@ -1,6 +1,6 @@
 """The normalised frame: template centred, unit bounding-box diagonal.
 
-Registration weights and tolerances (a correspondence distance of 0.05, a robust
+Registration weights and tolerances (a scan-point distance of 0.05, a robust
 scale, a node spacing) are fractions of the template's size, so that they mean the
 same on a face in mm, cm or m.  Every stage that works in such a frame — the
 non-rigid ICP, its models, the deformation graph, the transfer's correspondence —

@@ -3,7 +3,7 @@
 One mesh (the *moving* one) is deformed toward the other (the *fixed* one), keeping
 its topology, by minimising
 
-    smoothness_weight E_S + identity_weight E_I + closest_weight E_C
+    smooth_weight E_S + identity_weight E_I + closest_weight E_C
 
 over its vertices and fourth vertices (:mod:`.gradients`), with the markers as
 hard constraints eliminated exactly (:func:`facewrap.solve.split_fixed`: their
@@ -42,7 +42,7 @@ class CorrespondenceStage:
 
     Attributes
     ----------
-    smoothness_weight : float
+    smooth_weight : float
         ``w_S``, equal gradients of neighbouring triangles.
     identity_weight : float
         ``w_I``, gradients near the identity (the moving mesh keeps its shape).
@@ -55,17 +55,17 @@ class CorrespondenceStage:
     Raises
     ------
     ValueError
-        A value outside :attr:`constraints`, or ``smoothness_weight +
+        A value outside :attr:`constraints`, or ``smooth_weight +
         identity_weight`` zero (nothing would hold the mesh's shape).
     """
 
-    smoothness_weight: float = 1.0
+    smooth_weight: float = 1.0
     identity_weight: float = 0.001
     closest_weight: float = 0.0
     iterations: int = 1
 
     constraints = {
-        "smoothness_weight": Interval(float, 0, None),
+        "smooth_weight": Interval(float, 0, None),
         "identity_weight": Interval(float, 0, None),
         "closest_weight": Interval(float, 0, None),
         "iterations": Interval(int, 1, None),
@@ -73,13 +73,13 @@ class CorrespondenceStage:
 
     def __post_init__(self):
         validate(self)
-        if self.smoothness_weight + self.identity_weight <= 0:
-            raise ValueError("CorrespondenceStage.smoothness_weight + identity_weight "
+        if self.smooth_weight + self.identity_weight <= 0:
+            raise ValueError("CorrespondenceStage.smooth_weight + identity_weight "
                              "must be positive; got 0")
 
 
 #: Sumner & Popović 2004: w_S = 1, w_I = 0.001, first w_C = 0, then w_C from 1 to
-#: 5000 in four steps (``smoothness_weight``, ``identity_weight``, ``closest_weight``).
+#: 5000 in four steps (``smooth_weight``, ``identity_weight``, ``closest_weight``).
 SUMNER_SCHEDULE: tuple[CorrespondenceStage, ...] = (
     CorrespondenceStage(1.0, 0.001, 0.0),
     *(CorrespondenceStage(1.0, 0.001, float(w)) for w in np.geomspace(1.0, 5000.0, 4)),
@@ -187,20 +187,20 @@ class WeightedFreeSystem:
         rows = np.repeat(np.arange(m.shape[0], dtype=np.int64), np.diff(m.indptr))
         return rows * m.shape[1] + m.indices
 
-    def matrix(self, smoothness_weight: float, identity_weight: float,
+    def matrix(self, smooth_weight: float, identity_weight: float,
                diag) -> sp.csr_matrix:
         """(f, f) csr free block for these weights and ``diag`` (f,) float64."""
-        data = smoothness_weight * self._smooth + identity_weight * self._identity
+        data = smooth_weight * self._smooth + identity_weight * self._identity
         data[self._diagonal] += diag
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n, self.n))
 
-    def solve(self, smoothness_weight: float, identity_weight: float, diag, rhs,
+    def solve(self, smooth_weight: float, identity_weight: float, diag, rhs,
               x0) -> np.ndarray:
         """Minimiser over the free unknowns.
 
         Parameters
         ----------
-        smoothness_weight, identity_weight : float
+        smooth_weight, identity_weight : float
         diag : (f,) float64
             Diagonal term of the free unknowns.
         rhs : (f, 3) float64
@@ -213,9 +213,9 @@ class WeightedFreeSystem:
         -------
         (f, 3) float64
         """
-        weights = (smoothness_weight, identity_weight)
+        weights = (smooth_weight, identity_weight)
         H = self.matrix(*weights, diag)
-        b = rhs - (smoothness_weight * self._smooth_rhs
+        b = rhs - (smooth_weight * self._smooth_rhs
                    + identity_weight * self._identity_rhs)
         # conjugate gradients pay off only when factoring costs many solves
         if (self._factor is not None and self._factor.method == "cholesky"
@@ -316,7 +316,7 @@ def deform_toward(moving_V, moving_T, fixed_V, fixed_T, moving_ids, fixed_points
                 diag[:n] += w
                 rhs[:n] += w[:, None] * cp
                 stats["valid_closest"] = float(valid.sum() / max(n - len(P), 1))
-            x[free] = system.solve(stage.smoothness_weight, stage.identity_weight,
+            x[free] = system.solve(stage.smooth_weight, stage.identity_weight,
                                    diag[free], rhs[free], x[free])
             stats["solves"] += 1
     stats.update(factorizations=system.factorizations, cg_iterations=system.cg_iterations)
