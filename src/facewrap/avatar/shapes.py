@@ -317,7 +317,8 @@ class AvatarTransfer:
         blocks = source_gradient_blocks(self._source_op, P)
         summed = np.stack([self._pairs @ b for b in blocks])
         B = summed.reshape(k, op.n_triangles, 3, 3).transpose(1, 2, 0, 3)
-        rhs = self.settings.gradient_weight * np.asarray(op.matrix.T @ B.reshape(3 * op.n_triangles, 3 * k))
+        rhs = self.settings.gradient_weight * np.asarray(
+            op.matrix.T @ B.reshape(3 * op.n_triangles, 3 * k))
         rhs += np.tile(self._identity_rhs + self._tether_rhs, (1, k))
         goals = self.landmark_targets(P)                                   # (k, L, 3)
         w = self.settings.landmark_weight / self._unit ** 2

@@ -14,8 +14,8 @@ Two Cholesky back ends (both wheels), chosen by what the factor is for:
   shapes.
 * ``solves="few"``: CHOLMOD's supernodal factorisation from cvxopt, with
   OpenBLAS: several times faster to factor and slower to back-substitute
-  (figures in docs/benchmarks.md).  For a factor per step: correspondence steps, ICP iterations,
-  local repairs.
+  (figures in docs/benchmarks.md).  For a factor per step: correspondence steps,
+  ICP iterations, local repairs.
 
 Where the matrix is not positive definite (an energy with a null space, e.g. no
 translation fixed) both refuse it (cholespy's CHOLMOD prints a warning on stderr);

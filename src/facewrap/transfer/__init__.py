@@ -12,7 +12,8 @@ Gradients (:mod:`.gradients`)
     :func:`adjacent_triangle_pairs`
 Markers and tether (:mod:`.constraints`)
     :func:`check_markers`, :func:`untethered_vertices`, :data:`TETHER_WEIGHT`
-Correspondence (:mod:`.correspondence`, :mod:`.marker_deformation`, :mod:`.triangle_matching`)
+Correspondence (:mod:`.correspondence`, :mod:`.marker_deformation`,
+:mod:`.triangle_matching`)
     :func:`find_correspondence`, :class:`Correspondence`,
     :class:`CorrespondenceSettings`, :class:`CorrespondenceStage`,
     :data:`SUMNER_SCHEDULE`, :func:`deform_toward`, :func:`match_triangles`

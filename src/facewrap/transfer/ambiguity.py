@@ -16,8 +16,9 @@ the error of the transferred lion gradients against Sumner's own results well, t
 most ambiguous triangles carry several times the error of the rest, and the
 suggested marker places are the lower flanks and belly, where the study in
 ``benchmarks/studies/cat_lion_oracle`` found half of the error (figures in
-docs/benchmarks.md, from ``benchmarks/bench_transfer.py``).  :func:`ambiguity_summary` turns it into the few target
-vertices where more markers would help most.
+docs/benchmarks.md, from ``benchmarks/bench_transfer.py``).
+:func:`ambiguity_summary` turns it into the few target vertices where more markers
+would help most.
 """
 
 from __future__ import annotations

@@ -255,10 +255,10 @@ def deform_toward(moving_V, moving_T, fixed_V, fixed_T, moving_ids, fixed_points
                   ) -> tuple[np.ndarray, dict]:
     """Deform a mesh toward another with markers as hard constraints (SPEC §3.2).
 
-    Each step minimises ``w_S E_S + w_I E_I + w_C E_C`` (the stage's weights; normal equations over the
-    vertices and fourth vertices, markers eliminated); the matrices of successive
-    steps differ only on the diagonal, so they share factorisations
-    (:class:`WeightedFreeSystem`).
+    Each step minimises ``w_S E_S + w_I E_I + w_C E_C`` (the stage's weights;
+    normal equations over the vertices and fourth vertices, markers eliminated);
+    the matrices of successive steps differ only on the diagonal, so they share
+    factorisations (:class:`WeightedFreeSystem`).
 
     Parameters
     ----------
