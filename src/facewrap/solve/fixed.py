@@ -89,8 +89,13 @@ def split_fixed(A, known) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix, sp.csr
     if A.shape != (n, n):
         raise ValueError(f"matrix must be square, got {A.shape}")
     mask = known_mask(known, n)
+    return _split_rows(A[np.flatnonzero(~mask)], mask)
+
+
+def _split_rows(rows: sp.csr_matrix, mask: np.ndarray):
+    """:func:`split_fixed` from the free unknowns' rows alone."""
+    n = len(mask)
     free, fixed = np.flatnonzero(~mask), np.flatnonzero(mask)
-    rows = A[free]
     local_free = np.full(n, -1, dtype=np.int64)
     local_free[free] = np.arange(len(free))
     local_known = np.full(n, -1, dtype=np.int64)
@@ -141,7 +146,40 @@ class FixedSystem:
 
     def __init__(self, A, known, *, solves: str = "many", check: bool = True,
                  ridge: float = 0.0):
-        self.free, self.known, A_ff, self._A_fk = split_fixed(A, known)
+        self._setup(split_fixed(A, known), solves, check, ridge)
+
+    @classmethod
+    def from_free_rows(cls, rows, known, *, solves: str = "many", check: bool = True,
+                       ridge: float = 0.0) -> "FixedSystem":
+        """The same system given only the free unknowns' rows of ``A``.
+
+        A local re-solve inside a large system (the flip repair: a few vertex rings
+        free, everything else known) builds just these rows.
+
+        Parameters
+        ----------
+        rows : (n - m, n) scipy.sparse matrix
+            Rows of ``A`` for the free unknowns, in increasing order.
+        known : (n,) bool
+            Known unknowns (``n`` is its length).
+        solves, check, ridge
+            As for the constructor.
+
+        Returns
+        -------
+        FixedSystem
+        """
+        rows = sp.csr_matrix(rows)
+        mask = known_mask(known, rows.shape[1])
+        if rows.shape[0] != int((~mask).sum()):
+            raise ValueError(f"rows has {rows.shape[0]} rows for "
+                             f"{int((~mask).sum())} free unknowns")
+        system = cls.__new__(cls)
+        system._setup(_split_rows(rows, mask), solves, check, ridge)
+        return system
+
+    def _setup(self, blocks, solves, check, ridge) -> None:
+        self.free, self.known, A_ff, self._A_fk = blocks
         self.n = len(self.free) + len(self.known)
         if ridge:
             scale = float(abs(A_ff).max()) if A_ff.nnz else 0.0

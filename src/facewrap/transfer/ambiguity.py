@@ -11,13 +11,14 @@ deformation, and the result depends on exactly how the correspondence slid.
 the source pose gradients over its ``k`` nearest compatible source triangles (the
 candidates the match chose from), averaged over the poses.  It is a
 dimensionless strain: 0.1 means candidates a few triangles apart deform 10 %
-differently.  On Sumner's cat → lion poses (``benchmarks/bench_transfer.py``) it
-ranks the error of the transferred lion gradients against Sumner's own results
-with a Spearman correlation of 0.84, the 10 % most ambiguous triangles carry 4.6×
-the error of the rest, and the suggested marker places are the lower flanks and
-belly, where the study in ``benchmarks/studies/cat_lion_oracle`` found half of
-the error.  :func:`ambiguity_summary` turns it into the few target
-vertices where more markers would help most.
+differently.  On Sumner's cat → lion poses it ranks
+the error of the transferred lion gradients against Sumner's own results well, the
+most ambiguous triangles carry several times the error of the rest, and the
+suggested marker places are the lower flanks and belly, where the study in
+``benchmarks/studies/cat_lion_oracle`` found half of the error (figures in
+docs/benchmarks.md, from ``benchmarks/bench_transfer.py``).
+:func:`ambiguity_summary` turns it into the few target vertices where more markers
+would help most.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from facewrap.mesh import Mesh
-from facewrap.transfer.correspondence import Correspondence, _centroids_normals
+from facewrap.transfer.correspondence import Correspondence
+from facewrap.transfer.triangle_matching import triangle_centroids_normals
 from facewrap.transfer.gradients import gradient_operator
 from facewrap.transfer.deformation import as_pose_stack, source_gradient_blocks
 
@@ -73,11 +75,11 @@ def partner_ambiguity(correspondence: Correspondence, source: Mesh, target: Mesh
     P, _ = as_pose_stack(poses, source.n_vertices)
     k = max(1, min(int(neighbours), len(source.triangles)))
     if correspondence.deformed_mesh == "source":
-        cs, ns = _centroids_normals(correspondence.deformed, source.triangles)
-        ct, nt = _centroids_normals(target.vertices, target.triangles)
+        cs, ns = triangle_centroids_normals(correspondence.deformed, source.triangles)
+        ct, nt = triangle_centroids_normals(target.vertices, target.triangles)
     else:
-        cs, ns = _centroids_normals(source.vertices, source.triangles)
-        ct, nt = _centroids_normals(correspondence.deformed, target.triangles)
+        cs, ns = triangle_centroids_normals(source.vertices, source.triangles)
+        ct, nt = triangle_centroids_normals(correspondence.deformed, target.triangles)
     _, nb = cKDTree(cs).query(ct, k=k)
     nb = nb.reshape(len(ct), k)
     ok = np.einsum("ikj,ij->ik", ns[nb], nt) > 0

@@ -30,9 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from facewrap.geometry import triangle_adjacency
 from facewrap.geometry.checks import as_triangles, as_vertices
 
 __all__ = ["GradientOperator", "gradient_operator", "fourth_vertices",
+           "fourth_vertex_offsets", "typical_edge_length",
            "deformation_gradients", "triangle_smoothness_operator",
            "adjacent_triangle_pairs"]
 
@@ -49,11 +51,34 @@ def _corner_edges(V: np.ndarray, T: np.ndarray):
     return P0, V[T[:, 1]] - P0, V[T[:, 2]] - P0
 
 
-def _fourth_offsets(e1: np.ndarray, e2: np.ndarray, scale: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def fourth_vertex_offsets(e1: np.ndarray, e2: np.ndarray, scale: float
+                          ) -> tuple[np.ndarray, np.ndarray]:
     """Offsets ``v3 - v0`` of the fourth vertices and the degenerate mask.
 
-    ``scale`` is a typical edge length, used only for triangles of zero size.
+    The one construction of Sumner's fourth vertex: the gradient operator, the
+    poses' fourth vertices and the flip repair's transferred gradients all build
+    it here, so the three agree bit for bit.
+
+    Parameters
+    ----------
+    e1, e2 : (t, 3) float64
+        Edges ``v1 - v0`` and ``v2 - v0`` of each triangle.
+    scale : float
+        A typical edge length (:func:`typical_edge_length`), used only for
+        triangles of zero size.
+
+    Returns
+    -------
+    offsets : (t, 3) float64
+        ``n / sqrt(|n|)``, or a tiny perpendicular of the longest edge where the
+        triangle is degenerate.
+    degenerate : (t,) bool
+
+    Examples
+    --------
+    >>> e1, e2 = np.array([[2.0, 0, 0]]), np.array([[0, 2.0, 0]])
+    >>> fourth_vertex_offsets(e1, e2, 1.0)[0].tolist()
+    [[0.0, 0.0, 2.0]]
     """
     n = np.cross(e1, e2)
     norm = np.linalg.norm(n, axis=1)
@@ -82,7 +107,9 @@ def _fourth_offsets(e1: np.ndarray, e2: np.ndarray, scale: float
     return offsets, degenerate
 
 
-def _typical_edge(e1: np.ndarray, e2: np.ndarray) -> float:
+def typical_edge_length(e1: np.ndarray, e2: np.ndarray) -> float:
+    """Median positive length of the edges ``e1``, ``e2`` (t, 3) (1 when none): the
+    size given to zero-size triangles' fourth vertices."""
     lengths = np.concatenate([np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)])
     positive = lengths[lengths > 0]
     return float(np.median(positive)) if len(positive) else 1.0
@@ -110,15 +137,15 @@ def fourth_vertices(V, T) -> np.ndarray:
     V = as_vertices(V)
     T = as_triangles(T, len(V))
     P0, e1, e2 = _corner_edges(V, T)
-    offsets, _ = _fourth_offsets(e1, e2, _typical_edge(e1, e2))
+    offsets, _ = fourth_vertex_offsets(e1, e2, typical_edge_length(e1, e2))
     return P0 + offsets
 
 
 def _edge_matrices(V: np.ndarray, T: np.ndarray):
     """(t, 3, 3) edge matrices (edges as columns) and the degenerate mask."""
     _, e1, e2 = _corner_edges(V, T)
-    scale = _typical_edge(e1, e2)
-    e3, degenerate = _fourth_offsets(e1, e2, scale)
+    scale = typical_edge_length(e1, e2)
+    e3, degenerate = fourth_vertex_offsets(e1, e2, scale)
     return np.stack([e1, e2, e3], axis=2), degenerate, scale
 
 
@@ -297,7 +324,6 @@ def triangle_smoothness_operator(op: GradientOperator, pairs) -> sp.csr_matrix:
 
 def adjacent_triangle_pairs(T) -> np.ndarray:
     """(p, 2) int64 pairs ``i < j`` of triangles sharing an edge."""
-    from facewrap.geometry import triangle_adjacency
     TT = triangle_adjacency(T)
     i = np.repeat(np.arange(len(TT), dtype=np.int64), 3)
     j = TT.reshape(-1)

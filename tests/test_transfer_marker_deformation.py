@@ -1,6 +1,5 @@
-"""Correspondence solver internals: the reused-factorisation path against a plain
-solve of the same normal equations, and the two-phase triangle matching against a
-brute-force search."""
+"""facewrap.transfer.marker_deformation: the reused-factorisation path against a
+plain solve of the same normal equations, and the free-block assembly."""
 
 import numpy as np
 import pytest
@@ -8,15 +7,15 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
+import facewrap.solve.factor
 from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.geometry.matching import closest_compatible_points
 from facewrap.sample.face import make_scan, make_template
-from facewrap.solve.factor import factorize
-from facewrap.transfer.correspondence import (_TETHER, SUMNER_SCHEDULE, CorrespondenceStage,
-                                              _FreeSystem, _nearest_compatible, _pcg,
-                                              closest_valid_points, deform_toward,
-                                              untethered_vertices)
-from facewrap.transfer.gradients import (adjacent_triangle_pairs, gradient_operator,
-                                         triangle_smoothness_operator)
+from facewrap.transfer import (SUMNER_SCHEDULE, TETHER_WEIGHT, CorrespondenceStage,
+                               adjacent_triangle_pairs, deform_toward,
+                               gradient_operator, triangle_smoothness_operator,
+                               untethered_vertices)
+from facewrap.transfer.marker_deformation import WeightedFreeSystem
 
 
 @pytest.fixture(scope="module")
@@ -54,22 +53,25 @@ def _reference_deform(moving_V, moving_T, fixed_V, fixed_T, ids, points, schedul
     x[ids] = points
     loose = np.zeros(N)
     loose[:n] = untethered_vertices(moving_T, n, ids)
-    tether = _TETHER * float(GtG.diagonal().mean() + DtD.diagonal().mean()) * loose
+    tether = TETHER_WEIGHT * float(GtG.diagonal().mean() + DtD.diagonal().mean()) * loose
     tether_rhs = tether[:, None] * op.extend(moving_V)
     tree = ClosestPointTree(fixed_V, fixed_T)
     kd = cKDTree(fixed_V)
     for stage in schedule:
         for _ in range(stage.iterations):
             w = np.zeros(N)
-            rhs = stage.w_identity * identity_rhs + tether_rhs
-            if stage.w_closest > 0:
-                cp, valid = closest_valid_points(tree, kd, x[:n],
-                                                 vertex_normals(x[:n], moving_T),
-                                                 neighbours)
+            rhs = stage.identity_weight * identity_rhs + tether_rhs
+            if stage.closest_weight > 0:
+                m = closest_compatible_points(tree, x[:n], vertex_normals(x[:n], moving_T),
+                                              max_normal_angle=90.0, fallback=kd,
+                                              neighbours=neighbours)
+                valid = m.accepted.copy()
+                cp = x[:n].copy()
+                cp[m.index] = m.points
                 valid[ids] = False
-                w[:n] = stage.w_closest * valid
+                w[:n] = stage.closest_weight * valid
                 rhs[:n] += w[:n, None] * cp
-            H = (stage.w_smooth * DtD + stage.w_identity * GtG
+            H = (stage.smooth_weight * DtD + stage.identity_weight * GtG
                  + sp.diags(tether + w)).tocsc()
             b = rhs[free] - H[free][:, ids] @ x[ids]
             x[free] = spla.spsolve(H[free][:, free].tocsc(), b)
@@ -87,9 +89,8 @@ def test_deform_toward_equals_reference_solve(normalised_pair, schedule, backend
     """Both ways of solving the steps give the same deformed vertices (to 1e-6) as
     a fresh factorisation of every step: CHOLMOD refactorisations on one symbolic
     analysis, or (cholespy only) reused factors preconditioning CG."""
-    import facewrap.solve.factor
-    if backend == "cholespy":
-        monkeypatch.setattr(facewrap.solve.factor, "_cholmod", lambda A: None)
+    if backend == "cholespy":                 # as if cvxopt were not installed
+        monkeypatch.setattr(facewrap.solve.factor, "cholmod", None)
     mV, mT, fV, fT, ids, points = normalised_pair
     got, stats = deform_toward(mV, mT, fV, fT, ids, points, schedule)
     want = _reference_deform(mV, mT, fV, fT, ids, points, schedule)
@@ -119,7 +120,7 @@ def test_free_system_assembles_the_sliced_matrix():
     fixed = np.zeros(N, dtype=bool)
     fixed[[3, 17, 30]] = True
     P = rng.normal(size=(3, 3))
-    system = _FreeSystem(A, B, fixed, P)
+    system = WeightedFreeSystem(A, B, fixed, P)
     free = np.flatnonzero(~fixed)
     d = rng.uniform(0, 2, size=len(free))
     got = system.matrix(0.7, 2.5, d).toarray()
@@ -131,58 +132,3 @@ def test_free_system_assembles_the_sliced_matrix():
     x = system.solve(0.7, 2.5, d, rhs, np.zeros_like(rhs))
     expect = np.linalg.solve(want, rhs - full[np.ix_(free, np.flatnonzero(fixed))] @ P)
     np.testing.assert_allclose(x, expect, rtol=0, atol=1e-8 * np.abs(expect).max())
-
-
-def _laplacian_2d(k):
-    L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))
-    I = sp.identity(k)
-    return (sp.kron(L, I) + sp.kron(I, L)).tocsr()
-
-
-def test_pcg_reuses_a_nearby_factor_and_gives_up_on_a_far_one():
-    L = _laplacian_2d(20)
-    H0 = (L @ L + 1e-3 * sp.identity(L.shape[0])).tocsr()
-    M = factorize(H0)
-    rng = np.random.default_rng(0)
-    b = rng.normal(size=(H0.shape[0], 3))
-    # a small diagonal change: converges to the exact answer in a few iterations
-    near = (H0 + sp.diags(rng.uniform(0, 1e-3, H0.shape[0]))).tocsr()
-    x, its = _pcg(near, b, np.zeros_like(b), M, 1e-10, 40)
-    assert x is not None and 0 < its < 15
-    np.testing.assert_allclose(x, spla.spsolve(near.tocsc(), b), rtol=0,
-                               atol=1e-8 * np.abs(x).max())
-    # a diagonal that dominates the smooth modes: predicted over budget, gives up early
-    far = (H0 + 100.0 * sp.identity(H0.shape[0])).tocsr()
-    x, its = _pcg(far, b, np.zeros_like(b), M, 1e-10, 40)
-    assert x is None and its < 40
-
-
-def _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance):
-    d = np.linalg.norm(qc[:, None] - c[None], axis=2)
-    order = np.argsort(d, axis=1, kind="stable")[:, :k]
-    out = np.full(len(qc), -1)
-    for i in range(len(qc)):
-        for j in order[i]:
-            if d[i, j] > max_distance:
-                break
-            if nrm[j] @ qn[i] > 0:
-                out[i] = j
-                break
-    return out
-
-
-@pytest.mark.parametrize("max_distance", [np.inf, 0.25])
-def test_nearest_compatible_equals_brute_force(max_distance):
-    """Nearest-first, then k candidates only where the nearest is incompatible:
-    the same as examining the k nearest for every query."""
-    rng = np.random.default_rng(7)
-    c = rng.uniform(size=(300, 3))
-    nrm = rng.normal(size=(300, 3))
-    qc = rng.uniform(size=(200, 3))
-    qn = rng.normal(size=(200, 3))
-    for k in (1, 4, 16):
-        got = _nearest_compatible(qc, qn, cKDTree(c), nrm, k, max_distance)
-        want = _brute_nearest_compatible(qc, qn, c, nrm, k, max_distance)
-        np.testing.assert_array_equal(got, want)
-    # random normals: about half the nearest are incompatible, so both phases ran
-    assert (want == -1).sum() < len(qc) // 2

@@ -1,74 +1,14 @@
-"""Landmark-guided avatar blendshapes (Onizuka et al. 2019)."""
-
-import json
+"""facewrap.avatar.shapes: landmark-guided avatar key shapes (Onizuka et al. 2019)."""
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from conftest import needs_data, DATA
-from facewrap.geometry.similarity import Similarity
 from facewrap.errors import InputError
-from facewrap.geometry import face_normals, vertex_normals
-from facewrap.sample.face import make_scan, make_template
-from facewrap.avatar import IBUG51_PARTS, AvatarTransfer, FacePart, read_parts
-from facewrap.transfer import flipped_triangles
-from facewrap.avatar.shapes import part_frame, part_motions
-from facewrap.transfer.deformation import complete_pairs, pair_matrix
-
-R90 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])   # 90° about y
-MOVE = Similarity(R90, np.array([100.0, -20, 3]), 2.5)
-
-
-@pytest.fixture(scope="module")
-def template():
-    tpl = make_template(32)
-    face, vmap = tpl.mesh.submesh(tpl.mesh.face_groups == 0)
-    lm51 = tpl.landmarks.vertex[17:]             # iBUG-68 without the jaw line
-    shapes = {k: v[vmap] for k, v in tpl.blendshapes.items()}
-    return face, lm51, shapes
-
-
-@pytest.fixture(scope="module")
-def avatar(template):
-    """Another face in another topology, scaled, turned and moved."""
-    face, lm51, _ = template
-    tpl = make_template(32)
-    scan = make_scan(tpl, weights={}, identity_seed=3, resolution=40, noise=0, holes=0,
-                     crop=False, transform=False, texture_size=8)
-    ids = cKDTree(scan.mesh.vertices).query(scan.landmarks.points[17:])[1]
-    return scan.mesh.with_vertices(MOVE.apply(scan.mesh.vertices)), ids
-
-
-def test_default_parts_cover_the_51_points_once():
-    owned = np.concatenate([p.landmarks for p in IBUG51_PARTS])
-    assert sorted(owned.tolist()) == list(range(51))
-    assert [p.name for p in IBUG51_PARTS if p.is_mouth] == ["mouth"]
-
-
-def test_part_frame_is_a_rotation_with_outward_normal(template):
-    face, lm51, _ = template
-    P = face.vertices[lm51]
-    N = vertex_normals(face.vertices, face.triangles)[lm51]
-    for part in IBUG51_PARTS:
-        R, extent = part_frame(P, N, part)
-        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
-        assert np.linalg.det(R) > 0
-        assert R[2] @ N[list(part.landmarks)].mean(axis=0) > 0
-        assert np.all(extent >= 0)
-
-
-def test_part_motion_of_a_similar_copy_is_the_similarity(template):
-    face, lm51, _ = template
-    P = face.vertices[lm51]
-    N = vertex_normals(face.vertices, face.triangles)[lm51]
-    M, owner, info = part_motions(P, N, MOVE.apply(P), MOVE.apply_vectors(N))
-    for k, part in enumerate(IBUG51_PARTS):
-        if part.is_mouth:       # z ratio fixed to 1: only in-plane motion scales
-            np.testing.assert_allclose(info[k]["ratio"][:2], MOVE.scale, rtol=1e-9)
-            continue
-        np.testing.assert_allclose(M[k], MOVE.scale * R90, atol=1e-9)
-    assert (owner >= 0).all()
+from facewrap.avatar import AvatarTransfer, FacePart
+from facewrap.geometry import face_normals, flipped_triangles
+from facewrap.transfer import complete_pairs, pair_matrix
+from avatar_cases import MOVE, avatar, template
 
 
 def test_self_transfer_reproduces_shapes(template):
@@ -78,7 +18,7 @@ def test_self_transfer_reproduces_shapes(template):
     P = np.stack([shapes["jaw_open"], shapes["blink"]])
     expect = MOVE.apply(P.reshape(-1, 3)).reshape(P.shape)
     tol = 1e-4 * copy.scale()
-    exact = AvatarTransfer(w_s=0, w_i=0).fit(face, lm51, copy, lm51)
+    exact = AvatarTransfer(smooth_weight=0, identity_weight=0).fit(face, lm51, copy, lm51)
     np.testing.assert_allclose(exact.transfer(P), expect, atol=tol)
     plain = AvatarTransfer(landmark_guided=False).fit(
         face, lm51, copy, lm51, correspondence=exact.correspondence_)
@@ -123,26 +63,6 @@ def test_guided_closes_the_eyes_better_than_plain(template, avatar):
     p = gap(plain.transfer(shapes["blink"]), ids) / gap(mesh.vertices, ids)
     assert abs(g - src) <= abs(p - src) + 0.05
     assert g < 0.5
-
-
-def test_read_parts_round_trip_and_errors(tmp_path):
-    items = []
-    for p in IBUG51_PARTS:
-        it = {"name": p.name, "landmarks": [[p.landmarks[0], p.landmarks[-1]]],
-              "frame": list(p.frame), "axis": list(p.axis)}
-        if p.is_mouth:
-            it["mouth"] = {"nose_bottom": p.nose_bottom, "lower_lip": list(p.lower_lip)}
-        items.append(it)
-    f = tmp_path / "parts.json"
-    f.write_text(json.dumps({"format": "facewrap.parts", "version": 1, "parts": items}))
-    assert read_parts(f) == IBUG51_PARTS
-    f.write_text(json.dumps({"format": "facewrap.parts", "parts": [
-        {"name": "eye", "landmarks": [[3, 1]], "axis": [0, 1]}]}))
-    with pytest.raises(InputError, match="parts.json.*range"):
-        read_parts(f)
-    f.write_text("{")
-    with pytest.raises(InputError, match="parts.json:1"):
-        read_parts(f)
 
 
 def test_bad_landmarks_raise(template):
@@ -211,6 +131,7 @@ def test_guided_repair_unfolds_the_lids_and_keeps_them_closing(template, avatar)
     assert g_fixed < 0.5 and abs(g_fixed - g_plain) < 0.1
 
 
+@pytest.mark.slow
 @needs_data
 def test_onizuka_repair_leaves_no_new_flips():
     """Mario has no lid geometry, so the guided transfer folds the skin around his

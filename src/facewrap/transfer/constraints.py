@@ -1,0 +1,87 @@
+"""What pins a gradient energy: marker pairs and the tether of loose components.
+
+Deformation gradients say nothing about where a mesh is, only how it is shaped, so
+every transfer energy needs something fixed: the markers (source vertex ↔ target
+vertex pairs: hard constraints of the correspondence deformation, the anchor of
+the transfer, the landmarks of the avatar), and, for connected components that
+contain none of them (an eyeball, a loose tooth), a tiny pull toward their rest
+positions (:data:`TETHER_WEIGHT`) so that they turn about their own centre.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from facewrap.errors import InputError
+from facewrap.geometry import connected_components
+
+__all__ = ["check_markers", "untethered_vertices", "TETHER_WEIGHT"]
+
+#: Weight, relative to the mean diagonal of a normal matrix, of the tiny pull toward
+#: rest positions that fixes the translation of components without any constraint.
+TETHER_WEIGHT = 1e-8
+
+
+def check_markers(markers, n_source: int, n_target: int, path=None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Validate marker pairs against the two meshes.
+
+    Parameters
+    ----------
+    markers : (src, tgt) pair of (m,) int arrays, or (m, 2) int
+    n_source, n_target : int
+        Vertex counts.
+    path : str, optional
+        Marker file to name in errors.
+
+    Returns
+    -------
+    source, target : (m,) int64
+
+    Raises
+    ------
+    InputError
+        No markers, or an id out of range.
+    """
+    if isinstance(markers, tuple) and len(markers) == 2:
+        src, tgt = (np.asarray(m, dtype=np.int64).reshape(-1) for m in markers)
+    else:
+        arr = np.asarray(markers, dtype=np.int64)
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise InputError(f"markers must be (m, 2) pairs, got shape {arr.shape}", path)
+        src, tgt = arr[:, 0], arr[:, 1]
+    if len(src) != len(tgt) or len(src) == 0:
+        raise InputError("need at least one (source, target) marker pair", path)
+    for name, ids, n in (("source", src, n_source), ("target", tgt, n_target)):
+        bad = (ids < 0) | (ids >= n)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise InputError(f"marker {k}: {name} vertex {int(ids[k])} out of range "
+                             f"(the {name} mesh has {n} vertices)", path)
+    return src, tgt
+
+
+def untethered_vertices(T, n: int, fixed_ids) -> np.ndarray:
+    """(n,) bool: vertices of connected components that contain no fixed vertex.
+
+    Their translation is free in every gradient energy; callers add a tiny pull
+    toward their rest positions (:data:`TETHER_WEIGHT`, so an eyeball turns about
+    its own centre).
+
+    Parameters
+    ----------
+    T : (t, 3) int64
+    n : int
+        Vertex count.
+    fixed_ids : (m,) int
+        Constrained vertices.
+
+    Examples
+    --------
+    >>> untethered_vertices(np.array([[0, 1, 2], [3, 4, 5]]), 6, [1]).tolist()
+    [False, False, False, True, True, True]
+    """
+    comp = connected_components(T, n)
+    has = np.zeros(int(comp.max()) + 1 if n else 0, dtype=bool)
+    has[comp[np.asarray(fixed_ids, dtype=np.int64)]] = True
+    return ~has[comp]
