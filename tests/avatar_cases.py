@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from facewrap.geometry import Similarity
-from facewrap.sample.face import make_scan, make_template
+from facewrap.sample import make_scan, make_template
 
 
 R90 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])   # 90° about y

@@ -6,7 +6,7 @@ import pytest
 
 from facewrap.errors import InputError
 from facewrap.geometry import closest_points
-from facewrap.sample.face import make_template
+from facewrap.sample import make_template
 from facewrap.transfer import (Correspondence, CorrespondenceSettings,
                                CorrespondenceStage, DeformationTransfer,
                                find_correspondence, match_triangles)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from facewrap.geometry import face_normals, flipped_triangles
-from facewrap.sample.face import make_template
+from facewrap.sample import make_template
 from facewrap.transfer import (DeformationTransfer, complete_pairs, nearest_proper_maps,
                                pair_matrix)
 from transfer_cases import pair

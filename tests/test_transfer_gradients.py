@@ -3,7 +3,7 @@ direct formula and their invariants."""
 
 import numpy as np
 
-from facewrap.sample.face import make_template
+from facewrap.sample import make_template
 from facewrap.transfer import (adjacent_triangle_pairs, deformation_gradients,
                                fourth_vertices, gradient_operator,
                                triangle_smoothness_operator)

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 import facewrap.solve.factor
 from facewrap.geometry import ClosestPointTree, vertex_normals
 from facewrap.geometry.matching import closest_compatible_points
-from facewrap.sample.face import make_scan, make_template
+from facewrap.sample import make_scan, make_template
 from facewrap.transfer import (SUMNER_SCHEDULE, TETHER_WEIGHT, CorrespondenceStage,
                                adjacent_triangle_pairs, deform_toward,
                                gradient_operator, triangle_smoothness_operator,

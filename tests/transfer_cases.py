@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from facewrap.sample.face import make_scan, make_template
+from facewrap.sample import make_scan, make_template
 from facewrap.transfer import find_correspondence
 
 

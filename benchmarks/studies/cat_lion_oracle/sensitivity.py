@@ -86,10 +86,10 @@ src, tgt = p.markers
 rng = np.random.default_rng(0)
 outs = {"default": sumner_pairs(C0),
         "deform the lion instead": sumner_pairs(correspondence(deform="target")),
-        "w_I = 10": sumner_pairs(correspondence(schedule=schedule(w_identity=10.0))),
-        "w_I = 1": sumner_pairs(correspondence(schedule=schedule(w_identity=1.0))),
+        "w_I = 10": sumner_pairs(correspondence(schedule=schedule(identity_weight=10.0))),
+        "w_I = 1": sumner_pairs(correspondence(schedule=schedule(identity_weight=1.0))),
         "10 iterations per w_C step": sumner_pairs(correspondence(schedule=tuple(
-            dataclasses.replace(x, iterations=10 if x.w_closest else 1)
+            dataclasses.replace(x, iterations=10 if x.closest_weight else 1)
             for x in SUMNER_SCHEDULE)))}
 for i in range(2):
     keep = np.sort(rng.choice(len(src), len(src) - 5, replace=False))
@@ -99,7 +99,7 @@ for name, out in outs.items():
     line(name, out)
 line("default, Gaussian partners", gaussian(D0))
 line("w_I = 1, Gaussian partners",
-     gaussian(correspondence(schedule=schedule(w_identity=1.0)).deformed))
+     gaussian(correspondence(schedule=schedule(identity_weight=1.0)).deformed))
 
 print("\n   ... and against each other (the same measure, one result as the reference)")
 names = list(outs)

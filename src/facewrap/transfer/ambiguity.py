@@ -63,7 +63,7 @@ def partner_ambiguity(correspondence: Correspondence, source: Mesh, target: Mesh
 
     Examples
     --------
-    >>> from facewrap.sample.face import make_template
+    >>> from facewrap.sample import make_template
     >>> from facewrap.transfer import find_correspondence
     >>> face = make_template(resolution=24).mesh
     >>> corr = find_correspondence(face, face, (np.arange(0, 500, 50),) * 2)

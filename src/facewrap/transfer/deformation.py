@@ -219,7 +219,7 @@ class DeformationTransfer:
     A source pose that is a rigid motion moves the target rigidly:
 
     >>> from facewrap.transfer import find_correspondence
-    >>> from facewrap.sample.face import make_template
+    >>> from facewrap.sample import make_template
     >>> full = make_template(20).mesh
     >>> mesh, _ = full.submesh(full.face_groups == 0)     # the face, one component
     >>> corr = find_correspondence(mesh, mesh, [[0, 0], [50, 50], [99, 99]])
