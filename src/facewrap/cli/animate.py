@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from facewrap.animation import interpolate_textures, interpolate_vertices, write_obj_sequence
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
-from facewrap.texture import load_image
 
 __all__ = ["register", "cmd_animate"]
 
 
 def cmd_animate(args) -> int:
     """Frames between two fitted meshes of one topology, as an OBJ sequence."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+    from facewrap.io.images import load_image
     start, end = read_mesh(args.start), read_mesh(args.end)
     if (start.n_vertices != end.n_vertices
             or not np.array_equal(start.face_indices, end.face_indices)):

@@ -11,8 +11,6 @@ import argparse
 import os
 import sys
 
-from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
-                            record_matches, run_batch, summary_stem)
 
 __all__ = ["register", "cmd_batch"]
 
@@ -34,6 +32,9 @@ def _shown(value) -> str:
 
 def cmd_batch(args) -> int:
     """Read the manifest, run (or list) its jobs, write the summary."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
+                                record_matches, run_batch, summary_stem)
     jobs = read_manifest(args.manifest, job_file=args.job)
     if args.dry_run:
         for bj in jobs:

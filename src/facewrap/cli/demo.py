@@ -23,10 +23,6 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import write_vertex_indices
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
-from facewrap.report import (frame_from_axes, heatmap_figure, render_views, save_png,
-                             side_by_side)
-from facewrap.report.page import build_report_page
-from facewrap.sample import make_scan, make_template, write_sample
 from facewrap.wrapping import WrapSettings
 
 __all__ = ["register", "cmd_demo", "run_demo"]
@@ -54,6 +50,9 @@ def _error_stats(err, seen) -> dict:
 
 def run_demo(out: Path, verbose: bool = True) -> int:
     """Run the demo into folder ``out``; returns the exit status (0)."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.report.page import build_report_page
+    from facewrap.sample import make_scan, make_template, write_sample
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     template = make_template()
@@ -99,6 +98,9 @@ def run_demo(out: Path, verbose: bool = True) -> int:
 
 def _pictures(out: Path, template, scan, fitted, face, seen, err) -> list[Path]:
     """Ground-truth error heatmap and scan / result side by side (PNG files)."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.report import (frame_from_axes, heatmap_figure, render_views, save_png,
+                                 side_by_side)
     # the scan was moved by a random similarity: look at both from the face's
     # front, i.e. the template's +z and +y turned by that similarity
     A = np.asarray(scan.transform)[:3, :3]

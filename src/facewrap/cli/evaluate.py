@@ -18,7 +18,6 @@ from facewrap.geometry import similarity_transform
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
-from facewrap.report import frame_from_axes, heatmap_figure, save_png
 
 __all__ = ["register", "cmd_evaluate"]
 
@@ -65,6 +64,8 @@ def _read_mask(path, n):
 
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.report import frame_from_axes
     try:
         F = frame_from_axes(args.up, args.front)
     except ValueError as exc:
@@ -105,6 +106,8 @@ def _format_line(s: dict, units: str) -> str:
 
 def cmd_evaluate(args) -> int:
     """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.report import heatmap_figure, save_png
 
     if (args.result_landmarks is None) != (args.scan_landmarks is None):
         raise InputError("--result-landmarks and --scan-landmarks go together")

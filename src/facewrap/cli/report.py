@@ -6,13 +6,14 @@ reads the run's JSON report and the meshes it names and writes ``DIR/index.html`
 
 from __future__ import annotations
 
-from facewrap.report.page import build_report_page
 
 __all__ = ["register", "cmd_report"]
 
 
 def cmd_report(args) -> int:
     """Build the HTML page of a wrap run and print its path."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.report.page import build_report_page
     page = build_report_page(args.run_report, args.out, images=args.image or (),
                              units=args.units, template_up=args.template_up,
                              template_front=args.template_front, title=args.title)

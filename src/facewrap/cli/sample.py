@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from facewrap.sample import make_scan, make_template, write_sample
 
 __all__ = ["register", "cmd_sample"]
 
 
 def cmd_sample(args) -> int:
     """Write the built-in synthetic template and scan to a folder; print the files."""
+    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.sample import make_scan, make_template, write_sample
     template = make_template()
     scan = make_scan(template)
     out = Path(args.out)

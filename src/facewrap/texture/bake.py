@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.arrays import blocks_by_budget
@@ -349,6 +348,8 @@ def _pad(image: np.ndarray, coverage: np.ndarray, padding: int):
         return image, padded
     if coverage.all():
         return image, padded
+    # deferred: scipy.ndimage takes ~0.2 s to import and only baking pads a texture
+    from scipy import ndimage
     dist, (ri, ci) = ndimage.distance_transform_edt(~coverage, return_indices=True)
     padded = ~coverage & (dist <= padding)
     out = image.copy()
