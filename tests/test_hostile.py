@@ -663,9 +663,9 @@ def test_corpus_has_at_least_30_kinds():
     assert len(CASES) >= 30 and len({c.name for c in CASES}) == len(CASES)
 
 
-@pytest.mark.parametrize("c", [pytest.param(c, id=c.name, marks=pytest.mark.skipif(
-    c.slow and not os.environ.get("FACEWRAP_SLOW"), reason="slow: FACEWRAP_SLOW=1"))
-    for c in CASES])
+@pytest.mark.parametrize("c", [pytest.param(c, id=c.name,
+                                             marks=[pytest.mark.slow] if c.slow else [])
+                               for c in CASES])
 def test_hostile_input(c, base, tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
