@@ -66,8 +66,8 @@ def _prealign(case):
     src = case.landmarks.positions(case.template)[ia]
     dst = case.scan_landmarks.positions(case.scan)[ib]
     try:
-        from facewrap.wrapping.stages import _alignment_weights
-        w = _alignment_weights(case.landmarks, ia)
+        from facewrap.wrapping.stages import alignment_weights
+        w = alignment_weights(case.landmarks, ia)
     except Exception:          # private helper: fall back to equal weights
         w = None
     T = similarity_transform(src, dst, weights=w)
