@@ -39,7 +39,7 @@ from facewrap.jobs.fields import check_outputs_apart, input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
-from facewrap.wrapping import WrapSettings, wrap
+from facewrap.wrapping import GraphCache, WrapSettings, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -338,12 +338,16 @@ def load_wrap_inputs(job: WrapJob) -> dict:
             "texture": image, "scan_tree": tree, "warnings": notes}
 
 
-def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
+def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
+                 graph_cache: GraphCache | None = None) -> dict:
     """Run one wrap job and write its outputs; returns the report as a dict.
 
     The mesh, the texture and the report are each written atomically (a crash
     never leaves a half-written file).  The report's ``"warnings"`` lists the
     legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
+    ``graph_cache`` holds the template's deformation graphs between jobs (see
+    :class:`~facewrap.wrapping.GraphCache`; default: the process-wide one), so the
+    jobs of a batch that share a template build its graphs once per worker.
     """
     settings = settings or WrapSettings()
     check_job_paths(job)
@@ -352,7 +356,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     read_seconds = time.perf_counter() - t0
     result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                   inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
-                  blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"])
+                  blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
+                  graph_cache=graph_cache)
     notes = list(inputs["warnings"])
     scale = float(result.transform.scale)
     if not 0.05 <= scale <= 20:
