@@ -19,8 +19,9 @@ Laplacians (:mod:`.laplacian`), positive semi-definite
 Similarity transforms (:mod:`.similarity`)
     :class:`Similarity`, :func:`similarity_transform` (Umeyama)
 Triangle quality (:mod:`.quality`)
-    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles` (the one flip
-    test), :func:`triangle_quality`, :class:`TriangleQuality`, :func:`triangle_to_vertex`
+    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`, :func:`turned_from`
+    (the one flip test), :func:`triangle_normals`, :func:`triangle_quality`,
+    :class:`TriangleQuality`, :func:`triangle_to_vertex`
 Sampling (:mod:`.sampling`)
     :func:`sample_surface`, :func:`farthest_point_sampling`,
     :func:`poisson_disk_vertices`
@@ -38,8 +39,9 @@ from facewrap.geometry.adjacency import (
     edges_of_polygons, triangle_adjacency, vertex_adjacency,
 )
 from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
-from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_quality,
-                                       triangle_to_vertex, turned, turned_triangles)
+from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_normals,
+                                       triangle_quality, triangle_to_vertex, turned,
+                                       turned_from, turned_triangles)
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.geometry.sampling import (farthest_point_sampling, poisson_disk_vertices,
                                         sample_surface)
@@ -57,7 +59,8 @@ __all__ = [
     # similarity transforms
     "Similarity", "similarity_transform",
     # triangle quality
-    "turned", "turned_triangles", "flipped_triangles", "TriangleQuality", "triangle_quality",
+    "turned", "turned_triangles", "turned_from", "triangle_normals", "flipped_triangles",
+    "TriangleQuality", "triangle_quality",
     "triangle_to_vertex",
     # sampling
     "sample_surface", "farthest_point_sampling", "poisson_disk_vertices",

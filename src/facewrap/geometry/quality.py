@@ -24,8 +24,8 @@ from facewrap.geometry.arrays import cross_columns, edge_vectors
 from facewrap.geometry.checks import as_triangles, as_vertices
 from facewrap.geometry.similarity import similarity_transform
 
-__all__ = ["turned", "turned_triangles", "flipped_triangles", "TriangleQuality",
-           "triangle_quality", "triangle_to_vertex"]
+__all__ = ["turned", "turned_triangles", "flipped_triangles", "turned_from",
+           "triangle_normals", "TriangleQuality", "triangle_quality", "triangle_to_vertex"]
 
 
 def turned(normals_before, normals_after, angle: float = 90.0) -> np.ndarray:
@@ -97,9 +97,10 @@ def turned_triangles(vertices, reference, triangles, angle: float = 90.0) -> np.
     if P.ndim not in (2, 3) or P.shape[-2:] != V0.shape:
         raise ValueError(f"vertices must be {V0.shape} or (k, *{V0.shape}) like reference;"
                          f" got {P.shape}")
-    n0 = _normals(V0, T)
-    n1 = _normals(P, T)
-    return turned(np.broadcast_to(n0, n1.shape), n1, angle)
+    n0 = triangle_normals(V0, T)
+    if P.ndim == 2:
+        return turned(n0, triangle_normals(P, T), angle)
+    return turned_from(n0, P, T, angle)
 
 
 def flipped_triangles(vertices, reference, triangles) -> np.ndarray:
@@ -114,10 +115,31 @@ def flipped_triangles(vertices, reference, triangles) -> np.ndarray:
     return turned_triangles(vertices, reference, triangles, 90.0)
 
 
-def _normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Unnormalised triangle normals, (..., t, 3), for one pose or a stack."""
-    a, b, c = V[..., T[:, 0], :], V[..., T[:, 1], :], V[..., T[:, 2], :]
-    return np.cross(b - a, c - a)
+def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Unnormalised normals (t, 3) of clean triangles ``T`` (t, 3) over ``V`` (n, 3).
+
+    Coordinate by coordinate (the edges' cross product written out): contiguous
+    1-D arrays, several times faster than ``np.cross`` of gathered rows, which
+    matters where every pose of a shape set is tested.
+
+    >>> triangle_normals(np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0.]]), np.array([[0, 1, 2]]))
+    array([[0., 0., 2.]])
+    """
+    T0, T1, T2 = T[:, 0], T[:, 1], T[:, 2]
+    x, y, z = (np.ascontiguousarray(V[:, d]) for d in range(3))
+    ax, ay, az = x[T1] - x[T0], y[T1] - y[T0], z[T1] - z[T0]
+    bx, by, bz = x[T2] - x[T0], y[T2] - y[T0], z[T2] - z[T0]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
+
+
+def turned_from(rest_normals: np.ndarray, poses: np.ndarray, T: np.ndarray,
+                angle: float = 90.0) -> np.ndarray:
+    """(k, t) bool: triangles of each pose (k, n, 3) turned past ``angle`` degrees
+    from ``rest_normals`` (t, 3), for callers that test many poses against one rest
+    shape (the normals at rest computed once; the poses one at a time, in cache)."""
+    if not len(poses):
+        return np.zeros((0, len(T)), dtype=bool)
+    return np.stack([turned(rest_normals, triangle_normals(X, T), angle) for X in poses])
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.geometry import turned, vertex_adjacency
+from facewrap.geometry import triangle_normals, turned, turned_from, vertex_adjacency
 from facewrap.solve import FixedSystem
 from facewrap.transfer.gradients import (GradientOperator, fourth_vertex_offsets,
                                          typical_edge_length)
@@ -113,7 +113,7 @@ class FlipRepair:
         e1 = V0[T[:, 1]] - V0[T[:, 0]]
         e2 = V0[T[:, 2]] - V0[T[:, 0]]
         self._normals = np.cross(e1, e2)
-        self._source_normals = _normals(self._source_reference, source_op.triangles)
+        self._source_normals = triangle_normals(self._source_reference, source_op.triangles)
         a = np.linalg.norm(e1, axis=1)
         u = e1 / np.maximum(a, 1e-300)[:, None]
         v = np.cross(self._normals, u)
@@ -154,12 +154,12 @@ class FlipRepair:
         new, copied : (k, t) bool
             ``copied`` is only filled in for poses with a flipped triangle.
         """
-        flipped = _flipped(X, self._normals, self.triangles)
+        flipped = turned_from(self._normals, X, self.triangles)
         copied = np.zeros_like(flipped)
         some = np.flatnonzero(flipped.any(axis=1))
         if len(some):
-            src = _flipped(np.asarray(poses)[some], self._source_normals,
-                           self._source_op.triangles)
+            src = turned_from(self._source_normals, np.asarray(poses)[some],
+                              self._source_op.triangles)
             copied[some] = (self._pairs @ src.T.astype(np.float64)).T > 0
         for j in some:
             cand = np.flatnonzero(flipped[j] & ~copied[j])
@@ -298,7 +298,7 @@ class FlipRepair:
             x = self._resolve(H, rhs, x, np.flatnonzero((w > 0) & near), w, diag,
                               region, near, margin)
             bad = np.zeros(t, dtype=bool)
-            bad[near] = _flipped(x[None, :n], self._normals[near], self.triangles[near])[0]
+            bad[near] = turned_from(self._normals[near], x[None, :n], self.triangles[near])[0]
             bad &= ~follows(bad)
             if bad.sum() < best_count:
                 best, best_count = x, int(bad.sum())
@@ -390,27 +390,3 @@ def nearest_proper_maps(F, basis, margin: float) -> np.ndarray:
     U[:, :, 1] *= np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)[:, None]
     s[:, 1] = np.maximum(s[:, 1], margin * s[:, 0])
     return F + basis @ (U @ (s[:, :, None] * Vt) - A)
-
-
-def _normals(X: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Unnormalised normals (t, 3) of triangles ``T`` over one pose ``X`` (n, 3).
-
-    Coordinate by coordinate (the edges' cross product written out): contiguous
-    1-D arrays, several times faster than ``np.cross`` of gathered rows.
-    """
-    T0, T1, T2 = T[:, 0], T[:, 1], T[:, 2]
-    x, y, z = (np.ascontiguousarray(X[:, d]) for d in range(3))
-    ax, ay, az = x[T1] - x[T0], y[T1] - y[T0], z[T1] - z[T0]
-    bx, by, bz = x[T2] - x[T0], y[T2] - y[T0], z[T2] - z[T0]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=1)
-
-
-def _flipped(poses: np.ndarray, rest_normals: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """(k, t) bool: :func:`facewrap.geometry.turned` past 90° from ``rest_normals``.
-
-    :func:`facewrap.geometry.flipped_triangles` with the rest normals computed once
-    and the poses taken one by one: small arrays that stay in cache (the stacked
-    version is many times slower on 48 shapes of a 30k-triangle avatar).
-    """
-    return np.stack([turned(rest_normals, _normals(X, T), 90.0) for X in poses]) \
-        if len(poses) else np.zeros((0, len(T)), dtype=bool)
