@@ -136,7 +136,7 @@ def test_evaluate_pairs_named_landmarks_by_name():
 def _cli(argv):
     from facewrap.cli.evaluate import register
     p = argparse.ArgumentParser()
-    register(p.add_subparsers())
+    register(p.add_subparsers(), "summary")
     args = p.parse_args(argv)
     return args.func(args)
 

@@ -13,7 +13,7 @@ from transfer_cases import pair
 def _run_cli(argv):
     from facewrap.cli.transfer import register
     p = argparse.ArgumentParser()
-    register(p.add_subparsers())
+    register(p.add_subparsers(), "summary")
     args = p.parse_args(["transfer", *argv])
     return args.func(args)
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from facewrap.errors import InputError
 from facewrap.io.dispatch import read_mesh
@@ -245,6 +244,8 @@ def load_sumner_pair(description) -> SumnerPair:
     The YAML names ``source.reference``, ``source.poses``, ``target.reference``,
     ``target.poses`` relative to its folder.
     """
+    # deferred: only YAML files need PyYAML (start-up of every other command)
+    import yaml
     description = Path(description)
     with open(description) as fh:
         d = yaml.safe_load(fh)

@@ -2,8 +2,10 @@
 
 Each subcommand lives in its own module here (``info``, ``convert``, ``sample``,
 ``wrap``, ``animate``, ``track``, ``transfer``, ``evaluate``, ``report``, ``run``,
-``batch``, ``demo``) with ``register(subparsers)`` and a ``cmd_<name>(args)``
-that parses and calls the library.  Errors in user input
+``batch``, ``demo``) with ``register(subparsers, summary)`` and a
+``cmd_<name>(args)`` that parses and calls the library.  Only the chosen
+command's module is imported (the others appear in ``--help`` by their summary
+line), so a command pays the start-up of what it uses and nothing else.  Errors in user input
 (:class:`~facewrap.errors.InputError`, missing files, values the settings refuse)
 print one line ``facewrap: error: <file>:<line>: <problem>`` and exit with status
 2; nothing is written in that case.
@@ -13,22 +15,50 @@ from __future__ import annotations
 
 import argparse
 import sys
+from importlib import import_module
 
-from facewrap.cli import (animate, batch, convert, demo, evaluate, info, report, run,
-                          sample, track, transfer, wrap)
 from facewrap.errors import InputError
 from facewrap.progress import configure_logging
 from facewrap.version import __version__
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
-#: The subcommand modules, in the order ``facewrap --help`` lists them.
-COMMANDS = (info, convert, sample, wrap, animate, track, transfer, evaluate, report, run,
-            batch, demo)
+#: Every subcommand (module ``facewrap.cli.<name>``) and its line in ``facewrap --help``,
+#: in the order listed there.
+COMMANDS = {
+    "info": "summary of a mesh file",
+    "convert": "convert a mesh between OBJ and PLY",
+    "sample": "write the built-in synthetic template and scan",
+    "wrap": "fit a template onto a scan (template topology kept)",
+    "animate": "interpolate two fitted meshes into a sequence",
+    "track": "register a sequence of scans (4D), each frame from the last",
+    "transfer": "transfer poses/blendshapes onto a mesh of another topology",
+    "evaluate": "distances, landmark / ground-truth errors and triangle quality of a "
+                "fitted mesh",
+    "report": "HTML page (numbers, pictures, 3D viewer) of a wrap run",
+    "run": "run a wrap or transfer described by a TOML job file",
+    "batch": "run many wrap or transfer jobs from a manifest (CSV or TOML), resumable",
+    "demo": "run the main job on the built-in sample",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``facewrap`` argument parser with every subcommand."""
+def chosen_command(argv) -> str | None:
+    """The subcommand named on a command line (the first word that is not an option)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(command: str | None = None, *, every: bool = True
+                 ) -> argparse.ArgumentParser:
+    """The ``facewrap`` argument parser.
+
+    Parameters
+    ----------
+    command : str, optional
+        Load this subcommand's module and its options.
+    every : bool
+        Load every subcommand (when no ``command`` is given); otherwise the others
+        are listed by their summary line only.
+    """
     parser = argparse.ArgumentParser(
         prog="facewrap",
         description="Wrap a template head onto face scans, transfer deformations, "
@@ -39,14 +69,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--silent", dest="log_quiet", action="count", default=0,
                         help="only errors in the log, no progress bars")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for command in COMMANDS:
-        command.register(sub)
+    for name, summary in COMMANDS.items():
+        if name == command or (command is None and every):
+            import_module(f"facewrap.cli.{name}").register(sub, summary)
+        else:
+            sub.add_parser(name, help=summary)
     return parser
 
 
 def main(argv=None) -> int:
     """Entry point of the ``facewrap`` console script; returns the exit status."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(chosen_command(argv), every=False)
     args = parser.parse_args(argv)
     # progress bars draw only on a terminal; logs go to standard error
     configure_logging(args.log_verbose - args.log_quiet

@@ -33,10 +33,9 @@ def cmd_animate(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``animate`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("animate",
-                              help="interpolate two fitted meshes into a sequence")
+def register(subparsers, summary: str) -> None:
+    """Add ``animate`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("animate", help=summary)
     p.add_argument("start", help="first mesh (e.g. fitted neutral)")
     p.add_argument("end", help="last mesh, same topology")
     p.add_argument("--frames", type=int, default=10, help="frames including both ends")

@@ -64,10 +64,10 @@ def cmd_batch(args) -> int:
     return 0 if result.ok else 1
 
 
-def register(subparsers) -> None:
-    """Add ``batch`` to the ``facewrap`` subcommands."""
+def register(subparsers, summary: str) -> None:
+    """Add ``batch`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
-        "batch", help="run many wrap or transfer jobs from a manifest (CSV or TOML), resumable",
+        "batch", help=summary,
         description="Run the jobs of a manifest (CSV: scan, scan_landmarks, output "
                     "and optional override columns; or TOML [[jobs]]) with the "
                     "settings of a shared job file, in parallel. Finished jobs leave "

@@ -14,9 +14,9 @@ def cmd_convert(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``convert`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("convert", help="convert a mesh between OBJ and PLY")
+def register(subparsers, summary: str) -> None:
+    """Add ``convert`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("convert", help=summary)
     p.add_argument("input")
     p.add_argument("output")
     p.set_defaults(func=cmd_convert)

@@ -125,9 +125,9 @@ def cmd_demo(args) -> int:
     return run_demo(Path(args.out), verbose=not args.quiet)
 
 
-def register(subparsers) -> None:
-    """Add ``demo`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("demo", help="run the main job on the built-in sample")
+def register(subparsers, summary: str) -> None:
+    """Add ``demo`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("demo", help=summary)
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_demo)

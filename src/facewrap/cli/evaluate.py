@@ -166,11 +166,10 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``evaluate`` to the ``facewrap`` subcommands."""
+def register(subparsers, summary: str) -> None:
+    """Add ``evaluate`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
-        "evaluate", help="distances, landmark / correspondence errors and triangle "
-                         "quality of a fitted mesh",
+        "evaluate", help=summary,
         description="Measure a fitted mesh against its scan: distances both ways "
                     "(statistics over points the other mesh covers), landmark errors, "
                     "correspondence error against a ground truth in the same "

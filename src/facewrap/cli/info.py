@@ -40,9 +40,9 @@ def cmd_info(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``info`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("info", help="summary of a mesh file")
+def register(subparsers, summary: str) -> None:
+    """Add ``info`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("info", help=summary)
     p.add_argument("mesh", help="OBJ or PLY file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_info)

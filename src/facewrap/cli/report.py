@@ -21,10 +21,10 @@ def cmd_report(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``report`` to the ``facewrap`` subcommands."""
+def register(subparsers, summary: str) -> None:
+    """Add ``report`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
-        "report", help="HTML page (numbers, pictures, 3D viewer) of a wrap run",
+        "report", help=summary,
         description="Build one self-contained HTML page from the JSON report of "
                     "'facewrap wrap --report': tables of the numbers, pictures and an "
                     "interactive 3D view of template, scan and result with distance "

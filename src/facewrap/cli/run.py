@@ -45,10 +45,10 @@ def cmd_run(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``run`` to the ``facewrap`` subcommands."""
+def register(subparsers, summary: str) -> None:
+    """Add ``run`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
-        "run", help="run a wrap or transfer described by a TOML job file",
+        "run", help=summary,
         description="Run the job a TOML job file describes (inputs, outputs and "
                     "[wrap] or [transfer] settings; paths relative to the file). Start "
                     "from `facewrap run --write-template job.toml`.")

@@ -22,8 +22,8 @@ def cmd_sample(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``sample`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("sample", help="write the built-in synthetic template and scan")
+def register(subparsers, summary: str) -> None:
+    """Add ``sample`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("sample", help=summary)
     p.add_argument("out", help="output folder")
     p.set_defaults(func=cmd_sample)

@@ -82,10 +82,9 @@ def cmd_track(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``track`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser(
-        "track", help="register a sequence of scans (4D), each frame from the last")
+def register(subparsers, summary: str) -> None:
+    """Add ``track`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("track", help=summary)
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scans", nargs="+", help="scan files in frame order, or a folder")
     p.add_argument("-o", "--out", required=True, help="output folder")

@@ -50,10 +50,10 @@ def cmd_transfer(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add the ``transfer`` subcommand to an argparse subparsers object."""
+def register(subparsers, summary: str) -> None:
+    """Add ``transfer`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
-        "transfer", help="transfer poses/blendshapes onto a mesh of another topology",
+        "transfer", help=summary,
         description="Deformation transfer (Sumner & Popovic 2004) or, with "
                     "--landmark-guided, avatar blendshapes (Onizuka et al. 2019).")
     p.add_argument("source_neutral", help="source reference mesh (OBJ/PLY)")

@@ -46,10 +46,9 @@ def cmd_wrap(args) -> int:
     return 0
 
 
-def register(subparsers) -> None:
-    """Add ``wrap`` to the ``facewrap`` subcommands."""
-    p = subparsers.add_parser("wrap",
-                              help="fit a template onto a scan (template topology kept)")
+def register(subparsers, summary: str) -> None:
+    """Add ``wrap`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
+    p = subparsers.add_parser("wrap", help=summary)
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scan", help="scan mesh (OBJ/PLY)")
     p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")

@@ -10,7 +10,6 @@ import io
 import os
 
 import numpy as np
-from PIL import Image
 
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
@@ -80,6 +79,8 @@ def save_png(path, image) -> None:
     >>> load_image(p).shape
     (2, 3, 3)
     """
+    # deferred: only image files need Pillow (start-up of every other command)
+    from PIL import Image
     image = as_image(image, "image")
     if image.shape[2] == 1:
         image = image[:, :, 0]
@@ -110,6 +111,8 @@ def load_image(path) -> np.ndarray:
     InputError
         Naming the file, when it is missing, unreadable, not an image or corrupt.
     """
+    # deferred: only image files need Pillow (start-up of every other command)
+    from PIL import Image
     try:
         with Image.open(path) as img:
             img.load()

@@ -37,7 +37,6 @@ import os
 import re
 
 import numpy as np
-import yaml
 
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
@@ -410,6 +409,8 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _read_markers_yaml(path):
+    # deferred: only YAML files need PyYAML (start-up of every other command)
+    import yaml
     try:
         d = yaml.safe_load(_text(path))
     except yaml.YAMLError as exc:
