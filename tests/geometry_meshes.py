@@ -145,3 +145,16 @@ def check_barycentric(bary):
 
 def reconstruct(V, T, tri, bary):
     return np.einsum("kc,kcd->kd", bary, V[T[tri]])
+
+
+def quad_ellipsoid(n=40):
+    """An open ellipsoid band of n x (n - 1) quads: (V (n*n, 3), quads (q, 4))."""
+    u, v = np.meshgrid(np.linspace(0.2, np.pi - 0.2, n), np.linspace(0, 2 * np.pi, n,
+                                                                      endpoint=False))
+    V = np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v) * 0.8, np.cos(u) * 1.2],
+                 -1).reshape(-1, 3)
+    i = np.arange(n * n).reshape(n, n)
+    a, b = i, np.roll(i, -1, axis=0)
+    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
+    quads = np.stack([a, b, c, d], -1)[:, :-1].reshape(-1, 4)
+    return V, quads

@@ -8,6 +8,8 @@ from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.mesh import Mesh
 from facewrap.wrapping.align import rigid_icp
 
+from geometry_meshes import quad_ellipsoid
+
 
 def random_rotation(rng):
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
@@ -40,20 +42,8 @@ def test_umeyama_rejects_bad_input():
         similarity_transform(np.eye(3), np.eye(3), weights=[-1, 1, 1])
 
 
-def sphere(n=40):
-    u, v = np.meshgrid(np.linspace(0.2, np.pi - 0.2, n), np.linspace(0, 2 * np.pi, n,
-                                                                      endpoint=False))
-    V = np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v) * 0.8, np.cos(u) * 1.2],
-                 -1).reshape(-1, 3)
-    i = np.arange(n * n).reshape(n, n)
-    a, b = i, np.roll(i, -1, axis=0)
-    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
-    quads = np.stack([a, b, c, d], -1)[:, :-1].reshape(-1, 4)
-    return V, quads
-
-
 def test_rigid_icp_recovers_a_small_motion():
-    V, Q = sphere()
+    V, Q = quad_ellipsoid()
     mesh = Mesh(V, Q)
     tree = ClosestPointTree(V, mesh.triangles)
     rng = np.random.default_rng(0)
@@ -68,7 +58,7 @@ def test_rigid_icp_recovers_a_small_motion():
 
 
 def test_rigid_icp_rejects_far_and_flipped_pairs_and_trims():
-    V, Q = sphere()
+    V, Q = quad_ellipsoid()
     mesh = Mesh(V, Q)
     tree = ClosestPointTree(V, mesh.triangles)
     normals = vertex_normals(V, mesh.triangles)

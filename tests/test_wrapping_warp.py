@@ -5,22 +5,12 @@ import pytest
 
 from facewrap.wrapping.warp import RBFWarp, pull_to_landmarks
 
-
-def sphere(n=40):
-    u, v = np.meshgrid(np.linspace(0.2, np.pi - 0.2, n), np.linspace(0, 2 * np.pi, n,
-                                                                      endpoint=False))
-    V = np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v) * 0.8, np.cos(u) * 1.2],
-                 -1).reshape(-1, 3)
-    i = np.arange(n * n).reshape(n, n)
-    a, b = i, np.roll(i, -1, axis=0)
-    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
-    quads = np.stack([a, b, c, d], -1)[:, :-1].reshape(-1, 4)
-    return V, quads
+from geometry_meshes import quad_ellipsoid
 
 
 def test_rbf_recovers_smooth_field_from_landmarks():
     """A template deformed by a known smooth field: 30 landmarks recover it."""
-    V, _ = sphere(30)
+    V, _ = quad_ellipsoid(30)
     field = lambda p: np.stack([0.1 * np.sin(2 * p[:, 1]), 0.08 * p[:, 0] * p[:, 2],
                                 0.05 * np.cos(p[:, 0])], -1) + [0.3, 0, 0]
     rng = np.random.default_rng(1)
