@@ -862,12 +862,12 @@ DOC_TAIL = """
 Beyond the table: the OBJ, PLY, landmark, marker and manifest readers are fuzzed with
 Hypothesis (random bytes, valid files with bytes changed, cut short or spliced): every
 input is read or rejected with one `InputError` naming the file, never another
-exception. Job files are fuzzed the same way in `tests/test_pipeline.py`.
+exception. Job files are fuzzed the same way in `tests/test_jobs_jobfile.py`.
 
 Batches: a job that fails (a missing or malformed file, an exception in the fit, a
 worker process killed by the out-of-memory killer) is reported in the summary with its
 error and never stops the others; `kill -9` of a running batch leaves complete outputs
-or none, and the re-run skips finished jobs (`tests/test_batch.py`). The same inputs give
+or none, and the re-run skips finished jobs (`tests/test_batch_runner.py`). The same inputs give
 bit-identical output meshes run to run, serially, in the process pool and on Dask.
 """
 
