@@ -3,10 +3,65 @@
 from __future__ import annotations
 
 import json
+import os
 
 from facewrap.errors import InputError
 
-__all__ = ["read_file_bytes", "read_json", "read_format_items"]
+__all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
+           "read_format_items"]
+
+# How much of each end of a file is looked at before the whole is read: enough to
+# catch a binary or sparse (zero-filled) file handed to a text reader, small enough
+# to cost nothing.
+_SAMPLE_BYTES = 1 << 16
+
+
+def file_size(path) -> int:
+    """Size of ``path`` in bytes; :class:`InputError` naming it when it cannot be read.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    int
+    """
+    try:
+        return os.stat(path).st_size
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc.strerror}", path) from None
+
+
+def read_file_head(path, size: int) -> bytes:
+    """The first ``size`` bytes of ``path`` (fewer when the file is shorter).
+
+    Readers look at a header this way before deciding how much to read, so a file
+    whose header promises more than it holds is refused without reading it whole.
+    """
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(size)
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc.strerror}", path) from None
+
+
+def nul_at_ends(path, size: int) -> bool:
+    """Whether the first or last 64 KiB of a file of ``size`` bytes hold a NUL byte.
+
+    A text file never holds one; a binary file, or a sparse one (its holes read
+    as zeros), almost always does at one end.  Costs two small reads.
+    """
+    try:
+        with open(path, "rb") as fh:
+            if b"\0" in fh.read(_SAMPLE_BYTES):
+                return True
+            if size > _SAMPLE_BYTES:
+                fh.seek(max(size - _SAMPLE_BYTES, _SAMPLE_BYTES))
+                return b"\0" in fh.read(_SAMPLE_BYTES)
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc.strerror}", path) from None
+    return False
 
 
 def read_file_bytes(path, text: bool = False) -> bytes:
@@ -16,8 +71,12 @@ def read_file_bytes(path, text: bool = False) -> bytes:
     ----------
     path : str or os.PathLike
     text : bool
-        Also reject binary data (a NUL byte) for text formats.
+        Also reject binary data (a NUL byte) for text formats.  Both ends of the
+        file are looked at first, so a binary or sparse multi-GB file is refused
+        without being read.
     """
+    if text and nul_at_ends(path, file_size(path)):
+        raise InputError("binary data, not a text file", path)
     try:
         with open(path, "rb") as fh:
             data = fh.read()

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.io.files import read_file_bytes
+from facewrap.io.files import file_size, nul_at_ends, read_file_bytes, read_file_head
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
 
@@ -96,8 +96,56 @@ class _Header:
     n_lines: int                 # header lines, 'end_header' included
 
 
+# The header is read from the file's first bytes before the rest: a header longer
+# than this is refused (real ones are a few hundred bytes, a few KiB with comments).
+_HEADER_LIMIT = 1 << 20
+
+
 def _read_bytes(path) -> bytes:
     return read_file_bytes(path)
+
+
+def _read_header(path) -> tuple[_Header, int]:
+    """The header and the file size, from the first bytes of the file only."""
+    size = file_size(path)
+    head = read_file_head(path, min(size, _HEADER_LIMIT))
+    if not head.strip():
+        read_file_bytes(path)  # the one "empty file" / "cannot read" error
+    header = _parse_header(head, path)
+    _check_size(header, size, path)
+    return header, size
+
+
+def _check_size(header: _Header, size: int, path) -> None:
+    """Refuse counts the file is too small to hold, before anything is allocated.
+
+    A binary row takes at least the bytes of its scalars and list counts.  An ASCII
+    value takes at least two bytes (a digit and a separator); ASCII files that fit
+    in the first read are left to the reader, which names the line where they end.
+    A sparse or binary file posing as ASCII (NUL bytes at either end) is refused
+    here too, as reading it would cost several times its size in memory.
+    """
+    off = header.data_start
+    if header.byte_order is None:
+        if size <= _HEADER_LIMIT:
+            return
+        if nul_at_ends(path, size):
+            raise InputError("NUL bytes in an ASCII PLY (a binary or sparse file with "
+                             "an ASCII header?)", path)
+        values = sum(e.count * len(e.props) for e in header.elements)
+        if 2 * values - 1 > size - off:
+            raise InputError(f"file is truncated: the header's elements need {values} "
+                             f"values (at least {2 * values - 1} bytes) from byte "
+                             f"{off}, the file has {size - off}", path)
+        return
+    for element in header.elements:
+        least = element.count * sum(p.dtype.itemsize if p.count is None
+                                    else p.count.itemsize for p in element.props)
+        if least > size - off:
+            raise InputError(f"file is truncated: element '{element.name}' needs at "
+                             f"least {least} bytes from byte {off}, the file has "
+                             f"{size - off}", path)
+        off += least
 
 
 def _ply_type(name: str, path, line: int) -> np.dtype:
@@ -705,8 +753,10 @@ def read_ply(path) -> Mesh:
     >>> back.face_sizes.tolist(), bool((back.vertices == quad.vertices).all())
     ([4], True)
     """
+    header, size = _read_header(path)
     data = _read_bytes(path)
-    header = _parse_header(data, path)
+    if len(data) != size:  # changed while we read it: take what was read
+        header = _parse_header(data, path)
     if header.byte_order is None:
         tables = _ascii_tables(data, header, path)
     else:
