@@ -3,15 +3,49 @@
 Writers open a temporary file beside the destination and rename it over the
 destination only when everything was written, so a crash or ``kill -9`` never
 leaves a half-written output behind.
+
+Permissions are those a plain ``open(path, "w")`` would give: a new file gets
+``0o666`` less the process umask (the temporary file is created with that mode, so
+the kernel applies the umask and any default ACL of the folder, exactly as for
+``open``); a file that is replaced keeps its permission bits (``0o644`` stays
+``0o644``, a private ``0o600`` stays private), as it would when ``open`` truncates
+it.  Set-id and sticky bits are not carried over, and the replaced file's owner
+and group are not either (only root could set them).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
+import stat
 
 __all__ = ["atomic_write"]
+
+_NEW_FILE_MODE = 0o666
+_TRIES = 100
+
+
+def _create_temporary(folder: str, name: str) -> tuple[int, str]:
+    """Create a new, uniquely named file in ``folder``: (descriptor, path)."""
+    flags = (os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+             | getattr(os, "O_BINARY", 0))
+    for _ in range(_TRIES):
+        tmp = os.path.join(folder, f".tmp-{secrets.token_hex(4)}-{name}")
+        try:
+            return os.open(tmp, flags, _NEW_FILE_MODE), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name in {folder}")  # pragma: no cover
+
+
+def _kept_mode(path: str) -> int | None:
+    """Permission bits of the file ``path`` replaces, None when there is none."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return stat.S_IMODE(st.st_mode) & 0o777 if stat.S_ISREG(st.st_mode) else None
 
 
 @contextlib.contextmanager
@@ -21,7 +55,8 @@ def atomic_write(path, mode: str = "w", **open_kwargs):
     Parameters
     ----------
     path : str or os.PathLike
-        Destination.  Its folder must exist.
+        Destination.  Its folder must exist.  A new file's mode is ``0o666`` less
+        the umask; an existing file's permission bits are kept.
     mode : {"w", "wb"}
         Text or binary.
     **open_kwargs
@@ -38,10 +73,12 @@ def atomic_write(path, mode: str = "w", **open_kwargs):
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix="-" + os.path.basename(path),
-                               dir=folder)
+    fd, tmp = _create_temporary(folder, os.path.basename(path))
     try:
-        with os.fdopen(fd, mode, **open_kwargs) as f:
+        with os.fdopen(fd, mode, **open_kwargs) as f:  # closes fd if it fails
+            kept = _kept_mode(path)
+            if kept is not None:
+                os.chmod(tmp, kept)
             yield f
             f.flush()
             os.fsync(f.fileno())
