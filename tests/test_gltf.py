@@ -1,5 +1,7 @@
 """glTF/GLB with named morph targets: round trips."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -59,3 +61,144 @@ def test_errors(mixed_mesh, tmp_path):
         read_gltf_morphs(junk)
     with pytest.raises(InputError, match="no such file"):
         read_gltf_morphs(tmp_path / "none.glb")
+
+
+# -- both forms by extension -------------------------------------------------------
+def _buffer_of(doc, path):
+    """The bytes of the one buffer, GLB chunk or data URI, read independently."""
+    import base64
+    uri = doc.buffers[0].uri
+    if uri is None:
+        return doc.binary_blob()
+    assert uri.startswith("data:application/octet-stream;base64,")
+    return base64.b64decode(uri.split(",", 1)[1])
+
+
+def _check_structure(path):
+    """What the Khronos validator checks of accessors, views and buffers."""
+    import pygltflib
+    doc = pygltflib.GLTF2().load(str(path))
+    blob = _buffer_of(doc, path)
+    assert doc.asset.version == "2.0" and len(doc.buffers) == 1
+    assert doc.buffers[0].byteLength <= len(blob) < doc.buffers[0].byteLength + 4
+    for view in doc.bufferViews:
+        assert view.byteOffset % 4 == 0
+        assert view.byteOffset + view.byteLength <= doc.buffers[0].byteLength
+    size = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}
+    for acc in doc.accessors:
+        view = doc.bufferViews[acc.bufferView]
+        assert (acc.byteOffset or 0) + acc.count * size[acc.type] * 4 <= view.byteLength
+    prim = doc.meshes[0].primitives[0]
+    count = doc.accessors[prim.attributes.POSITION].count
+    attributes = [prim.attributes.POSITION, prim.attributes.TEXCOORD_0,
+                  prim.attributes._FACEWRAP_VERTEX]
+    positions = [prim.attributes.POSITION] + [t["POSITION"] for t in prim.targets or []]
+    for index in [i for i in attributes + positions if i is not None]:
+        assert doc.accessors[index].count == count
+    for index in positions:  # POSITION accessors must carry exact min and max
+        acc, view = doc.accessors[index], doc.bufferViews[doc.accessors[index].bufferView]
+        values = np.frombuffer(blob, "<f4", acc.count * 3, view.byteOffset).reshape(-1, 3)
+        np.testing.assert_allclose(acc.min, values.min(axis=0), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(acc.max, values.max(axis=0), rtol=0, atol=1e-12)
+    idx = doc.accessors[prim.indices]
+    view = doc.bufferViews[idx.bufferView]
+    tri = np.frombuffer(blob, "<u4", idx.count, view.byteOffset)
+    assert idx.count % 3 == 0 and tri.max() < count
+    names = doc.meshes[0].extras["targetNames"]
+    assert len(names) == len(prim.targets or []) == len(doc.meshes[0].weights or [])
+    return doc
+
+
+@pytest.mark.parametrize("name", ["shapes.glb", "shapes.gltf", "SHAPES.GLTF"])
+def test_both_forms_round_trip_and_are_valid(mixed_mesh, tmp_path, name):
+    shapes = _shapes(mixed_mesh, ["jawOpen", "eyeBlink_L"])
+    path = tmp_path / name
+    write_gltf_morphs(path, mixed_mesh, shapes, scale=0.01)
+    if name.endswith(".glb"):
+        assert path.read_bytes()[:4] == b"glTF"
+    else:  # one self-contained JSON file, nothing beside it
+        assert json.loads(path.read_text())["asset"]["version"] == "2.0"
+        assert [p.name for p in tmp_path.iterdir()] == [name]
+    _check_structure(path)
+    back = read_gltf_morphs(path)
+    np.testing.assert_allclose(back.vertices, mixed_mesh.vertices * 0.01, atol=1e-7)
+    np.testing.assert_array_equal(back.triangles, mixed_mesh.triangles)
+    assert list(back.shapes) == ["jawOpen", "eyeBlink_L"]
+    for k, v in shapes.items():
+        np.testing.assert_allclose(back.shapes[k], v * 0.01, atol=1e-7)
+
+
+def test_gltf_with_a_bin_file_beside_it_is_read(mixed_mesh, tmp_path):
+    import base64
+    write_gltf_morphs(tmp_path / "a.gltf", mixed_mesh, _shapes(mixed_mesh, ["x"]))
+    doc = json.loads((tmp_path / "a.gltf").read_text())
+    blob = base64.b64decode(doc["buffers"][0]["uri"].split(",", 1)[1])
+    (tmp_path / "my data.bin").write_bytes(blob)
+    doc["buffers"][0]["uri"] = "my%20data.bin"
+    (tmp_path / "b.gltf").write_text(json.dumps(doc))
+    a, b = read_gltf_morphs(tmp_path / "a.gltf"), read_gltf_morphs(tmp_path / "b.gltf")
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.shapes["x"], b.shapes["x"])
+    (tmp_path / "my data.bin").write_bytes(blob[:-8])
+    with pytest.raises(InputError, match="b.gltf: buffer 0 needs"):
+        read_gltf_morphs(tmp_path / "b.gltf")
+    (tmp_path / "my data.bin").unlink()
+    with pytest.raises(InputError, match="cannot read"):
+        read_gltf_morphs(tmp_path / "b.gltf")
+
+
+@pytest.mark.parametrize("name", ["shapes.obj", "shapes", "shapes.glb.tmp"])
+def test_other_extensions_are_refused_before_anything_is_written(mixed_mesh, tmp_path,
+                                                                 name):
+    with pytest.raises(InputError, match=r"must end in \.glb \(binary\) or \.gltf"):
+        write_gltf_morphs(tmp_path / name, mixed_mesh, {})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unused_vertices_survive_a_uv_mesh(mixed_mesh, tmp_path):
+    V = np.vstack([mixed_mesh.vertices, [[5.0, 5.0, 5.0]]])
+    faces = [[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 6]]  # vertex 7 is in no face
+    face_uvs = [[0, 1, 3, 2], [4, 5, 7, 6], [2, 3, 8]]
+    mesh = Mesh(V, faces, uvs=mixed_mesh.uvs, face_uvs=face_uvs)
+    shapes = {"up": V + [0, 0, 1]}
+    for name in ("u.glb", "u.gltf"):
+        write_gltf_morphs(tmp_path / name, mesh, shapes)
+        back = read_gltf_morphs(tmp_path / name)
+        np.testing.assert_allclose(back.vertices, V, atol=1e-6)
+        np.testing.assert_allclose(back.shapes["up"], V + [0, 0, 1], atol=1e-6)
+
+
+def _edited(tmp_path, mixed_mesh, edit):
+    write_gltf_morphs(tmp_path / "ok.gltf", mixed_mesh, _shapes(mixed_mesh, ["x"]))
+    doc = json.loads((tmp_path / "ok.gltf").read_text())
+    edit(doc)
+    (tmp_path / "bad.gltf").write_text(json.dumps(doc))
+    return tmp_path / "bad.gltf"
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["accessors"][0].update(count=10 ** 9), "accessor 0 .* runs past"),
+    (lambda d: d["buffers"][0].update(byteLength=10 ** 9), "byteLength says"),
+    (lambda d: d["buffers"][0].update(uri="data:application/octet-stream;base64,@@"),
+     "not valid base64"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(mode=1), "not triangles"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(indices=99), "accessor 99"),
+    (lambda d: d["accessors"][0].update(bufferView=99), "malformed glTF"),
+])
+def test_broken_files_are_one_input_error(mixed_mesh, tmp_path, edit, message):
+    with pytest.raises(InputError, match=message):
+        read_gltf_morphs(_edited(tmp_path, mixed_mesh, edit))
+
+
+def test_indices_out_of_range_are_refused(tmp_path):
+    import pygltflib
+    mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]])
+    write_gltf_morphs(tmp_path / "t.glb", mesh, {})
+    doc = pygltflib.GLTF2().load(str(tmp_path / "t.glb"))
+    blob = bytearray(doc.binary_blob())
+    view = doc.bufferViews[doc.accessors[doc.meshes[0].primitives[0].indices].bufferView]
+    blob[view.byteOffset:view.byteOffset + 4] = np.uint32(7).tobytes()
+    doc.set_binary_blob(bytes(blob))
+    doc.save(str(tmp_path / "t.glb"))
+    with pytest.raises(InputError, match="index the 3 vertices"):
+        read_gltf_morphs(tmp_path / "t.glb")

@@ -1,18 +1,30 @@
-"""glTF 2.0 binary (``.glb``) with morph targets: a neutral mesh and named shapes.
+"""glTF 2.0 with morph targets: a neutral mesh and named shapes, ``.glb`` or ``.gltf``.
 
 :func:`write_gltf_morphs` writes the target neutral and every shape as a named
 morph target (``mesh.extras.targetNames``, the convention three.js, Blender and
 Babylon read; ARKit names such as ``jawOpen`` pass through unchanged), so a
-blendshape set opens in any glTF viewer.  glTF stores attributes per vertex, so a
-mesh with UV seams is written with its vertices split at the seams; each written
-vertex carries its original id in the application attribute ``_FACEWRAP_VERTEX``
-so :func:`read_gltf_morphs` gives back the original vertices and shapes exactly
-(to float32 precision).  Polygons are written as their fan triangulation.
+blendshape set opens in any glTF viewer.  The extension picks the form: ``.glb`` is
+binary glTF, ``.gltf`` is JSON text with its one buffer embedded as a base64 data
+URI (one self-contained file, which viewers and the Khronos validator accept, and
+which is replaced atomically like every output; a ``.bin`` beside it would be a
+second output that could be left half-written or go missing when the ``.gltf`` is
+moved).  glTF stores attributes per vertex, so a mesh with UV seams is written
+with its vertices split at the seams; each written vertex carries its original id
+in the application attribute ``_FACEWRAP_VERTEX`` so :func:`read_gltf_morphs`
+gives back the original vertices and shapes exactly (to float32 precision).
+Polygons are written as their fan triangulation.
+
+:func:`read_gltf_morphs` reads both forms, buffers embedded as data URIs or in
+files beside the ``.gltf``, and checks every accessor against its buffer view and
+buffer before reading it.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 import os
+import urllib.parse
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,10 +33,18 @@ from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
 
-__all__ = ["write_gltf_morphs", "read_gltf_morphs", "GltfMorphs"]
+__all__ = ["write_gltf_morphs", "read_gltf_morphs", "gltf_format", "GltfMorphs"]
 
 _FLOAT, _UINT = 5126, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_COMPONENTS = {_FLOAT: "<f4", _UINT: "<u4", 5123: "<u2", 5122: "<i2", 5121: "u1",
+               5120: "i1"}
+_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+_DATA_URI = "data:application/octet-stream;base64,"
+_FORMATS = {".glb": "glb", ".gltf": "gltf"}
+# Original vertex ids are stored as float32 (glTF has no integer vertex attribute
+# every viewer keeps), which is exact up to 2**24.
+_MAX_VERTEX_ID = 1 << 24
 
 
 def _pygltflib():
@@ -35,50 +55,70 @@ def _pygltflib():
     return pygltflib
 
 
+def gltf_format(path) -> str:
+    """The glTF form a path asks for by its extension: ``"glb"`` or ``"gltf"``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Raises
+    ------
+    InputError
+        Naming the path, for any other extension.
+
+    Examples
+    --------
+    >>> gltf_format("shapes.glb"), gltf_format("shapes.GLTF")
+    ('glb', 'gltf')
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext not in _FORMATS:
+        raise InputError(f"a glTF output must end in .glb (binary) or .gltf (JSON), "
+                         f"not {ext or 'no extension'!r}", path)
+    return _FORMATS[ext]
+
+
 def _split_vertices(mesh: Mesh):
-    """Per written vertex: original vertex id and UV (None without UVs); triangles."""
+    """Per written vertex: original vertex id and UV (None without UVs); triangles.
+
+    Vertices no triangle uses are written too (with UV (0, 0)), so every original
+    id is in the file and the reader can give the original vertices back.
+    """
     T = mesh.triangles
     if mesh.face_uvs is None:
         return np.arange(mesh.n_vertices), None, T
     tuv = mesh.triangle_uvs
     pairs = np.stack([T.reshape(-1), tuv.reshape(-1)], axis=1)
     uniq, inverse = np.unique(pairs, axis=0, return_inverse=True)
-    return uniq[:, 0], mesh.uvs[uniq[:, 1]], inverse.reshape(-1, 3)
+    uv = mesh.uvs[uniq[:, 1]]
+    unused = np.setdiff1d(np.arange(mesh.n_vertices), uniq[:, 0])
+    vid = np.concatenate([uniq[:, 0], unused])
+    uv = np.concatenate([uv, np.zeros((len(unused), 2))])
+    return vid, uv, inverse.reshape(-1, 3)
 
 
-def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
-                      name: str = "facewrap") -> None:
-    """Write a ``.glb`` with the neutral mesh and shapes as named morph targets.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Destination (``.glb``), replaced atomically.
-    neutral : Mesh
-    shapes : dict of str to (n, 3) float
-        Shape name → vertex positions in the neutral's topology (absolute
-        positions; the file stores displacements).
-    scale : float
-        Multiplies all positions (glTF units are metres: 0.01 for a mesh in cm).
-    name : str
-        Name of the glTF mesh and node.
-
-    Raises
-    ------
-    ValueError
-        When a shape has the wrong vertex count.
-    """
-    gl = _pygltflib()
-    vid, uv, tris = _split_vertices(neutral)
-    base = (neutral.vertices[vid] * scale).astype(np.float32)
-    names = list(shapes)
+def _shape_deltas(neutral: Mesh, shapes: dict, vid, scale: float) -> list:
     deltas = []
-    for key in names:
-        S = np.asarray(shapes[key], dtype=np.float64)
+    for key, value in shapes.items():
+        S = np.asarray(value, dtype=np.float64)
         if S.shape != neutral.vertices.shape:
             raise ValueError(f"shape {key!r} has shape {S.shape}, expected "
                              f"{neutral.vertices.shape}")
         deltas.append(((S[vid] - neutral.vertices[vid]) * scale).astype(np.float32))
+    return deltas
+
+
+def _document(neutral: Mesh, shapes: dict, scale: float, name: str):
+    """The glTF document and its one binary buffer (bytes, 4-byte aligned parts)."""
+    gl = _pygltflib()
+    if neutral.n_vertices > _MAX_VERTEX_ID:
+        raise ValueError(f"glTF output holds at most {_MAX_VERTEX_ID} vertices, the "
+                         f"mesh has {neutral.n_vertices}")
+    vid, uv, tris = _split_vertices(neutral)
+    base = (neutral.vertices[vid] * scale).astype(np.float32)
+    names = list(shapes)
+    deltas = _shape_deltas(neutral, shapes, vid, scale)
     blobs, views, accessors = [], [], []
 
     def add(array: np.ndarray, component: int, kind: str, target: int | None,
@@ -114,8 +154,43 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
                    scenes=[gl.Scene(nodes=[0])], nodes=[gl.Node(mesh=0, name=name)],
                    meshes=[mesh], accessors=accessors, bufferViews=views,
                    buffers=[gl.Buffer(byteLength=len(blob))])
-    doc.set_binary_blob(blob)
-    data = b"".join(doc.save_to_bytes())
+    return doc, blob
+
+
+def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
+                      name: str = "facewrap") -> None:
+    """Write the neutral mesh and shapes as named morph targets, by extension.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination, replaced atomically: ``.glb`` for binary glTF, ``.gltf`` for
+        JSON text with the buffer embedded (a data URI).
+    neutral : Mesh
+    shapes : dict of str to (n, 3) float
+        Shape name → vertex positions in the neutral's topology (absolute
+        positions; the file stores displacements).
+    scale : float
+        Multiplies all positions (glTF units are metres: 0.01 for a mesh in cm).
+    name : str
+        Name of the glTF mesh and node.
+
+    Raises
+    ------
+    InputError
+        When ``path`` ends in neither ``.glb`` nor ``.gltf`` (nothing is written).
+    ValueError
+        When a shape has the wrong vertex count, or the mesh more than 2**24
+        vertices.
+    """
+    form = gltf_format(path)
+    doc, blob = _document(neutral, shapes, scale, name)
+    if form == "glb":
+        doc.set_binary_blob(blob)
+        data = b"".join(doc.save_to_bytes())
+    else:
+        doc.buffers[0].uri = _DATA_URI + base64.b64encode(blob).decode("ascii")
+        data = doc.to_json().encode("utf-8")
     with atomic_write(path, "wb") as fh:
         fh.write(data)
 
@@ -141,13 +216,104 @@ class GltfMorphs:
     shapes: dict
 
 
+def _buffer_bytes(doc, k: int, path) -> bytes:
+    """The bytes of buffer ``k``: the GLB chunk, a data URI or a file beside ``path``."""
+    buf = doc.buffers[k]
+    uri = buf.uri
+    if uri is None:
+        data = doc.binary_blob() if k == 0 else None
+        if data is None:
+            raise InputError(f"buffer {k} has no data (no uri, no GLB binary chunk)",
+                             path)
+    elif uri.startswith("data:"):
+        try:
+            data = base64.b64decode(uri.partition(",")[2], validate=True)
+        except (binascii.Error, ValueError):
+            raise InputError(f"buffer {k}: its data URI is not valid base64",
+                             path) from None
+    else:
+        folder = os.path.dirname(os.path.abspath(path))
+        bin_path = os.path.join(folder, urllib.parse.unquote(uri))
+        try:
+            size = os.path.getsize(bin_path)
+            if size < (buf.byteLength or 0):
+                raise InputError(f"buffer {k} needs {buf.byteLength} bytes, "
+                                 f"{bin_path} has {size}", path)
+            with open(bin_path, "rb") as fh:
+                data = fh.read(buf.byteLength or 0)
+        except OSError as exc:
+            raise InputError(f"buffer {k}: cannot read {bin_path}: {exc.strerror}",
+                             path) from None
+    if len(data) < (buf.byteLength or 0):
+        raise InputError(f"buffer {k} holds {len(data)} bytes, its byteLength says "
+                         f"{buf.byteLength}", path)
+    return data
+
+
+class _Accessors:
+    """Reads accessors, each checked against its buffer view and buffer first."""
+
+    def __init__(self, doc, path):
+        self.doc, self.path = doc, path
+        self._buffers: dict[int, bytes] = {}
+
+    def __call__(self, index) -> np.ndarray:
+        """Accessor ``index`` as a (count,) or (count, width) array (a copy)."""
+        doc, path = self.doc, self.path
+        if not isinstance(index, int) or not 0 <= index < len(doc.accessors or []):
+            raise InputError(f"accessor {index!r} does not exist", path)
+        acc = doc.accessors[index]
+        if acc.type not in _WIDTHS or acc.componentType not in _COMPONENTS:
+            raise InputError(f"accessor {index}: unsupported type {acc.type} of "
+                             f"component {acc.componentType}", path)
+        if acc.sparse is not None or acc.bufferView is None:
+            raise InputError(f"accessor {index}: sparse accessors and accessors "
+                             "without a buffer view are not supported", path)
+        width, dtype = _WIDTHS[acc.type], np.dtype(_COMPONENTS[acc.componentType])
+        view = doc.bufferViews[acc.bufferView]
+        if view.buffer not in self._buffers:
+            self._buffers[view.buffer] = _buffer_bytes(doc, view.buffer, path)
+        data = self._buffers[view.buffer]
+        element = width * dtype.itemsize
+        stride = view.byteStride or element
+        span = (acc.count - 1) * stride + element if acc.count else 0
+        view_start = view.byteOffset or 0
+        if ((acc.byteOffset or 0) + span > view.byteLength
+                or view_start + view.byteLength > len(data) or stride < element):
+            raise InputError(f"accessor {index} ({acc.count} x {acc.type}) runs past "
+                             f"its buffer view or buffer", path)
+        arr = np.ndarray((acc.count, width), dtype=dtype, buffer=data,
+                         offset=view_start + (acc.byteOffset or 0),
+                         strides=(stride, dtype.itemsize)).copy()
+        return arr if width > 1 else arr.reshape(-1)
+
+
+def _original_order(read, prim, pos, tris, deltas, path):
+    """Vertices, triangles and deltas in the original vertex order (by the ids)."""
+    vid = read(prim.attributes._FACEWRAP_VERTEX)
+    if len(vid) != len(pos) or not np.all((vid >= 0) & (vid == np.floor(vid))):
+        raise InputError("_FACEWRAP_VERTEX must hold one non-negative integer id per "
+                         "vertex", path)
+    vid = vid.astype(np.int64)
+    n = int(vid.max()) + 1 if len(vid) else 0
+    first = np.full(n, -1, dtype=np.int64) if n <= len(vid) else None
+    if first is not None:
+        first[vid[::-1]] = np.arange(len(vid))[::-1]
+    if first is None or (first < 0).any():
+        raise InputError("_FACEWRAP_VERTEX ids leave original vertices out (the file "
+                         "cannot give back the original mesh)", path)
+    return pos[first], vid[tris], [d[first] for d in deltas]
+
+
 def read_gltf_morphs(path) -> GltfMorphs:
     """Read the first mesh primitive of a ``.glb``/``.gltf`` and its morph targets.
 
     Raises
     ------
     InputError
-        Missing file or a file without a readable mesh.
+        Missing file or a file without a readable mesh: not glTF, a buffer or an
+        accessor out of bounds, indices out of range, a primitive that is not
+        triangles.
     """
     gl = _pygltflib()
     if not os.path.isfile(path):
@@ -158,35 +324,40 @@ def read_gltf_morphs(path) -> GltfMorphs:
         raise InputError(f"not a readable glTF file ({exc})", path) from None
     if doc is None or not doc.meshes or not doc.meshes[0].primitives:
         raise InputError("no mesh in the glTF file", path)
-    blob = doc.binary_blob()
+    try:
+        return _read_mesh(doc, path)
+    except (IndexError, KeyError, TypeError, AttributeError) as exc:
+        # references a well-formed file never has (a view or buffer index too large)
+        raise InputError(f"malformed glTF ({type(exc).__name__}: {exc})", path) from None
 
-    def read(index: int) -> np.ndarray:
-        acc = doc.accessors[index]
-        view = doc.bufferViews[acc.bufferView]
-        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}[acc.type]
-        dtype = {_FLOAT: np.float32, _UINT: np.uint32, 5123: np.uint16,
-                 5121: np.uint8}[acc.componentType]
-        start = (view.byteOffset or 0) + (acc.byteOffset or 0)
-        arr = np.frombuffer(blob, dtype=dtype, count=acc.count * width, offset=start)
-        return arr.reshape(acc.count, width) if width > 1 else arr
 
+def _read_mesh(doc, path) -> GltfMorphs:
+    read = _Accessors(doc, path)
     mesh = doc.meshes[0]
     prim = mesh.primitives[0]
+    if prim.mode not in (None, 4):
+        raise InputError(f"the first primitive is of mode {prim.mode}, not triangles "
+                         "(4)", path)
+    if prim.attributes.POSITION is None:
+        raise InputError("the first primitive has no POSITION", path)
     pos = read(prim.attributes.POSITION).astype(np.float64)
-    tris = read(prim.indices).astype(np.int64).reshape(-1, 3)
-    ids = getattr(prim.attributes, "_FACEWRAP_VERTEX", None)
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise InputError("POSITION must be VEC3", path)
+    flat = (np.arange(len(pos)) if prim.indices is None
+            else read(prim.indices).astype(np.int64))
+    if flat.ndim != 1 or len(flat) % 3 or (len(flat) and not (
+            0 <= flat.min() and flat.max() < len(pos))):
+        raise InputError(f"triangle indices must be 3 per triangle and index the "
+                         f"{len(pos)} vertices", path)
+    tris = flat.reshape(-1, 3)
     names = list((mesh.extras or {}).get("targetNames", []))
     targets = prim.targets or []
     names += [f"target_{k}" for k in range(len(names), len(targets))]
     deltas = [read(t["POSITION"] if isinstance(t, dict) else t.POSITION)
               .astype(np.float64) for t in targets]
-    if ids is not None:
-        vid = read(ids).astype(np.int64)
-        n = int(vid.max()) + 1
-        first = np.full(n, -1, dtype=np.int64)
-        first[vid[::-1]] = np.arange(len(vid))[::-1]
-        pos_n = pos[first]
-        tris = vid[tris]
-        deltas = [d[first] for d in deltas]
-        pos = pos_n
+    if any(d.shape != pos.shape for d in deltas):
+        raise InputError("a morph target's POSITION has another vertex count than "
+                         "the mesh", path)
+    if getattr(prim.attributes, "_FACEWRAP_VERTEX", None) is not None:
+        pos, tris, deltas = _original_order(read, prim, pos, tris, deltas, path)
     return GltfMorphs(pos, tris, {k: pos + d for k, d in zip(names, deltas)})
