@@ -1,8 +1,13 @@
 """Benchmark: reading and writing a 1M-triangle OBJ (target <= 10 s each) and the
-ICT-FaceKit neutral (when ../shared/data is present)."""
+ICT-FaceKit neutral (when ../shared/data is present); refusing bogus 2 GB sparse
+files whose headers claim 10^8 vertices (target < 1 s and < 200 MB each)."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -23,6 +28,49 @@ def grid_mesh(n: int) -> Mesh:
     a, b, c, d = (x.ravel() for x in (i[:-1, :-1], i[:-1, 1:], i[1:, 1:], i[1:, :-1]))
     F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
     return Mesh(V, F, uvs=V[:, :2])
+
+
+BOGUS_SIZE = 2 << 30  # 2 GiB, sparse: the holes cost no disk
+_BOGUS_HEADS = {
+    "ASCII PLY, header: 10^8 vertices": (
+        "bogus_ascii.ply", b"ply\nformat ascii 1.0\nelement vertex 100000000\n"
+        b"property float x\nproperty float y\nproperty float z\nend_header\n"),
+    "binary PLY, header: 10^8 double vertices": (
+        "bogus_binary.ply", b"ply\nformat binary_little_endian 1.0\n"
+        b"element vertex 100000000\nproperty double x\nproperty double y\n"
+        b"property double z\nend_header\n"),
+    "OBJ, one triangle then zeros": ("bogus.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+}
+# Run in a fresh interpreter so its peak memory is the reader's own.
+_REFUSE = """
+import json, resource, sys, time
+from facewrap.errors import InputError
+from facewrap.io import read_mesh
+t = time.perf_counter()
+try:
+    read_mesh(sys.argv[1]); message = None
+except InputError as exc:
+    message = str(exc)
+seconds = time.perf_counter() - t
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(json.dumps({"seconds": seconds, "peak_mb": peak, "message": message}))
+"""
+
+
+def refusals(folder: Path) -> list[dict]:
+    """Time and peak memory (MB) of refusing each bogus sparse file."""
+    rows = []
+    for case, (name, head) in _BOGUS_HEADS.items():
+        path = folder / name
+        with open(path, "wb") as fh:
+            fh.write(head)
+            fh.truncate(BOGUS_SIZE)
+        env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+        out = subprocess.run([sys.executable, "-c", _REFUSE, str(path)], env=env,
+                             capture_output=True, text=True, check=True).stdout
+        rows.append({"case": case, **json.loads(out)})
+        path.unlink()
+    return rows
 
 
 def run() -> dict:
@@ -49,7 +97,8 @@ def run() -> dict:
                          "read_s": t, "write_s": float("nan")})
         except ImportError:
             pass
-    return {"title": "OBJ reading and writing", "rows": rows}
+        refused = refusals(Path(tmp))
+    return {"title": "OBJ reading and writing", "rows": rows, "refusals": refused}
 
 
 def markdown(result: dict) -> str:
@@ -57,6 +106,13 @@ def markdown(result: dict) -> str:
              "|---|---:|---:|"]
     for r in result["rows"]:
         lines.append(f"| {r['case']} | {r['read_s']:.2f} | {r['write_s']:.2f} |")
+    lines += ["", f"Refusing a bogus {BOGUS_SIZE / 2**30:.0f} GiB sparse file (fresh "
+              "interpreter; peak memory includes Python and numpy):", "",
+              "| file | refused in (s) | peak memory (MB) | message |", "|---|---:|---:|---|"]
+    for r in result.get("refusals", []):
+        message = (r["message"] or "NOT REFUSED").split(": ", 1)[-1]
+        lines.append(f"| {r['case']} | {r['seconds']:.2f} | {r['peak_mb']:.0f} | "
+                     f"{message} |")
     return "\n".join(lines) + "\n"
 
 

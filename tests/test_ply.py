@@ -5,7 +5,10 @@ independently of :func:`facewrap.io.ply.write_ply`, so reader bugs and writer bu
 cannot cancel out.
 """
 
+import os
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -539,6 +542,65 @@ def test_binary_huge_counts_are_truncation_not_memory_errors(tmp_path):
         ("vertex", XYZ, TRI), ("face", ["list uint int vertex_indices"],
                                [((0, 1, 2),)])])[:-16] + struct.pack("<I", 2**31))
     check_error(p, "truncated")
+
+
+# -- bounded resources ----------------------------------------------------------------
+BOGUS = {
+    "ascii.ply": b"ply\nformat ascii 1.0\nelement vertex 100000000\nproperty float x\n"
+                 b"property float y\nproperty float z\nend_header\n",
+    "binary.ply": b"ply\nformat binary_little_endian 1.0\nelement vertex 100000000\n"
+                  b"property double x\nproperty double y\nproperty double z\n"
+                  b"end_header\n",
+    "mesh.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+}
+# A fresh interpreter reads the file under an address-space limit: a reader that
+# allocated for the header's claim, or read the file whole, fails with MemoryError.
+_READ_BOUNDED = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (int(sys.argv[2]), int(sys.argv[2])))
+from facewrap.errors import InputError
+from facewrap.io import read_mesh
+try:
+    read_mesh(sys.argv[1])
+except InputError as exc:
+    print(exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="sparse files and RLIMIT_AS")
+@pytest.mark.parametrize("name, message", [
+    ("ascii.ply", "NUL bytes in an ASCII PLY (a binary or sparse file with an ASCII "
+                  "header?)"),
+    ("binary.ply", "element 'vertex' needs at least 2400000000 bytes from byte 126, "
+                   "the file has 2147483522"),
+    ("mesh.obj", "binary data, not a text file"),
+])
+def test_a_bogus_2gb_sparse_file_is_refused_without_reading_it(tmp_path, name, message):
+    path = tmp_path / name
+    with open(path, "wb") as fh:
+        fh.write(BOGUS[name])
+        fh.truncate(2 << 30)
+    if os.stat(path).st_blocks * 512 > 1 << 20:
+        pytest.skip("this file system does not keep files sparse")
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    r = subprocess.run([sys.executable, "-c", _READ_BOUNDED, str(path), str(1 << 30)],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    error, peak_mb = r.stdout.splitlines()
+    assert error == f"{path}: {'file is truncated: ' if 'binary' in name else ''}{message}"
+    assert int(peak_mb) < 200
+
+
+def test_ascii_counts_beyond_a_large_file_are_refused_from_the_header(tmp_path):
+    rows = b"0 0 0\n" * 200_000  # 1.2 MB: past the first read
+    path = tmp_path / "big.ply"
+    path.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 10000000\nproperty float x\n"
+                     b"property float y\nproperty float z\nend_header\n" + rows)
+    check_error(path, "need 30000000 values (at least 59999999 bytes) from byte 107, "
+                      "the file has 1200000")
+    path.write_bytes(path.read_bytes().replace(b"10000000", b"200000  "))
+    assert len(read_ply(path).vertices) == 200_000
 
 
 # -- fuzzing ---------------------------------------------------------------------------
