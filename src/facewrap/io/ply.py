@@ -31,6 +31,7 @@ destination atomically.
 
 from __future__ import annotations
 
+import mmap
 import os
 import re
 import struct
@@ -103,6 +104,20 @@ _HEADER_LIMIT = 1 << 20
 
 def _read_bytes(path) -> bytes:
     return read_file_bytes(path)
+
+
+def _map_file(path) -> mmap.mmap | bytes:
+    """The file mapped read-only: a binary body is read only where rows are.
+
+    Every array taken from it is a copy, so the map closes when the reader drops it
+    (not explicitly: an error's traceback may still hold a view of it).  Where a
+    file cannot be mapped (a pipe, an address-space limit) it is read whole.
+    """
+    try:
+        with open(path, "rb") as fh:
+            return mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        return _read_bytes(path)
 
 
 def _read_header(path) -> tuple[_Header, int]:
@@ -754,9 +769,9 @@ def read_ply(path) -> Mesh:
     ([4], True)
     """
     header, size = _read_header(path)
-    data = _read_bytes(path)
-    if len(data) != size:  # changed while we read it: take what was read
-        header = _parse_header(data, path)
+    data = _read_bytes(path) if header.byte_order is None else _map_file(path)
+    if len(data) != size:  # changed since the header was read: take what is there
+        header = _parse_header(data[:_HEADER_LIMIT], path)
     if header.byte_order is None:
         tables = _ascii_tables(data, header, path)
     else:
