@@ -202,3 +202,21 @@ def test_indices_out_of_range_are_refused(tmp_path):
     doc.save(str(tmp_path / "t.glb"))
     with pytest.raises(InputError, match="index the 3 vertices"):
         read_gltf_morphs(tmp_path / "t.glb")
+
+
+def test_container_checks_come_before_reading(mixed_mesh, tmp_path):
+    path = tmp_path / "a.glb"
+    write_gltf_morphs(path, mixed_mesh, _shapes(mixed_mesh, ["x"]))
+    size = path.stat().st_size
+    with open(path, "r+b") as fh:  # a good GLB, then zeros (a sparse tail)
+        fh.truncate(size + (1 << 20))
+    with pytest.raises(InputError, match=f"GLB header says the file has {size} bytes, "
+                                         f"it has {size + (1 << 20)}"):
+        read_gltf_morphs(path)
+    path.write_bytes(b"glTF\x02\x00")
+    with pytest.raises(InputError, match="GLB header is cut short"):
+        read_gltf_morphs(path)
+    text = tmp_path / "b.gltf"
+    text.write_bytes(b'{"asset": {"version": "2.0"}}' + bytes(1 << 17))
+    with pytest.raises(InputError, match="binary data, not a glTF"):
+        read_gltf_morphs(text)

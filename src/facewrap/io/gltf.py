@@ -24,6 +24,7 @@ from __future__ import annotations
 import base64
 import binascii
 import os
+import struct
 import urllib.parse
 from dataclasses import dataclass
 
@@ -32,6 +33,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import file_size, nul_at_ends, read_file_head
 
 __all__ = ["write_gltf_morphs", "read_gltf_morphs", "gltf_format", "GltfMorphs"]
 
@@ -305,6 +307,22 @@ def _original_order(read, prim, pos, tris, deltas, path):
     return pos[first], vid[tris], [d[first] for d in deltas]
 
 
+def _check_container(path) -> None:
+    """Refuse, before anything is read whole, a GLB whose header disagrees with the
+    file's size (a GLB states its total length) and a JSON glTF holding NUL bytes."""
+    size = file_size(path)
+    head = read_file_head(path, 12)
+    if head[:4] == b"glTF":
+        if len(head) < 12:
+            raise InputError("GLB header is cut short", path)
+        (length,) = struct.unpack("<I", head[8:12])
+        if length != size:
+            raise InputError(f"GLB header says the file has {length} bytes, it has "
+                             f"{size}", path)
+    elif nul_at_ends(path, size):
+        raise InputError("binary data, not a glTF (JSON) or GLB file", path)
+
+
 def read_gltf_morphs(path) -> GltfMorphs:
     """Read the first mesh primitive of a ``.glb``/``.gltf`` and its morph targets.
 
@@ -318,6 +336,7 @@ def read_gltf_morphs(path) -> GltfMorphs:
     gl = _pygltflib()
     if not os.path.isfile(path):
         raise InputError("no such file", path)
+    _check_container(path)
     try:
         doc = gl.GLTF2().load(os.fspath(path))
     except Exception as exc:  # pygltflib raises many kinds on bad files
