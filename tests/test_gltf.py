@@ -183,7 +183,13 @@ def _edited(tmp_path, mixed_mesh, edit):
      "not valid base64"),
     (lambda d: d["meshes"][0]["primitives"][0].update(mode=1), "not triangles"),
     (lambda d: d["meshes"][0]["primitives"][0].update(indices=99), "accessor 99"),
-    (lambda d: d["accessors"][0].update(bufferView=99), "malformed glTF"),
+    (lambda d: d["accessors"][0].update(bufferView=99), "buffer view 99 or count"),
+    (lambda d: d["accessors"][0].update(bufferView=-1), "buffer view -1 or count"),
+    (lambda d: d["accessors"][0].update(count=-3), "count -3 out of range"),
+    (lambda d: d["bufferViews"][0].update(buffer=-1), "buffer -1 does not exist"),
+    (lambda d: d["meshes"][0]["primitives"][0]["targets"][0].update(POSITION=2),
+     "another vertex count"),
+    (lambda d: d.update(bufferViews=[{"buffer": 0}]), "malformed glTF"),
 ])
 def test_broken_files_are_one_input_error(mixed_mesh, tmp_path, edit, message):
     with pytest.raises(InputError, match=message):

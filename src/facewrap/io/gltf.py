@@ -272,7 +272,13 @@ class _Accessors:
             raise InputError(f"accessor {index}: sparse accessors and accessors "
                              "without a buffer view are not supported", path)
         width, dtype = _WIDTHS[acc.type], np.dtype(_COMPONENTS[acc.componentType])
+        if not 0 <= acc.bufferView < len(doc.bufferViews or []) or acc.count < 0:
+            raise InputError(f"accessor {index}: buffer view {acc.bufferView} or "
+                             f"count {acc.count} out of range", path)
         view = doc.bufferViews[acc.bufferView]
+        if not 0 <= view.buffer < len(doc.buffers or []):
+            raise InputError(f"buffer view {acc.bufferView}: buffer {view.buffer} "
+                             "does not exist", path)
         if view.buffer not in self._buffers:
             self._buffers[view.buffer] = _buffer_bytes(doc, view.buffer, path)
         data = self._buffers[view.buffer]
@@ -345,7 +351,9 @@ def read_gltf_morphs(path) -> GltfMorphs:
         raise InputError("no mesh in the glTF file", path)
     try:
         return _read_mesh(doc, path)
-    except (IndexError, KeyError, TypeError, AttributeError) as exc:
+    except InputError:
+        raise
+    except (IndexError, KeyError, TypeError, AttributeError, ValueError) as exc:
         # references a well-formed file never has (a view or buffer index too large)
         raise InputError(f"malformed glTF ({type(exc).__name__}: {exc})", path) from None
 

@@ -100,6 +100,7 @@ class _Header:
 # The header is read from the file's first bytes before the rest: a header longer
 # than this is refused (real ones are a few hundred bytes, a few KiB with comments).
 _HEADER_LIMIT = 1 << 20
+_HEADER_LIMIT_TEXT = "1 MiB"
 
 
 def _read_bytes(path) -> bytes:
@@ -126,6 +127,10 @@ def _read_header(path) -> tuple[_Header, int]:
     head = read_file_head(path, min(size, _HEADER_LIMIT))
     if not head.strip():
         read_file_bytes(path)  # the one "empty file" / "cannot read" error
+    if (len(head) < size and head.split(b"\n", 1)[0].strip() == b"ply"
+            and _END_HEADER.search(head) is None):
+        raise InputError(f"no 'end_header' line in the first {_HEADER_LIMIT_TEXT} (a "
+                         "header that long is not a PLY header)", path)
     header = _parse_header(head, path)
     _check_size(header, size, path)
     return header, size
@@ -755,8 +760,10 @@ def read_ply(path) -> Mesh:
         Naming the file, and the line for ASCII content or the row and byte offset
         for binary content: missing or empty file, not a PLY file, missing
         ``format`` or ``end_header``, unknown format or property type, truncated
-        data, a value that is not a number, NaN/inf coordinates, a face with fewer
-        than 3 corners or an index out of range, no vertex element or no x/y/z.
+        data or element counts the file's size cannot hold (found from the header,
+        before the body is read), a value that is not a number, NaN/inf
+        coordinates, a face with fewer than 3 corners or an index out of range, no
+        vertex element or no x/y/z.
 
     Examples
     --------
