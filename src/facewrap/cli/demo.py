@@ -20,6 +20,7 @@ from facewrap.cli.wrap import run_wrap_job_verbosely
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.paths import check_writable
 from facewrap.io.landmarks import write_vertex_indices
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
@@ -54,6 +55,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     from facewrap.report.page import build_report_page
     from facewrap.sample import make_scan, make_template, write_sample
     out = Path(out)
+    check_writable(folders=[out, out / "input", out / "report"])
     out.mkdir(parents=True, exist_ok=True)
     template = make_template()
     scan = make_scan(template)
