@@ -339,8 +339,8 @@ def _check_batch(jobs: list[BatchJob], path) -> None:
         if hit is not None:
             other = writers[hit[0]]
             raise InputError(f"job {other.index + 1} (line {other.line}) writes "
-                             f"{hit[0]!r}, on {hit[1]!r}, an input of job "
-                             f"{bj.index + 1}; inputs are never overwritten", path, bj.line)
+                             f"{hit[0]!r}, an input of job {bj.index + 1} (it {hit[1]}); "
+                             "inputs are never overwritten", path, bj.line)
     names: dict[str, BatchJob] = {}
     for bj in jobs:
         if bj.name in names:

@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import shutil
 from pathlib import Path
 
 from facewrap.errors import InputError
 
-__all__ = ["real_path", "find_overlap", "check_outputs_apart", "check_writable",
+__all__ = ["real_path", "side_files", "find_overlap", "check_outputs_apart", "check_writable",
            "check_output_paths", "StagedOutputs", "staged_outputs"]
 
 #: Prefix of staged files and folders (hidden, so a listing does not show them).
@@ -37,6 +38,54 @@ STAGE_PREFIX = ".facewrap-staged-"
 def real_path(path) -> str:
     """``path`` absolute, with ``..`` and symbolic links resolved (str)."""
     return os.path.realpath(os.path.abspath(os.fspath(path)))
+
+
+#: How much of an OBJ is searched for ``mtllib`` (exporters write it at the top;
+#: a bounded read keeps the check cheap for scans of hundreds of megabytes).
+OBJ_HEAD_BYTES = 1 << 16
+
+_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n]+)", re.M)
+_MAP = re.compile(r"^[ \t]*(?:map_\w+|bump|disp|decal|refl)[ \t]+(.+?)[ \t]*$", re.M)
+
+
+def _head(path, size: int) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(size)
+    except OSError:
+        return b""
+
+
+def side_files(path) -> list[str]:
+    """Files an input mesh reads along with it: its MTL files and their images.
+
+    An OBJ's ``mtllib`` statements (searched in its first :data:`OBJ_HEAD_BYTES`)
+    name material files beside it, whose ``map_Kd``... statements name texture
+    images; writing over those would damage the input as surely as writing over
+    the OBJ.  Other files (and unreadable ones) have none.
+
+    Parameters
+    ----------
+    path : path
+
+    Returns
+    -------
+    list of str
+        Paths relative to the OBJ's folder, joined to it.
+    """
+    if not os.fspath(path).lower().endswith(".obj") or not os.path.isfile(path):
+        return []
+    folder = os.path.dirname(os.fspath(path))
+    out = []
+    for m in _MTLLIB.finditer(_head(path, OBJ_HEAD_BYTES)):
+        for name in m.group(1).decode("utf-8", "replace").split():
+            mtl = os.path.join(folder, name)
+            out.append(mtl)
+            text = _head(mtl, 1 << 20).decode("utf-8", "replace")
+            # the image is the last word: options such as -s 1 1 1 come first
+            out += [os.path.join(folder, os.path.dirname(name), m2.group(1).split()[-1])
+                    for m2 in _MAP.finditer(text)]
+    return out
 
 
 def _within(path: str, folder: str) -> bool:
@@ -50,29 +99,36 @@ def find_overlap(outputs, inputs):
     Parameters
     ----------
     outputs, inputs : iterable of path
-        Files or folders; inputs that are existing folders cover everything inside.
+        Files or folders; inputs that are existing folders cover everything inside,
+        an input OBJ covers its :func:`side_files` too.
 
     Returns
     -------
-    (output, input) or None
-        The two paths as given.
+    (output, relation) or None
+        The output as given and how it meets the input, in words naming the
+        input: ``"is also an input 'a.obj'"``, ``"lies in the input folder
+        'shapes'"`` (a side file is named with the mesh it is read with).
 
     Examples
     --------
     >>> import tempfile, os
     >>> d = tempfile.mkdtemp()
-    >>> find_overlap([os.path.join(d, "x", "..", "a.obj")], [os.path.join(d, "a.obj")])[1][-5:]
-    'a.obj'
+    >>> find_overlap([os.path.join(d, "x", "..", "a.obj")], [os.path.join(d, "a.obj")])[1][:16]
+    'is also an input'
     >>> find_overlap([os.path.join(d, "out.obj")], [os.path.join(d, "a.obj")]) is None
     True
     """
-    ins = [(i, real_path(i)) for i in inputs]
-    ins = [(i, r, os.path.isdir(r)) for i, r in ins]
+    named = [os.fspath(i) for i in inputs]
+    # (input, what to call it): a side file is named with the mesh it belongs to
+    ins = [(i, repr(i)) for i in named]
+    ins += [(f, f"{f!r} (read with {i!r})") for i in named for f in side_files(i)]
+    ins = [(i, label, real_path(i)) for i, label in ins]
     for o in outputs:
         ro = real_path(o)
-        for i, ri, folder in ins:
-            if ro == ri or (folder and _within(ro, ri)):
-                return o, i
+        for i, label, ri in ins:
+            if ro == ri or (os.path.isdir(ri) and _within(ro, ri)):
+                where = "is also an input" if ro == ri else "lies in the input folder"
+                return o, f"{where} {label}"
     return None
 
 
@@ -97,10 +153,9 @@ def check_outputs_apart(outputs, inputs, source=None) -> None:
     outputs = list(outputs)
     hit = find_overlap(outputs, inputs)
     if hit is not None:
-        o, i = hit
-        where = "is the input" if real_path(o) == real_path(i) else "lies in the input folder"
-        raise InputError(f"output {os.fspath(o)!r} {where} {os.fspath(i)!r}; inputs are "
-                         "never overwritten", source or o)
+        o, label = hit
+        raise InputError(f"output {os.fspath(o)!r} {label}; inputs are never overwritten",
+                         source or o)
     seen = set()
     for o in outputs:
         ro = real_path(o)
@@ -139,7 +194,7 @@ def check_writable(files=(), folders=(), source=None) -> None:
         needed (the path runs through a file), a folder where a file is needed, or
         a folder that cannot be written.
     """
-    asked = [(f, False) for f in files] + [(d, True) for d in folders]
+    asked = [(d, True) for d in folders] + [(f, False) for f in files]
     for path, is_folder in asked:
         p = os.path.abspath(os.fspath(path))
         if os.path.isdir(p) and not is_folder:
