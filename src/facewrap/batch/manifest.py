@@ -337,9 +337,10 @@ def _check_batch(jobs: list[BatchJob], path) -> None:
         # one job's output is, or lies in, another job's input (file or folder)
         hit = find_overlap(outputs, bj.kind.inputs(bj.job))
         if hit is not None:
-            other = writers[hit[0]]
+            other, relation = writers[hit[0]], hit[1]
+            inside = "" if relation.startswith("is also") else f" (it {relation})"
             raise InputError(f"job {other.index + 1} (line {other.line}) writes "
-                             f"{hit[0]!r}, an input of job {bj.index + 1} (it {hit[1]}); "
+                             f"{hit[0]!r}, an input of job {bj.index + 1}{inside}; "
                              "inputs are never overwritten", path, bj.line)
     names: dict[str, BatchJob] = {}
     for bj in jobs:
