@@ -264,7 +264,10 @@ class StagedOutputs:
             missing.append(folder)
             folder = folder.parent
         for f in reversed(missing):
-            f.mkdir()
+            try:
+                f.mkdir()
+            except FileExistsError:   # made meanwhile by another job of a batch
+                continue
             self._made.append(f)
 
     def _hidden(self, final: Path) -> Path:
