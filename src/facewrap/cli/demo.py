@@ -20,8 +20,8 @@ from facewrap.cli.wrap import run_wrap_job_verbosely
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.paths import check_writable
 from facewrap.io.landmarks import write_vertex_indices
+from facewrap.io.paths import check_writable
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
 from facewrap.wrapping import WrapSettings

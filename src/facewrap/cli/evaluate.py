@@ -17,8 +17,8 @@ from facewrap.evaluate import evaluate
 from facewrap.geometry import similarity_transform
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.io.paths import check_output_paths, staged_outputs
 
 __all__ = ["register", "cmd_evaluate"]
 
