@@ -20,6 +20,7 @@ that it lists every case.  Hypothesis fuzzes the readers at the end.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import json
 import os
@@ -67,6 +68,7 @@ class Base:
         assert facewrap("run", "-q", ctx.job()) == 0
         self.result = read_mesh(ctx.out).vertices
         self.report = json.loads(ctx.report_path.read_text())
+        self.folder, self.digest = folder, digest(folder)
 
 
 @dataclass
@@ -635,11 +637,199 @@ def scan_million_triangles(ctx):
     return Run(p, ["run", ctx.job(scan=p, scan_landmarks=lm)])
 
 
+# -- outputs: never on an input, creatable, checked before any work -------------------------
+def sample_copy(ctx) -> dict:
+    """The sample's files copied into the case's folder (so a failure harms no other case)."""
+    own = {}
+    for key, src in ctx.base.paths.items():
+        dst = ctx.dir / "in" / Path(src).relative_to(Path(ctx.base.paths["template"]).parent)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_bytes(Path(src).read_bytes())
+        own[key] = dst
+    return own
+
+
+def wrap_argv(p: dict, *more) -> list:
+    return ["wrap", p["template"], p["scan"], "--template-landmarks",
+            p["template_landmarks"], "--scan-landmarks", p["scan_landmarks"],
+            "--model", "rbf", "-q", *more]
+
+
+def transfer_argv(ctx, p: dict, shapes, *more) -> list:
+    ids = p["template_landmarks"].read_text().split()[:12]
+    markers = ctx.write("markers.txt", "".join(f"{i} {i}\n" for i in ids))
+    return ["transfer", p["template"], p["template"], "--markers", markers,
+            "--source-shapes", shapes, "-q", *more]
+
+
+def track_argv(ctx, p: dict, *more) -> list:
+    seq = ctx.dir / "seq"
+    seq.mkdir()
+    (seq / "frame_0000.obj").write_bytes(p["scan"].read_bytes())
+    return ["track", p["template"], seq, "--template-landmarks", p["template_landmarks"],
+            "--scan-landmarks", p["scan_landmarks"], "--model", "rbf", "-q", *more]
+
+
+def in_the_way(ctx) -> Path:
+    return ctx.write("a_file", "a file where a folder is needed\n")
+
+
+@case("outputs", "convert onto its own input", "error", "also an input")
+def convert_onto_input(ctx):
+    p = sample_copy(ctx)["scan"]
+    return Run(p, ["convert", p, p])
+
+
+@case("outputs", "convert onto a link to its input", "error", "also an input")
+def convert_onto_symlink(ctx):
+    p = sample_copy(ctx)["scan"]
+    link = ctx.dir / "link.obj"
+    os.symlink(p, link)
+    return Run(p, ["convert", p, link])
+
+
+@case("outputs", "wrap -o the scan, spelt with ..", "error", "also an input")
+def wrap_output_is_scan(ctx):
+    p = sample_copy(ctx)
+    return Run(p["scan"], wrap_argv(p, "-o", p["scan"].parent / "blendshapes" / ".." /
+                                    p["scan"].name))
+
+
+@case("outputs", "wrap --report onto the landmarks", "error", "also an input")
+def wrap_report_on_landmarks(ctx):
+    p = sample_copy(ctx)
+    return Run(p["scan_landmarks"], wrap_argv(p, "-o", ctx.out, "--report",
+                                              p["scan_landmarks"]))
+
+
+@case("outputs", "wrap -o inside the blendshapes folder", "error", "lies in the input folder")
+def wrap_output_in_blendshapes(ctx):
+    p = sample_copy(ctx)
+    shapes = p["blendshapes/blink"].parent
+    return Run(shapes, wrap_argv(p, "--blendshapes", shapes, "-o", shapes / "fit.obj"))
+
+
+@case("outputs", "run: a job file's report is the template", "error", "also an input")
+def run_report_is_template(ctx):
+    p = ctx.job()
+    p.write_text(p.read_text().replace('"out/report.json"',
+                                       f'"{ctx.base.paths["template"]}"'))
+    return Run(ctx.base.paths["template"], ["run", p])
+
+
+@case("outputs", "batch: a job writes into its blendshapes folder", "error",
+      "lies in the input folder")
+def batch_output_in_blendshapes(ctx):
+    shapes = sample_copy(ctx)["blendshapes/blink"].parent
+    return manifest(ctx, [good_row(ctx, str(shapes / "fit.obj")) + f",{shapes}"],
+                    "scan,scan_landmarks,output,blendshapes")
+
+
+@case("outputs", "batch: one job writes another's scan", "error", "an input of job 2")
+def batch_job_writes_other_input(ctx):
+    p = sample_copy(ctx)
+    return manifest(ctx, [good_row(ctx, str(p["scan"])),
+                          f"{p['scan']},{p['scan_landmarks']},b.obj"])
+
+
+@case("outputs", "transfer -o the --source-shapes folder", "error", "also an input")
+def transfer_into_source_shapes(ctx):
+    p = sample_copy(ctx)
+    shapes = p["blendshapes/blink"].parent
+    return Run(shapes, transfer_argv(ctx, p, shapes, "-o", shapes))
+
+
+@case("outputs", "transfer: a source shape file inside -o", "error", "also an input")
+def transfer_shape_file_in_out(ctx):
+    p = sample_copy(ctx)
+    smile = p["blendshapes/smile"]
+    return Run(smile, transfer_argv(ctx, p, smile, "-o", smile.parent))
+
+
+@case("outputs", "track -o the scan folder", "error", "lies in the input folder")
+def track_into_scan_folder(ctx):
+    p = sample_copy(ctx)
+    return Run(ctx.dir / "seq", track_argv(ctx, p, "-o", ctx.dir / "seq"))
+
+
+@case("outputs", "evaluate --json onto the result", "error", "also an input")
+def evaluate_json_on_result(ctx):
+    p = sample_copy(ctx)
+    return Run(p["template"], ["evaluate", p["template"], p["scan"], "--json",
+                               p["template"], "-q"])
+
+
+@case("outputs", "evaluate --heatmap onto the scan's texture", "error", r"read with")
+def evaluate_heatmap_on_texture(ctx):
+    p = sample_copy(ctx)
+    return Run(p["scan_texture"], ["evaluate", p["template"], p["scan"], "--heatmap",
+                                   p["scan_texture"], "-q"])
+
+
+@case("outputs", "report -o the folder of a run JSON named index.html", "error",
+      "also an input")
+def report_over_run_json(ctx):
+    run = ctx.write("index.html", json.dumps(ctx.base.report))
+    return Run(run, ["report", run, "-o", ctx.dir])
+
+
+@case("outputs", "animate -o the folder of its start frame", "error", "also an input")
+def animate_over_start(ctx):
+    p = sample_copy(ctx)
+    start = ctx.dir / "frame_0000.obj"
+    start.write_bytes(p["template"].read_bytes())
+    return Run(start, ["animate", start, p["template"], "--frames", "2", "-o", ctx.dir])
+
+
+# outputs that cannot be created (a path through a file, a file where a folder goes):
+# name -> (what, build(ctx, sample copy, file in the way) -> (culprit, argv))
+CANNOT_CREATE = {
+    "wrap_output_through_file": ("wrap -o under a path through a file", lambda ctx, p, f: (
+        f / "x.obj", wrap_argv(p, "-o", f / "x.obj"))),
+    "wrap_report_through_file": ("wrap --report under a path through a file",
+                                 lambda ctx, p, f: (f / "r.json", wrap_argv(
+                                     p, "-o", ctx.out, "--report", f / "r.json"))),
+    "transfer_gltf_through_file": ("transfer --gltf under a path through a file",
+                                   lambda ctx, p, f: (f / "x.glb", transfer_argv(
+                                       ctx, p, p["blendshapes/blink"].parent, "-o",
+                                       ctx.dir / "shapes", "--gltf", f / "x.glb"))),
+    "track_out_is_file": ("track -o a file", lambda ctx, p, f: (
+        f, track_argv(ctx, p, "-o", f))),
+    "evaluate_heatmap_through_file": ("evaluate --heatmap under a path through a file",
+                                      lambda ctx, p, f: (f / "h.png", [
+                                          "evaluate", p["template"], p["scan"],
+                                          "--heatmap", f / "h.png"])),
+    "report_out_is_file": ("report -o a file", lambda ctx, p, f: (f, [
+        "report", ctx.write("run.json", json.dumps(ctx.base.report)), "-o", f])),
+    "convert_onto_folder": ("convert to a folder", lambda ctx, p, f: (
+        p["blendshapes/blink"].parent, ["convert", p["scan"], p["blendshapes/blink"].parent])),
+    "animate_out_through_file": ("animate -o under a path through a file",
+                                 lambda ctx, p, f: (f / "a", [
+                                     "animate", p["template"], p["template"], "-o", f / "a"])),
+    "sample_into_file": ("sample into a file", lambda ctx, p, f: (f, ["sample", f])),
+    "demo_through_file": ("demo --out under a path through a file", lambda ctx, p, f: (
+        f / "demo", ["demo", "--out", f / "demo", "-q"])),
+}
+
+
+def _cannot_create(build):
+    def run(ctx):
+        culprit, argv = build(ctx, sample_copy(ctx), in_the_way(ctx))
+        return Run(culprit, argv)
+    return run
+
+
+for _name, (_what, _build) in CANNOT_CREATE.items():
+    CASES.append(Case(_name, "outputs", _what, "error", "is a (file|folder)",
+                      _cannot_create(_build)))
+
+
 # -- running the corpus -------------------------------------------------------------------------
 def run_case(c: Case, folder: Path, base: Base, capsys=None
              ) -> tuple[int, list[str], Ctx, Run]:
     ctx = Ctx(folder, base)
     r = c.build(ctx)
+    ctx.before = digest(folder)   # the case's inputs, as built
     if r.call is not None:
         try:
             r.call()
@@ -652,6 +842,23 @@ def run_case(c: Case, folder: Path, base: Base, capsys=None
         rc = facewrap(*r.argv)
         lines = capsys.readouterr().err.strip().splitlines() if capsys else []
     return rc, lines, ctx, r
+
+
+def digest(folder: Path) -> dict:
+    """Name → SHA-256 of every file under ``folder`` (links followed)."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def check_inputs_kept(c: Case, ctx: Ctx, base_before: dict, base_folder: Path) -> None:
+    """No case modifies an input (its own or the shared sample); an error writes nothing."""
+    after = digest(ctx.dir)
+    if c.expect == "error":
+        assert after == ctx.before, "an error case wrote or changed files"
+    else:
+        changed = [k for k, h in ctx.before.items() if after.get(k) != h]
+        assert not changed, f"inputs modified: {changed}"
+    assert digest(base_folder) == base_before, "the shared sample was modified"
 
 
 @pytest.fixture(scope="module")
@@ -670,6 +877,7 @@ def test_hostile_input(c, base, tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rc, lines, ctx, r = run_case(c, tmp_path, base, capsys)
+    check_inputs_kept(c, ctx, base.digest, base.folder)
     culprit = str(r.culprit)
     if c.expect == "error":
         assert rc == 2, lines
@@ -845,8 +1053,12 @@ DOC_HEAD = """# Reliability: hostile inputs
 
 Generated by `python tests/test_hostile.py` from the corpus in `tests/test_hostile.py`
 (the test suite checks that this table lists every case). Each case starts from the
-built-in sample, breaks one file and runs `facewrap run` (job files), `facewrap batch`
-(manifests) or the reader itself (markers).
+built-in sample, breaks one file (or asks for an output where it must not go) and runs
+`facewrap run` (job files), `facewrap batch` (manifests), another command (the
+`outputs` cases: wrap, run, batch, transfer, track, evaluate, report, convert, animate,
+sample, demo) or the reader itself (markers). For every case the harness checks that
+no input changed (SHA-256 of every file before and after) and, for an error, that
+nothing at all was written.
 
 Behaviours: **error** — exit status 2, one line on stderr naming the file (and line)
 and the problem, nothing written; **job error** — in a batch, that job fails with one

@@ -9,18 +9,19 @@ topology (faces, UVs, groups, materials), each with its own texture when given.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from facewrap.io.atomic import atomic_write
 from facewrap.io.obj import write_obj
+from facewrap.io.paths import staged_outputs
 from facewrap.geometry.checks import as_points
 from facewrap.mesh import Mesh
 from facewrap.texture import interpolate_images, save_png
 
-__all__ = ["interpolate_vertices", "interpolate_textures", "write_obj_sequence"]
+__all__ = ["interpolate_vertices", "interpolate_textures", "write_obj_sequence",
+           "obj_sequence_files"]
 
 # Material given to every face when textured frames are written for a mesh that has
 # no per-face materials.
@@ -143,7 +144,7 @@ def write_obj_sequence(folder, mesh: Mesh, vertex_frames,
     ``<name>.png`` (``textures[k]``) and ``<name>.mtl``, whose materials (those of
     ``mesh``, or one material ``facewrap_texture`` on all faces when the mesh has
     none) all use that PNG as ``map_Kd``; the OBJ then refers to that ``.mtl`` only.
-    Every file is written atomically, the PNG and MTL of a frame before its OBJ.
+    The files are staged and moved into ``folder`` together (a failure leaves none).
 
     Parameters
     ----------
@@ -190,19 +191,37 @@ def write_obj_sequence(folder, mesh: Mesh, vertex_frames,
                              f"got {len(textures)}")
         if mesh.uvs is None or mesh.face_uvs is None:
             raise ValueError("textures need a mesh with texture coordinates")
-    folder = Path(folder)
-    os.makedirs(folder, exist_ok=True)
-    paths = []
-    for k, name in enumerate(names):   # one iteration per file written
-        path = folder / name
-        if textures is None:
-            write_obj(path, mesh.with_vertices(frames[k]))
-        else:
-            png, mtl = path.with_suffix(".png"), path.with_suffix(".mtl")
-            framed = _textured_mesh(mesh, frames[k], mtl.name)
-            save_png(png, textures[k])
-            with atomic_write(mtl, "w", encoding="utf-8", newline="\n") as fh:
-                fh.write(_mtl_text(framed.materials, png.name))
-            write_obj(path, framed)
-        paths.append(path)
-    return paths
+    final = Path(folder)
+    with staged_outputs() as stage:   # all frames appear together, or none
+        staged = stage.folder(final)
+        for k, name in enumerate(names):   # one iteration per file written
+            path = staged / name
+            if textures is None:
+                write_obj(path, mesh.with_vertices(frames[k]))
+            else:
+                png, mtl = path.with_suffix(".png"), path.with_suffix(".mtl")
+                framed = _textured_mesh(mesh, frames[k], mtl.name)
+                save_png(png, textures[k])
+                with atomic_write(mtl, "w", encoding="utf-8", newline="\n") as fh:
+                    fh.write(_mtl_text(framed.materials, png.name))
+                write_obj(path, framed)
+    return [final / name for name in names]
+
+
+def obj_sequence_files(folder, frames: int, pattern: str = "frame_{:04d}.obj",
+                       textures: bool = False) -> list[Path]:
+    """Every file :func:`write_obj_sequence` writes for ``frames`` frames.
+
+    Known before any work, so a command can check them against its inputs.
+
+    Examples
+    --------
+    >>> [p.name for p in obj_sequence_files("out", 2, textures=True)][:3]
+    ['frame_0000.obj', 'frame_0000.png', 'frame_0000.mtl']
+    """
+    out = []
+    for name in _frame_names(pattern, frames):
+        path = Path(folder) / name
+        out += [path] + ([path.with_suffix(".png"), path.with_suffix(".mtl")]
+                         if textures else [])
+    return out

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from facewrap.errors import InputError
 from facewrap.io.files import read_file_bytes
+from facewrap.io.paths import find_overlap
 from facewrap.jobs import WRAP, JobKind, kind_of, read_job_tables
 from facewrap.jobs.jobfile import (job_keys, job_values, require_job, settings_from_dict,
                                    settings_keys, settings_values)
@@ -331,14 +332,16 @@ def _check_batch(jobs: list[BatchJob], path) -> None:
                 raise InputError(f"jobs {other.index + 1} (line {other.line}) and "
                                  f"{bj.index + 1} both write {out!r}", path, bj.line)
             writers[key] = bj
+    outputs = list(writers)
     for bj in jobs:
-        for inp in bj.kind.inputs(bj.job):
-            key = os.path.realpath(inp)
-            if key in writers:
-                other = writers[key]
-                raise InputError(f"job {other.index + 1} (line {other.line}) writes "
-                                 f"{inp!r}, an input of job {bj.index + 1}; inputs are "
-                                 "never overwritten", path, bj.line)
+        # one job's output is, or lies in, another job's input (file or folder)
+        hit = find_overlap(outputs, bj.kind.inputs(bj.job))
+        if hit is not None:
+            other, relation = writers[hit[0]], hit[1]
+            inside = "" if relation.startswith("is also") else f" (it {relation})"
+            raise InputError(f"job {other.index + 1} (line {other.line}) writes "
+                             f"{hit[0]!r}, an input of job {bj.index + 1}{inside}; "
+                             "inputs are never overwritten", path, bj.line)
     names: dict[str, BatchJob] = {}
     for bj in jobs:
         if bj.name in names:

@@ -93,6 +93,10 @@ def main(argv=None) -> int:
     except FileNotFoundError as exc:
         print(f"facewrap: error: {exc.filename}: no such file", file=sys.stderr)
         return 2
+    except OSError as exc:  # a write that fails mid-run (disk full...): nothing is left
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"facewrap: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
     except ValueError as exc:  # inconsistent inputs found past the readers
         print(f"facewrap: error: {exc}", file=sys.stderr)
         return 2

@@ -6,6 +6,7 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
+from facewrap.io.paths import check_output_paths
 
 __all__ = ["register", "cmd_animate"]
 
@@ -13,7 +14,8 @@ __all__ = ["register", "cmd_animate"]
 def cmd_animate(args) -> int:
     """Frames between two fitted meshes of one topology, as an OBJ sequence."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
-    from facewrap.animation import interpolate_textures, interpolate_vertices, write_obj_sequence
+    from facewrap.animation import (interpolate_textures, interpolate_vertices,
+                                    obj_sequence_files, write_obj_sequence)
     from facewrap.io.images import load_image
     start, end = read_mesh(args.start), read_mesh(args.end)
     if (start.n_vertices != end.n_vertices
@@ -21,6 +23,10 @@ def cmd_animate(args) -> int:
         raise InputError(f"is not in the topology of {args.start} (vertex count or "
                          "faces differ)", args.end)
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
+    check_output_paths(files=obj_sequence_files(args.out, args.frames,
+                                                textures=bool(args.textures)),
+                       folders=[args.out],
+                       inputs=[args.start, args.end, *(args.textures or ())])
     textures = None
     if args.textures:
         a, b = (load_image(p) for p in args.textures)

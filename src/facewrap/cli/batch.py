@@ -35,6 +35,7 @@ def cmd_batch(args) -> int:
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
                                 record_matches, run_batch, summary_stem)
+    from facewrap.io.paths import check_output_paths
     jobs = read_manifest(args.manifest, job_file=args.job)
     if args.dry_run:
         for bj in jobs:
@@ -55,6 +56,11 @@ def cmd_batch(args) -> int:
             print(f"[{seen[0]}/{total}] {row['status']} {row['name']}{extra}", flush=True)
 
     stem = summary_stem(args.manifest, args.summary)
+    # the summary is one more output: apart from every job's inputs and outputs
+    check_output_paths(files=[stem + ".csv", stem + ".json"],
+                       inputs=[args.manifest, *([args.job] if args.job else []),
+                               *(p for bj in jobs for p in bj.kind.inputs(bj.job)),
+                               *(p for bj in jobs for p in bj.kind.outputs(bj.job))])
     result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
                        on_result=progress, manifest=os.path.abspath(args.manifest))
     counts = ", ".join(f"{result.count(s)} {s}" for s in ("done", "skipped", "failed"))

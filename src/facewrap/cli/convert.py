@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from facewrap.io import read_mesh, write_mesh
+from facewrap.io.paths import check_output_paths
 
 __all__ = ["register", "cmd_convert"]
 
 
 def cmd_convert(args) -> int:
     """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
+    check_output_paths(files=[args.output], inputs=[args.input])
     write_mesh(args.output, read_mesh(args.input))
     print(args.output)
     return 0

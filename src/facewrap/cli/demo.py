@@ -21,6 +21,7 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import write_vertex_indices
+from facewrap.io.paths import check_writable
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
 from facewrap.wrapping import WrapSettings
@@ -54,6 +55,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     from facewrap.report.page import build_report_page
     from facewrap.sample import make_scan, make_template, write_sample
     out = Path(out)
+    check_writable(folders=[out, out / "input", out / "report"])
     out.mkdir(parents=True, exist_ok=True)
     template = make_template()
     scan = make_scan(template)

@@ -18,6 +18,7 @@ from facewrap.geometry import similarity_transform
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.io.paths import check_output_paths, staged_outputs
 
 __all__ = ["register", "cmd_evaluate"]
 
@@ -115,6 +116,10 @@ def cmd_evaluate(args) -> int:
         raise InputError("--heatmap-of correspondence needs --ground-truth")
     if args.heatmap_of in ("area_ratio", "stretch") and args.reference is None:
         raise InputError(f"--heatmap-of {args.heatmap_of} needs --reference")
+    inputs = [args.result, args.scan, args.ground_truth, args.reference,
+              args.result_landmarks, args.scan_landmarks, args.mask]
+    check_output_paths(files=[p for p in (args.json, args.heatmap) if p],
+                       inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
     gt = ref = None
@@ -153,11 +158,12 @@ def cmd_evaluate(args) -> int:
         image = heatmap_figure(result, values, units=units, label=label, title=title,
                                caption=caption, frame=_frame(args, result, ref))
 
-    if args.json:
-        with atomic_write(args.json, "w") as fh:
-            json.dump(summary, fh, indent=1)
-    if image is not None:
-        save_png(args.heatmap, image)
+    with staged_outputs() as stage:
+        if args.json:
+            with atomic_write(stage.file(args.json), "w") as fh:
+                json.dump(summary, fh, indent=1)
+        if image is not None:
+            save_png(stage.file(args.heatmap), image)
     if not args.quiet:
         print(_format_line(summary, args.units))
         for p in (args.json, args.heatmap):

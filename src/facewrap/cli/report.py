@@ -6,6 +6,9 @@ reads the run's JSON report and the meshes it names and writes ``DIR/index.html`
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from facewrap.io.paths import check_output_paths
 
 __all__ = ["register", "cmd_report"]
 
@@ -14,6 +17,8 @@ def cmd_report(args) -> int:
     """Build the HTML page of a wrap run and print its path."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.report.page import build_report_page
+    check_output_paths(files=[Path(args.out) / "index.html"], folders=[args.out],
+                       inputs=[args.run_report, *(args.image or ())])
     page = build_report_page(args.run_report, args.out, images=args.image or (),
                              units=args.units, template_up=args.template_up,
                              template_front=args.template_front, title=args.title)

@@ -13,6 +13,7 @@ import os
 from facewrap.cli.transfer import print_transfer_summary
 from facewrap.cli.wrap import run_wrap_job_verbosely
 from facewrap.errors import InputError
+from facewrap.io.paths import check_writable
 from facewrap.jobs import TRANSFER, job_to_toml, kind_of, load_job, run_transfer_job, write_job
 
 __all__ = ["register", "cmd_run"]
@@ -23,6 +24,7 @@ def cmd_run(args) -> int:
     if args.write_template:
         if os.path.exists(args.job) and not args.force:
             raise InputError("already exists (use --force to replace it)", args.job)
+        check_writable(files=[args.job])
         write_job(args.job)
         if not args.quiet:
             print(f"wrote {args.job}")

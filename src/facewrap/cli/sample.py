@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from facewrap.io.paths import check_writable, staged_outputs
 
 __all__ = ["register", "cmd_sample"]
 
@@ -15,10 +16,12 @@ def cmd_sample(args) -> int:
     template = make_template()
     scan = make_scan(template)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = write_sample(out, template, scan)
+    check_writable(folders=[out])
+    with staged_outputs() as stage:   # every file of the sample appears, or none
+        staged = stage.folder(out)
+        paths = write_sample(staged, template, scan)
     for name, p in paths.items():
-        print(f"{name:>20}: {p}")
+        print(f"{name:>20}: {out / p.relative_to(staged)}")
     return 0
 
 

@@ -14,10 +14,12 @@ from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
 from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
+from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.jobs import read_mesh_landmarks
 from facewrap.progress import progress
 from facewrap.wrapping import track, write_track_outputs
+from facewrap.wrapping.track import track_output_files
 
 __all__ = ["register", "cmd_track"]
 
@@ -41,8 +43,13 @@ def _scan_paths(items) -> list[Path]:
 
 def cmd_track(args) -> int:
     """Track the template through the scans and write the sequence."""
-    template = read_mesh(args.template)
     scans = _scan_paths(args.scans)
+    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
+              *args.scan_landmarks, args.blendshapes, args.exclude]
+    # weights.csv is checked whether or not blend weights will be written
+    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
+                       inputs=[p for p in inputs if p])
+    template = read_mesh(args.template)
     if len(args.scan_landmarks) not in (1, len(scans)):
         raise InputError(f"give scan landmarks for the first frame or for all "
                          f"{len(scans)} frames, not {len(args.scan_landmarks)}",

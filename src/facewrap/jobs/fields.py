@@ -1,4 +1,4 @@
-"""How job dataclasses describe their fields, and the path check every job shares.
+"""How job dataclasses describe their fields, and the output guard every job shares.
 
 A field of a job dataclass (:class:`~facewrap.jobs.WrapJob`,
 :class:`~facewrap.jobs.TransferJob`) says in its ``metadata`` which job-file table
@@ -10,12 +10,12 @@ new key there.
 
 from __future__ import annotations
 
-import os
 from dataclasses import field
 
-from facewrap.errors import InputError
+# the one output guard, shared by every command (re-exported for job kinds)
+from facewrap.io.paths import check_output_paths, check_outputs_apart
 
-__all__ = ["input_field", "output_field", "check_outputs_apart"]
+__all__ = ["input_field", "output_field", "check_outputs_apart", "check_output_paths"]
 
 
 def input_field(**kw):
@@ -26,29 +26,3 @@ def input_field(**kw):
 def output_field(path: bool = True, **kw):
     """A dataclass field of the ``[outputs]`` table (a path unless ``path=False``)."""
     return field(metadata={"table": "outputs", "path": path}, **kw)
-
-
-def check_outputs_apart(outputs: list[str], inputs: list[str], source=None) -> None:
-    """No output is an input, and no two outputs are the same file.
-
-    Parameters
-    ----------
-    outputs, inputs : list of path
-    source : path, optional
-        Named in errors (job file, manifest); default the offending output.
-
-    Raises
-    ------
-    InputError
-    """
-    ins = {os.path.realpath(p) for p in inputs}
-    seen = set()
-    for o in outputs:
-        real = os.path.realpath(o)
-        if real in ins:
-            raise InputError(f"output {o!r} is also an input; inputs are never "
-                             "overwritten", source or o)
-        if real in seen:
-            raise InputError(f"two outputs of one job are the same file {o!r}",
-                             source or o)
-        seen.add(real)

@@ -26,7 +26,6 @@ settings are the ``[transfer]`` table.
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -41,7 +40,8 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.gltf import write_gltf_morphs
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj_vertices, write_obj
-from facewrap.jobs.fields import check_outputs_apart, input_field, output_field
+from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.jobs.fields import input_field, output_field
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -144,7 +144,10 @@ def transfer_job_outputs(job: TransferJob) -> list[str]:
 
 
 def check_transfer_job_paths(job: TransferJob, source=None) -> None:
-    """Check the outputs before any work: no input overwritten, no output twice.
+    """Check the outputs before any work: apart from inputs, writable, none twice.
+
+    The shape files written inside ``out`` are checked too once their names are
+    known (:func:`run_transfer_job`, after reading the shapes, before the fit).
 
     Parameters
     ----------
@@ -158,9 +161,13 @@ def check_transfer_job_paths(job: TransferJob, source=None) -> None:
     """
     if not job.source_shapes:
         raise InputError("no source shapes given", source or job.source_neutral)
+    # the correspondence cache is read when it exists, else written
     cache = [job.correspondence] if job.correspondence else []
-    check_outputs_apart(transfer_job_outputs(job), transfer_job_inputs(job) + cache,
-                        source)
+    cache_read = [p for p in cache if Path(p).is_file()]
+    cache_written = [p for p in cache if not Path(p).is_file()]
+    files = [p for p in (job.gltf, job.report) if p]
+    check_output_paths(files=files + cache_written, folders=[job.out],
+                       inputs=transfer_job_inputs(job) + cache_read, source=source)
 
 
 def read_source_shapes(items, reference) -> dict[str, np.ndarray]:
@@ -232,20 +239,20 @@ def _fit(job: TransferJob, inputs: dict):
                                                                          corr)
 
 
-def _write_shapes(job: TransferJob, target, names, results) -> list[str]:
-    """One OBJ per shape in ``job.out`` (and the GLB); returns the OBJ paths."""
-    out = Path(job.out)
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
+def _shape_files(job: TransferJob, names) -> list[Path]:
+    """The OBJ that each shape is written to, inside ``job.out``."""
+    return [Path(job.out) / f"{name}.obj" for name in names]
+
+
+def _write_shapes(job: TransferJob, stage, target, names, results) -> list[str]:
+    """One OBJ per shape in ``job.out`` (and the GLB), staged; returns the OBJ paths."""
+    folder = stage.folder(job.out)
     for name, X in zip(names, results):
-        path = out / f"{name}.obj"
-        write_obj(path, target.with_vertices(X))
-        written.append(str(path))
+        write_obj(folder / f"{name}.obj", target.with_vertices(X))
     if job.gltf:
-        Path(job.gltf).parent.mkdir(parents=True, exist_ok=True)
-        write_gltf_morphs(job.gltf, target, dict(zip(names, results)),
+        write_gltf_morphs(stage.file(job.gltf), target, dict(zip(names, results)),
                           scale=job.settings.gltf_scale)
-    return written
+    return [str(p) for p in _shape_files(job, names)]
 
 
 def _repairs(repairs, names) -> dict:
@@ -254,6 +261,27 @@ def _repairs(repairs, names) -> dict:
         return {}
     return {name: {k: int(v[i]) for k, v in repairs.items()}
             for i, name in enumerate(names) if repairs["found"][i]}
+
+
+def _report(job: TransferJob, model, names, written, ambiguity, times) -> dict:
+    """The job's report; ``times``: clock at read, fit, transfer, write, ambiguity, end."""
+    t0, t1, t2, t3, t4, t5 = times
+    corr = model.correspondence_
+    return {
+        "job": {k: v for k, v in asdict(job).items() if v is not None and k != "settings"},
+        "settings": asdict(job.settings),
+        "source": str(job.source_neutral), "target": str(job.target_neutral),
+        "method": ("landmark-guided" if job.settings.landmark_guided
+                   else "deformation transfer"),
+        "shapes": len(names), "outputs": written, "gltf": job.gltf,
+        "correspondence": {"file": job.correspondence, "pairs": len(corr), **corr.stats},
+        "flip_repairs": _repairs(getattr(model, "repairs_", None), names),
+        "ambiguity": ambiguity,
+        "metrics": {"shapes": len(names), "triangle_pairs": len(corr)},
+        "timings": {"read": t1 - t0, "fit": t2 - t1, "transfer": t3 - t2,
+                    "write": t4 - t3, "ambiguity": t5 - t4, "total": t5 - t0},
+        "warnings": [],
+    }
 
 
 def run_transfer_job(job: TransferJob) -> dict:
@@ -280,6 +308,9 @@ def run_transfer_job(job: TransferJob) -> dict:
     check_transfer_job_paths(job)
     t0 = time.perf_counter()
     inputs = _read_inputs(job)
+    # the files written inside the output folder, now that the shapes' names are known
+    check_output_paths(files=_shape_files(job, inputs["shapes"]),
+                       inputs=transfer_job_inputs(job))
     t1 = time.perf_counter()
     model = _fit(job, inputs)
     corr = model.correspondence_
@@ -291,31 +322,18 @@ def run_transfer_job(job: TransferJob) -> dict:
     poses = np.stack([inputs["shapes"][k] for k in names])
     results = model.transfer(poses)
     t3 = time.perf_counter()
-    written = _write_shapes(job, inputs["target"], names, results)
-    t4 = time.perf_counter()
-    ambiguity = None
-    if job.settings.ambiguity:
-        ambiguity = ambiguity_summary(partner_ambiguity(
-            corr, inputs["source"], inputs["target"], poses), inputs["target"])
-    t5 = time.perf_counter()
-    report = {
-        "job": {k: v for k, v in asdict(job).items() if v is not None and k != "settings"},
-        "settings": asdict(job.settings),
-        "source": str(job.source_neutral), "target": str(job.target_neutral),
-        "method": ("landmark-guided" if job.settings.landmark_guided
-                   else "deformation transfer"),
-        "shapes": len(names), "outputs": written, "gltf": job.gltf,
-        "correspondence": {"file": job.correspondence, "pairs": len(corr), **corr.stats},
-        "flip_repairs": _repairs(getattr(model, "repairs_", None), names),
-        "ambiguity": ambiguity,
-        "metrics": {"shapes": len(names), "triangle_pairs": len(corr)},
-        "timings": {"read": t1 - t0, "fit": t2 - t1, "transfer": t3 - t2,
-                    "write": t4 - t3, "ambiguity": t5 - t4, "total": t5 - t0},
-        "warnings": [],
-    }
-    if job.report:
-        os.makedirs(os.path.dirname(os.path.abspath(job.report)), exist_ok=True)
-        with atomic_write(job.report, "w") as fh:
-            json.dump(report, fh, indent=1)
+    with staged_outputs() as stage:
+        written = _write_shapes(job, stage, inputs["target"], names, results)
+        t4 = time.perf_counter()
+        ambiguity = None
+        if job.settings.ambiguity:
+            ambiguity = ambiguity_summary(partner_ambiguity(
+                corr, inputs["source"], inputs["target"], poses), inputs["target"])
+        t5 = time.perf_counter()
+        report = _report(job, model, names, written, ambiguity,
+                         (t0, t1, t2, t3, t4, t5))
+        if job.report:
+            with atomic_write(stage.file(job.report), "w") as fh:
+                json.dump(report, fh, indent=1)
     return report
 

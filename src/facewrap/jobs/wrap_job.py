@@ -33,9 +33,10 @@ from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
-from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
-from facewrap.jobs.fields import check_outputs_apart, input_field, output_field
+from facewrap.io.atomic import atomic_write
+from facewrap.io.paths import staged_outputs
+from facewrap.jobs.fields import check_output_paths, input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
@@ -115,7 +116,7 @@ def job_outputs(job: WrapJob) -> list[str]:
 
 
 def check_job_paths(job: WrapJob, source=None) -> None:
-    """Check output names before any work: formats known, no input overwritten.
+    """Check outputs before any work: formats known, apart from inputs, writable.
 
     Parameters
     ----------
@@ -133,7 +134,7 @@ def check_job_paths(job: WrapJob, source=None) -> None:
         raise InputError(f"output {job.output!r}: unknown mesh format "
                          f"{ext or '(no extension)'!r}; use .obj or .ply",
                          source or job.output)
-    check_outputs_apart(job_outputs(job), job_inputs(job), source)
+    check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
@@ -338,12 +339,34 @@ def load_wrap_inputs(job: WrapJob) -> dict:
             "texture": image, "scan_tree": tree, "warnings": notes}
 
 
+def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
+    """Mesh, baked texture and report, staged and moved into place together.
+
+    The texture is baked inside the stage, so a failure there leaves none of the
+    job's outputs behind (and an earlier run's outputs untouched).
+    """
+    with staged_outputs() as stage:
+        write_mesh(stage.file(job.output), result.mesh)
+        if inputs["texture"] is not None:
+            t = time.perf_counter()
+            baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
+                                 size=job.texture_size)
+            png = textureoutput_field(job)
+            save_png(stage.file(png), baked.image)
+            report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
+                                 "seconds": time.perf_counter() - t}
+        if job.report:
+            with atomic_write(stage.file(job.report), "w") as fh:
+                json.dump(report, fh, indent=1)
+
+
 def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                  graph_cache: GraphCache | None = None) -> dict:
     """Run one wrap job and write its outputs; returns the report as a dict.
 
-    The mesh, the texture and the report are each written atomically (a crash
-    never leaves a half-written file).  The report's ``"warnings"`` lists the
+    The mesh, the texture and the report are staged and moved into place together
+    (:func:`facewrap.io.paths.staged_outputs`): a failed or killed run leaves none
+    of them half-written or partial.  The report's ``"warnings"`` lists the
     legal-but-odd inputs met (each is also issued as an :class:`InputWarning`).
     ``graph_cache`` holds the template's deformation graphs between jobs (see
     :class:`~facewrap.wrapping.GraphCache`; default: the process-wide one), so the
@@ -368,7 +391,6 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                          job.scan)
     for note in notes:
         warnings.warn(note, InputWarning, stacklevel=2)
-    write_mesh(job.output, result.mesh)
     report = {"job": {k: v for k, v in asdict(job).items() if v is not None},
               "settings": asdict(result.settings),
               "vertices": result.mesh.n_vertices,
@@ -380,16 +402,5 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
-    if inputs["texture"] is not None:
-        t = time.perf_counter()
-        baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
-                             size=job.texture_size)
-        png = textureoutput_field(job)
-        save_png(png, baked.image)
-        report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
-                             "seconds": time.perf_counter() - t}
-    if job.report:
-        os.makedirs(os.path.dirname(os.path.abspath(job.report)), exist_ok=True)
-        with atomic_write(job.report, "w") as fh:
-            json.dump(report, fh, indent=1)
+    _write_wrap_outputs(job, result, inputs, report)
     return report

@@ -43,13 +43,18 @@ RUN_SECTIONS = ("warnings", "metrics", "ground_truth_error_mm", "timings",
 
 
 def _existing(path, report_path: Path, key: str) -> Path:
-    """A file the run names, from the current folder or else the report's folder."""
+    """A file the run names: a relative path from the report's own folder first.
+
+    The report's folder comes first so that a file of the same name in the current
+    folder (another run's ``out.obj``) is never shown instead of the run's own; the
+    current folder is still tried for reports written with paths relative to it.
+    """
     p = Path(path)
-    for candidate in (p, report_path.parent / p):
+    for candidate in (report_path.parent / p, p):
         if candidate.is_file():
             return candidate
-    raise InputError(f"the run's {key} {str(path)!r} is missing (looked in the "
-                     f"current folder and in {report_path.parent})", report_path)
+    raise InputError(f"the run's {key} {str(path)!r} is missing (looked in "
+                     f"{report_path.parent} and in the current folder)", report_path)
 
 
 def load_run_report(report_path) -> dict:

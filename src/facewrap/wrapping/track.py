@@ -27,6 +27,7 @@ import numpy as np
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.paths import staged_outputs
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.wrapping.icp.schedule import Stage
@@ -166,32 +167,51 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
     return TrackResult(frames, weights, list(frames[0].shape_names), np.array(given))
 
 
+def track_output_files(folder, n_frames: int, *, prefix: str = "frame",
+                       weights: bool = True) -> list[Path]:
+    """The files :func:`write_track_outputs` writes for ``n_frames`` frames.
+
+    Known before the fit, so a command can check them against its inputs.
+
+    Examples
+    --------
+    >>> [p.name for p in track_output_files("out", 2, weights=False)]
+    ['frame_0000.obj', 'frame_0001.obj', 'track.json']
+    """
+    folder = Path(folder)
+    width = max(4, len(str(n_frames - 1)))
+    meshes = [folder / f"{prefix}_{i:0{width}d}.obj" for i in range(n_frames)]
+    return meshes + ([folder / "weights.csv"] if weights else []) + [folder / "track.json"]
+
+
 def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
                         extra_report: dict | None = None) -> dict:
     """Write ``prefix_0000.obj``…, ``weights.csv`` and ``track.json`` into ``folder``.
 
-    Each file is written atomically.  Returns the paths written.
+    The files are staged and moved into ``folder`` together
+    (:func:`facewrap.io.paths.staged_outputs`): a failure leaves none of them.
+    Returns the paths written.
     """
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    width = max(4, len(str(len(result.frames) - 1)))
-    meshes = []
-    for i, r in enumerate(result.frames):
-        path = folder / f"{prefix}_{i:0{width}d}.obj"
-        write_mesh(path, r.mesh)
-        meshes.append(path)
-    paths = {"meshes": meshes}
-    if result.weights is not None:
-        buf = _io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["frame", *result.shape_names])
-        for i, row in enumerate(result.weights):
-            w.writerow([i, *(f"{x:.6f}" for x in row)])
-        with atomic_write(folder / "weights.csv", "w") as fh:
-            fh.write(buf.getvalue())
-        paths["weights"] = folder / "weights.csv"
-    report = {"frames": result.summary(), **(extra_report or {})}
-    with atomic_write(folder / "track.json", "w") as fh:
-        json.dump(report, fh, indent=1)
-    paths["report"] = folder / "track.json"
+    has_weights = result.weights is not None
+    final = track_output_files(folder, len(result.frames), prefix=prefix,
+                               weights=has_weights)
+    with staged_outputs() as stage:
+        staged = stage.folder(folder)
+        for path, r in zip(final, result.frames):
+            write_mesh(staged / path.name, r.mesh)
+        if has_weights:
+            buf = _io.StringIO()
+            w = csv.writer(buf, lineterminator="\n")
+            w.writerow(["frame", *result.shape_names])
+            for i, row in enumerate(result.weights):
+                w.writerow([i, *(f"{x:.6f}" for x in row)])
+            with atomic_write(staged / "weights.csv", "w") as fh:
+                fh.write(buf.getvalue())
+        report = {"frames": result.summary(), **(extra_report or {})}
+        with atomic_write(staged / "track.json", "w") as fh:
+            json.dump(report, fh, indent=1)
+    paths = {"meshes": final[:len(result.frames)]}
+    if has_weights:
+        paths["weights"] = final[-2]
+    paths["report"] = final[-1]
     return paths
