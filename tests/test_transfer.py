@@ -71,3 +71,25 @@ def test_cli_bad_inputs_name_the_file(pair, tmp_path):
     with pytest.raises(InputError, match="wrong.obj"):
         _run_cli(base + ["--source-shapes", str(tmp_path / "wrong.obj"), "--markers",
                          str(tmp_path / "m.txt")])
+
+
+@pytest.mark.parametrize("name,ok", [("o.gltf", True), ("o.obj", False)])
+def test_cli_transfer_gltf_form_by_extension_and_refused_before_the_fit(pair, tmp_path,
+                                                                         name, ok):
+    face, scan, markers, shapes, _ = pair
+    write_obj(tmp_path / "src.obj", face)
+    write_obj(tmp_path / "tgt.obj", scan)
+    (tmp_path / "shapes").mkdir()
+    write_obj(tmp_path / "shapes" / "smile.obj", face.with_vertices(shapes["smile"]))
+    (tmp_path / "m.txt").write_text(f"{len(markers[0])}\n" + "".join(
+        f"{a} {b}\n" for a, b in zip(*markers)))
+    argv = [str(tmp_path / "src.obj"), str(tmp_path / "tgt.obj"), "--source-shapes",
+            str(tmp_path / "shapes"), "--markers", str(tmp_path / "m.txt"), "-o",
+            str(tmp_path / "out"), "--gltf", str(tmp_path / name), "-q"]
+    if ok:
+        assert _run_cli(argv) == 0
+        assert json.loads((tmp_path / name).read_text())["asset"]["version"] == "2.0"
+    else:
+        with pytest.raises(InputError, match=r"\.glb \(binary\) or \.gltf"):
+            _run_cli(argv)
+        assert not (tmp_path / "out").exists() and not (tmp_path / name).exists()

@@ -68,10 +68,11 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--landmark-guided", action="store_true",
                    help="Onizuka et al. 2019: landmark motion with per-part frames")
     p.add_argument("--parts", help="face parts JSON (default: 51-point iBUG layout)")
-    p.add_argument("--gltf", metavar="OUT.glb",
-                   help="also write a GLB with the target neutral and named morph targets")
+    p.add_argument("--gltf", metavar="OUT.glb|OUT.gltf",
+                   help="also write glTF (binary .glb or JSON .gltf, by extension) with the "
+                        "target neutral and named morph targets")
     p.add_argument("--gltf-scale", type=float, default=TransferJobSettings.gltf_scale,
-                   help="scale positions in the GLB (0.01 for cm -> m; default 1)")
+                   help="scale positions in the glTF file (0.01 for cm -> m; default 1)")
     p.add_argument("--correspondence", metavar="F.npz",
                    help="reuse this correspondence file, or compute and save it here")
     p.add_argument("--anchor", type=int, default=None,

@@ -37,7 +37,7 @@ from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.gltf import write_gltf_morphs
+from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
@@ -161,6 +161,8 @@ def check_transfer_job_paths(job: TransferJob, source=None) -> None:
     """
     if not job.source_shapes:
         raise InputError("no source shapes given", source or job.source_neutral)
+    if job.gltf:  # .glb or .gltf: refused before the fit, not after the shapes are written
+        gltf_format(job.gltf)
     # the correspondence cache is read when it exists, else written
     cache = [job.correspondence] if job.correspondence else []
     cache_read = [p for p in cache if Path(p).is_file()]
