@@ -358,11 +358,9 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                   inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
                   blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
                   graph_cache=graph_cache)
-    notes = list(inputs["warnings"])
-    scale = float(result.transform.scale)
-    if not 0.05 <= scale <= 20:
-        notes.append(f"{job.scan}: the template was scaled by {scale:.4g} to fit the "
-                     "scan; are both in the same units?")
+    # the wrap's own plausibility warnings (scale, landmarks, scan faces) follow
+    # those of the files
+    notes = list(inputs["warnings"]) + list(result.warnings)
     if not np.isfinite(result.mesh.vertices).all():
         raise InputError("the fit produced non-finite positions (degenerate input?)",
                          job.scan)
