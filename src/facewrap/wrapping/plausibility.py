@@ -32,7 +32,7 @@ from facewrap.mesh import Mesh
 
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT",
            "landmark_spread", "robust_similarity", "check_reflection",
-           "swapped_pairs", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
+           "swapped_pairs", "mispaired_landmarks", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
            "unique_faces", "opposed_normal_fraction", "checked_scan", "check_scale"]
 
 #: refuse a landmark similarity when the best mirrored fit's residual is below this
@@ -60,12 +60,13 @@ def landmark_spread(points) -> float:
 
 
 def robust_similarity(sources, targets, weights=None, *, scale: bool = True,
-                      iterations: int = 6) -> tuple[Similarity, np.ndarray]:
+                      iterations: int = 15) -> tuple[Similarity, np.ndarray]:
     """Similarity of ``sources`` onto ``targets`` that outliers do not drag.
 
-    Iteratively reweighted Umeyama with Cauchy weights of width a tenth of the
-    sources' spread, so a few mis-paired landmarks keep their large residuals
-    instead of spreading them over all.
+    Iteratively reweighted Umeyama with Cauchy weights whose width shrinks from
+    twice the sources' spread to a tenth of it (graduated, so the reweighting
+    does not lock onto the first fit's tilt), then stays there: a few mis-paired
+    landmarks keep their large residuals instead of spreading them over all.
 
     Parameters
     ----------
@@ -74,6 +75,8 @@ def robust_similarity(sources, targets, weights=None, *, scale: bool = True,
         Prior weights of the pairs (``alignment_weights``).
     scale : bool
         Estimate a uniform scale.
+    iterations : int
+        Reweightings (>= 4).
 
     Returns
     -------
@@ -94,12 +97,14 @@ def robust_similarity(sources, targets, weights=None, *, scale: bool = True,
     X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
     prior = np.ones(len(X)) if weights is None else np.asarray(weights, np.float64)
     spread = landmark_spread(X)
+    widths = np.full(iterations, 0.1)
+    widths[:-3] = np.geomspace(2.0, 0.1, max(iterations - 3, 0))
     w = prior
-    for _ in range(iterations):
+    for width in widths:
         similarity = similarity_transform(X, Y, weights=w, scale=scale)
         residuals = (np.linalg.norm(similarity.apply(X) - Y, axis=1)
                      / (similarity.scale * spread))
-        w = prior / (1.0 + (residuals / 0.1) ** 2)
+        w = prior / (1.0 + (residuals / width) ** 2)
     return similarity, residuals
 
 
@@ -179,6 +184,26 @@ def swapped_pairs(aligned, targets, spread: float) -> np.ndarray:
     return np.argwhere(np.triu(swap, k=1)).astype(np.int64)
 
 
+def mispaired_landmarks(sources, targets, weights=None, *, scale: bool = True
+                        ) -> tuple[Similarity, np.ndarray, np.ndarray]:
+    """The robust similarity, its residuals and the landmarks it calls mis-paired.
+
+    Returns
+    -------
+    similarity : Similarity
+    residuals : (k,) float64
+        Over the sources' spread (:func:`robust_similarity`).
+    flagged : (k,) bool
+        Residual above ``RESIDUAL_LIMIT``, or one of a :func:`swapped_pairs` pair.
+    """
+    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
+    similarity, residuals = robust_similarity(X, Y, weights, scale=scale)
+    flagged = residuals > RESIDUAL_LIMIT
+    spread = similarity.scale * landmark_spread(X)
+    flagged[swapped_pairs(similarity.apply(X), Y, spread).ravel()] = True
+    return similarity, residuals, flagged
+
+
 def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=None, *,
                              scale: bool = True, show: int = 3) -> list[str]:
     """Warn about landmarks that a robust similarity leaves far from their targets
@@ -203,14 +228,12 @@ def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=Non
         landmark whose place each target is nearest; else empty.
     """
     X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
-    similarity, residuals = robust_similarity(X, Y, weights, scale=scale)
-    spread = landmark_spread(X)
-    aligned = similarity.apply(X)
-    flagged = residuals > RESIDUAL_LIMIT
-    flagged[swapped_pairs(aligned, Y, similarity.scale * spread).ravel()] = True
+    similarity, residuals, flagged = mispaired_landmarks(X, Y, weights, scale=scale)
     bad = np.flatnonzero(flagged)
     if not len(bad):
         return []
+    spread = landmark_spread(X)
+    aligned = similarity.apply(X)
     # where each target lies on the aligned template: another landmark's place
     # points at a wrong order or a left/right swap
     nearest = np.argmin(np.linalg.norm(aligned[None, :] - Y[bad, None], axis=2), axis=1)
@@ -280,9 +303,11 @@ def check_landmarks(template_landmarks: Landmarks, template_positions,
     Returns
     -------
     warnings : list of str
-    similarity : Similarity
+    similarity : Similarity or None
         The robust template → scan similarity (:func:`robust_similarity`), which
-        mis-paired landmarks do not tilt: the scan checks place the template by it.
+        a few mis-paired landmarks do not tilt: the scan checks place the template
+        by it.  None when half the landmarks or more are mis-paired or the input
+        is mirrored (nothing places the template then).
 
     Raises
     ------
@@ -294,11 +319,12 @@ def check_landmarks(template_landmarks: Landmarks, template_positions,
     notes += duplicated_landmarks(scan_positions, scan_landmarks, "scan")
     X, Y = template_positions[ia], scan_positions[ib]
     mirrored = check_reflection(X, Y, weights, scale=scale, allow_mirrored=allow_mirrored)
-    notes += mirrored
-    if not mirrored:  # a mirrored input leaves every landmark far: said already
-        notes += check_landmark_residuals(X, Y, template_landmarks.subset(ia), weights,
-                                          scale=scale)
-    return notes, robust_similarity(X, Y, weights, scale=scale)[0]
+    if mirrored:  # a mirrored input leaves every landmark far: said already
+        return notes + mirrored, None
+    notes += check_landmark_residuals(X, Y, template_landmarks.subset(ia), weights,
+                                      scale=scale)
+    similarity, _, flagged = mispaired_landmarks(X, Y, weights, scale=scale)
+    return notes, similarity if flagged.mean() < 0.5 else None
 
 
 def unique_faces(triangles) -> np.ndarray:
@@ -355,8 +381,9 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     scan : Mesh
     tree : ClosestPointTree or None
         The scan's tree, if built (rebuilt only when the scan changes).
-    aligned_template : (n, 3) float
-        Template vertices under the landmark similarity.
+    aligned_template : (n, 3) float or None
+        Template vertices under the landmark similarity; None when nothing places
+        the template (mis-paired landmarks): the faces' orientation is not checked.
     template_triangles : (t, 3) int
     mask : (n,) bool, optional
         Template vertices that take part (not excluded ones).
@@ -378,11 +405,13 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
         T, tree = T[keep], None
     if tree is None:
         tree = ClosestPointTree(scan.vertices, T)
-    aligned = np.asarray(aligned_template, np.float64)
-    normals = vertex_normals(aligned, template_triangles)
-    if mask is not None:
-        aligned, normals = aligned[mask], normals[mask]
-    opposed = opposed_normal_fraction(aligned, T, normals, tree, 0.05 * scan.scale())
+    opposed = float("nan")
+    if aligned_template is not None:
+        aligned = np.asarray(aligned_template, np.float64)
+        normals = vertex_normals(aligned, template_triangles)
+        if mask is not None:
+            aligned, normals = aligned[mask], normals[mask]
+        opposed = opposed_normal_fraction(aligned, T, normals, tree, 0.05 * scan.scale())
     if opposed > OPPOSED_LIMIT:
         notes.append(f"scan: {100 * opposed:.0f} % of the scan under the template faces "
                      "inward (its faces are flipped); the fit uses them reversed")

@@ -220,10 +220,12 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     notes, similarity = check_landmarks(template_landmarks, template_points,
                                         scan_landmarks, scan_points, (ia, ib), weights,
                                         scale=s.scale, allow_mirrored=s.allow_mirrored)
-    notes += check_scale(similarity.scale)
-    scan, tree, scan_notes = checked_scan(scan, scan_tree,
-                                          similarity.apply(template.vertices),
-                                          template.triangles, mask=~excluded)
+    aligned = None
+    if similarity is not None:
+        notes += check_scale(similarity.scale)
+        aligned = similarity.apply(template.vertices)
+    scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
+                                          mask=~excluded)
     return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
                        template_points[ia], scan_points[ib], weights, excluded,
                        blendshapes, s, spec,
