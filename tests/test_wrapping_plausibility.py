@@ -198,6 +198,7 @@ def test_cli_refuses_a_mirrored_scan_and_warns_about_a_flipped_one(sample, tmp_p
     assert not out.exists()
     assert run(flipped, paths["scan_landmarks"]) == 0
     err = capsys.readouterr().err
-    assert "facewrap: warning:" in err and "flipped" in err
+    (line,) = [w for w in err.splitlines() if "flipped" in w]
+    assert line.startswith(f"facewrap: warning: {flipped}: ")
     assert any("flipped" in w for w in json.loads(report.read_text())["warnings"])
     assert _digest(tmp_path / "in") == before

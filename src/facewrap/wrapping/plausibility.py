@@ -18,7 +18,9 @@ the wrong thing silently (issue 16):
 * :func:`check_scale` — a similarity scale that suggests other units.
 
 :func:`checked_scan` runs the last three on the scan; :func:`check_landmarks` the
-first three on the pairs.  Every check returns its warnings as one-line strings.
+first three on the pairs.  Every check returns its warnings as one-line strings,
+each starting with what it is about ("scan: ", "scan landmarks: ", "template
+landmarks: "), so a job can put the file's name there.
 """
 
 from __future__ import annotations
@@ -147,7 +149,7 @@ def check_reflection(sources, targets, weights=None, *, scale: bool = True,
                     mirrored, Y, w)
     if not improper < MIRROR_RATIO * proper:
         return []
-    message = (f"the scan landmarks match a mirror image of the template's (residual "
+    message = (f"scan landmarks: they match a mirror image of the template's (residual "
                f"{improper:.3g} mirrored against {proper:.3g} not, in scan units): is the "
                "scan or its landmark file mirrored (left and right swapped)?")
     if not allow_mirrored:
@@ -246,7 +248,7 @@ def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=Non
         if nearest[j] != i:
             text += f", nearest {landmarks.label(nearest[j])}'s place"
         parts.append(text)
-    return [f"{len(bad)} of {len(X)} landmarks are far from their scan partners after "
+    return [f"scan landmarks: {len(bad)} of {len(X)} are far from their template partners after "
             f"the similarity (template units; % of the landmarks' spread, "
             f"{spread:.3g}): {'; '.join(parts)}: wrong order, pairing or a left/right "
             "swap? The fit follows them: check the landmark files"]
@@ -278,7 +280,7 @@ def duplicated_landmarks(positions, landmarks: Landmarks, what: str) -> list[str
         return []
     pairs = ", ".join(f"{landmarks.label(a)} and {landmarks.label(b)}"
                       for a, b in zip(i[:3], j[:3]))
-    return [f"{len(i)} pair(s) of {what} landmarks are at the same point ({pairs}"
+    return [f"{what} landmarks: {len(i)} pair(s) at the same point ({pairs}"
             f"{', ...' if len(i) > 3 else ''}): a landmark given twice?"]
 
 
@@ -427,5 +429,5 @@ def check_scale(scale: float) -> list[str]:
     lo, hi = SCALE_RANGE
     if lo <= scale <= hi:
         return []
-    return [f"the template was scaled by {scale:.4g} to fit the scan (more than "
+    return [f"scan: the template was scaled by {scale:.4g} to fit the scan (more than "
             f"{1 / lo:g} times up or down): are both in the same units?"]
