@@ -248,9 +248,9 @@ def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=Non
         if nearest[j] != i:
             text += f", nearest {landmarks.label(nearest[j])}'s place"
         parts.append(text)
-    return [f"scan landmarks: {len(bad)} of {len(X)} are far from their template partners after "
-            f"the similarity (template units; % of the landmarks' spread, "
-            f"{spread:.3g}): {'; '.join(parts)}: wrong order, pairing or a left/right "
+    return [f"scan landmarks: {len(bad)} of {len(X)} landmarks are far from their template "
+            f"partners after the similarity (template units; % of the landmarks' "
+            f"spread, {spread:.3g}): {'; '.join(parts)}: wrong order, pairing or a left/right "
             "swap? The fit follows them: check the landmark files"]
 
 
