@@ -162,3 +162,22 @@ def test_real_landmark_files():
     assert (src[0], tgt[0]) == (2653, 1316)
     five = read_landmarks(DATA / "scans/meshmonk/DemoFaceLandmarks.csv")
     assert len(five) == 5
+
+
+def test_pair_landmarks_refuses_names_on_one_side_only():
+    named = Landmarks.from_vertices([0, 1, 2], names=["a", "b", "c"])
+    unnamed = Landmarks.from_points(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="the template landmarks have names and the "
+                                         "scan landmarks have none"):
+        pair_landmarks(named, unnamed, ("template", "scan"))
+    with pytest.raises(ValueError, match="the scan landmarks have names"):
+        pair_landmarks(unnamed, named, ("template", "scan"))
+    ia, ib = pair_landmarks(Landmarks.from_vertices([0, 1, 2]), unnamed)
+    assert ia.tolist() == ib.tolist() == [0, 1, 2]
+    # iBUG-68 names in their order (a menpo .ljson) beside 68 plain ids: by order
+    ibug = Landmarks.from_points(np.zeros((68, 3)), names=IBUG68_NAMES)
+    ia, ib = pair_landmarks(Landmarks.from_vertices(np.arange(68)), ibug)
+    assert ia.tolist() == ib.tolist() == list(range(68))
+    shuffled = Landmarks.from_points(np.zeros((68, 3)), names=IBUG68_NAMES[::-1])
+    with pytest.raises(ValueError, match="have names"):
+        pair_landmarks(Landmarks.from_vertices(np.arange(68)), shuffled)

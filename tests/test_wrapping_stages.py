@@ -9,6 +9,8 @@ import pytest
 from facewrap.cli import main
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template, write_sample
 from facewrap.wrapping import GraphCache, WrapSettings, fit_metrics, wrap
 from facewrap.wrapping.stages import (align, fit_model, prepare_wrap, project,
@@ -206,3 +208,24 @@ def test_wraps_share_a_graph_cache_the_caller_can_clear(sample):
     np.testing.assert_allclose(again.vertices, first.vertices, atol=1e-12)
     cache.clear()
     assert len(cache) == 0
+
+
+def test_prepare_wrap_keeps_a_clean_scan_and_reports_no_warnings(sample, problem):
+    _, scan, _ = sample
+    assert problem.warnings == ()
+    assert problem.scan is scan.mesh
+
+
+def test_wrap_result_carries_the_plausibility_warnings(sample):
+    template, scan, _ = sample
+    P = scan.landmarks.points.copy()
+    P[31] = P[30]  # one scan landmark given twice
+    result = wrap(template.mesh, scan.mesh, template.landmarks,
+                  Landmarks.from_points(P, scan.landmarks.names), WrapSettings(model="rbf"))
+    names = scan.landmarks.names
+    assert [w for w in result.warnings if f"{names[30]} and {names[31]}" in w]
+    with pytest.raises(ValueError, match="mirror"):
+        wrap(template.mesh, Mesh(scan.mesh.vertices * [-1, 1, 1], scan.mesh.triangles),
+             template.landmarks,
+             Landmarks.from_points(scan.landmarks.points * [-1, 1, 1], names),
+             WrapSettings(model="rbf"))

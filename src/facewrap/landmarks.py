@@ -224,11 +224,18 @@ def snap_to_surface(landmarks: Landmarks, vertices, triangles
     return Landmarks(landmarks.vertex, tri, bary, points, landmarks.names), dist
 
 
-def pair_landmarks(a: Landmarks, b: Landmarks) -> tuple[np.ndarray, np.ndarray]:
+def pair_landmarks(a: Landmarks, b: Landmarks, what: tuple[str, str] = ("first", "second")
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Indices ``(ia, ib)`` such that ``a[ia[j]]`` corresponds to ``b[ib[j]]``.
 
     Both named: matched by name (landmarks whose name is only in one set are left
-    out; no common name is an error).  Otherwise by order, and the counts must agree.
+    out; no common name is an error).  Both unnamed: by order, and the counts must
+    agree.  Names on one side only: paired by order when the named side is
+    :data:`IBUG68_NAMES` in that order (the convention of 68-point files, as a
+    menpo ``.ljson`` is read) and the other has 68 landmarks; otherwise an error,
+    since the named side's order is not known to be the other's (pairing them by
+    order silently mis-pairs a file in another order).  ``what`` names the two
+    sets in error messages (e.g. ``("template", "scan")``).
 
     Examples
     --------
@@ -244,6 +251,14 @@ def pair_landmarks(a: Landmarks, b: Landmarks) -> tuple[np.ndarray, np.ndarray]:
             raise ValueError("the two landmark sets have no name in common")
         ib = [pos_b[a.names[i]] for i in ia]
         return np.asarray(ia, dtype=np.int64), np.asarray(ib, dtype=np.int64)
+    one_sided = (a.names is None) != (b.names is None)
+    named_set = a if a.names is not None else b
+    if one_sided and not (len(a) == len(b) == 68
+                          and tuple(named_set.names) == IBUG68_NAMES):
+        named, unnamed = what if a.names is not None else what[::-1]
+        raise ValueError(f"the {named} landmarks have names and the {unnamed} landmarks "
+                         "have none: cannot tell which correspond (give both sets "
+                         "names, or neither and the same order)")
     if len(a) != len(b):
         raise ValueError(f"landmark counts differ: {len(a)} vs {len(b)}")
     idx = np.arange(len(a), dtype=np.int64)

@@ -381,11 +381,13 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                   inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
                   blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
                   graph_cache=graph_cache)
-    notes = list(inputs["warnings"])
-    scale = float(result.transform.scale)
-    if not 0.05 <= scale <= 20:
-        notes.append(f"{job.scan}: the template was scaled by {scale:.4g} to fit the "
-                     "scan; are both in the same units?")
+    # the wrap's own plausibility warnings (scale, landmarks, scan faces) follow
+    # those of the files, each naming the file it is about
+    files = {"scan": job.scan, "scan landmarks": job.scan_landmarks,
+             "template landmarks": job.template_landmarks}
+    notes = list(inputs["warnings"]) + [
+        f"{files[about]}: {text}" if about in files else f"{about}: {text}"
+        for about, _, text in (note.partition(": ") for note in result.warnings)]
     if not np.isfinite(result.mesh.vertices).all():
         raise InputError("the fit produced non-finite positions (degenerate input?)",
                          job.scan)

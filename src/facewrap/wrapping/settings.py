@@ -96,6 +96,10 @@ class WrapSettings:
         template's size (default 0.002, a fraction of a millimetre on a head);
         0 keeps landmarks exactly, which costs accuracy on the ground-truth
         cases (landmarks are noisy): pin only landmarks you trust.
+    allow_mirrored : bool
+        Fit landmarks that only a mirror image of the template matches (a mirrored
+        scan or landmark file) with a warning instead of refusing them
+        (:func:`~facewrap.wrapping.plausibility.check_reflection`).
     """
     model: str = "auto"
     scale: bool = True
@@ -116,6 +120,7 @@ class WrapSettings:
     landmark_scale: float = 1.0
     landmark_pull: bool = True
     landmark_tolerance: float = 0.002
+    allow_mirrored: bool = False
 
     #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
     #: the CLI and job files take their choices from here
@@ -139,6 +144,7 @@ class WrapSettings:
         "landmark_scale": Interval(float, 0, None),
         "landmark_pull": Flag(),
         "landmark_tolerance": Interval(float, 0, None),
+        "allow_mirrored": Flag(),
     }
 
     def __post_init__(self):

@@ -28,6 +28,7 @@ from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
+from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked_scan
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.projection import Projection, project_to_surface
@@ -63,6 +64,10 @@ class WrapResult:
         Fitted blend weights (blendshape and hybrid models).
     shape_names : list of str
         Names of the blendshapes, in the order of ``weights``.
+    warnings : list of str
+        One line per implausible input met (:mod:`facewrap.wrapping.plausibility`):
+        mis-paired landmarks, duplicates, flipped or duplicated scan faces, a
+        scale that suggests other units.  Empty for a clean run.
     """
     mesh: Mesh
     transform: Similarity
@@ -74,6 +79,7 @@ class WrapResult:
     history: list = field(default_factory=list)
     weights: np.ndarray | None = None
     shape_names: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
 
     @property
     def vertices(self) -> np.ndarray:
@@ -121,9 +127,12 @@ class WrapProblem:
 
     Attributes
     ----------
-    template, scan : Mesh
+    template : Mesh
+    scan : Mesh
+        The scan as fitted: without duplicated faces, faces turned the template's
+        way (see ``warnings``).
     tree : ClosestPointTree
-        The scan's tree.
+        Its tree.
     landmarks : Landmarks
         Template landmarks on the mesh that have a scan partner, in pair order.
     sources : (l, 3) float64
@@ -140,6 +149,8 @@ class WrapProblem:
     spec : ModelSpec
         The model's registry entry.
     graph_cache : GraphCache
+    warnings : tuple of str
+        The plausibility checks' warnings.
     """
     template: Mesh
     scan: Mesh
@@ -153,6 +164,7 @@ class WrapProblem:
     settings: WrapSettings
     spec: ModelSpec
     graph_cache: GraphCache
+    warnings: tuple = ()
 
 
 def _excluded_mask(exclude, n: int) -> np.ndarray:
@@ -187,7 +199,9 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     ------
     ValueError
         For a model that needs blendshapes without them, fewer than 3 landmark
-        pairs, template landmarks far off the template, or a bad ``exclude``.
+        pairs, template landmarks far off the template, landmarks that only a
+        mirror image matches (unless ``settings.allow_mirrored``), or a bad
+        ``exclude``.
     """
     s = replace(settings or WrapSettings())
     spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
@@ -196,18 +210,27 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         raise ValueError(f"model {s.model!r} needs blendshapes")
     if not template_landmarks.on_mesh:
         template_landmarks = _snapped_template_landmarks(template, template_landmarks)
-    ia, ib = pair_landmarks(template_landmarks, scan_landmarks)
+    ia, ib = pair_landmarks(template_landmarks, scan_landmarks, ("template", "scan"))
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
     excluded = _excluded_mask(exclude, template.n_vertices)
-    tree = scan_tree if scan_tree is not None else ClosestPointTree(scan.vertices,
-                                                                    scan.triangles)
+    template_points = template_landmarks.positions(template)
+    scan_points = scan_landmarks.positions(scan)
+    weights = alignment_weights(template_landmarks, ia)
+    notes, similarity = check_landmarks(template_landmarks, template_points,
+                                        scan_landmarks, scan_points, (ia, ib), weights,
+                                        scale=s.scale, allow_mirrored=s.allow_mirrored)
+    aligned = None
+    if similarity is not None:
+        notes += check_scale(similarity.scale)
+        aligned = similarity.apply(template.vertices)
+    scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
+                                          mask=~excluded)
     return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
-                       template_landmarks.positions(template)[ia],
-                       scan_landmarks.positions(scan)[ib],
-                       alignment_weights(template_landmarks, ia), excluded,
+                       template_points[ia], scan_points[ib], weights, excluded,
                        blendshapes, s, spec,
-                       DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache)
+                       DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,
+                       tuple(notes + scan_notes))
 
 
 def align(problem: WrapProblem, initial: WrapResult | None = None) -> Similarity:
@@ -369,7 +392,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         metrics["landmark_pull"] = pull
     return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
                       metrics, settings=problem.settings, history=fitted.history,
-                      weights=fitted.weights, shape_names=fitted.shape_names)
+                      weights=fitted.weights, shape_names=fitted.shape_names,
+                      warnings=list(problem.warnings))
 
 
 #: template landmarks given as points may lie this far off the template's surface

@@ -1,0 +1,433 @@
+"""Plausibility checks of a wrap's inputs: refuse what cannot fit, warn and fix the rest.
+
+A wrap fits whatever it is given; these checks catch the inputs that make it fit
+the wrong thing silently (issue 16):
+
+* :func:`check_reflection` — the landmarks need a mirror image to match (a mirrored
+  scan or landmark file): refused, unless ``WrapSettings.allow_mirrored``.
+* :func:`check_landmark_residuals` — after a robust similarity, some landmark is
+  farther from its target than the landmarks are from their centre, or two
+  landmarks fit far better swapped: a wrong order, pairing or left/right swap.
+  Expressions move landmarks too (an open jaw drops the chin and lips by up to
+  two thirds of the spread on the built-in sample and the ICT cases), but move
+  neighbours alike, so no swap fits them better.
+* :func:`duplicated_landmarks` — two landmarks at the same point.
+* :func:`unique_faces` — faces listed twice (same three vertices) are dropped.
+* :func:`opposed_normal_fraction` — the scan's faces turned away from the aligned
+  template's (every face flipped): the scan's faces are reversed for the fit.
+* :func:`check_scale` — a similarity scale that suggests other units.
+
+:func:`checked_scan` runs the last three on the scan; :func:`check_landmarks` the
+first three on the pairs.  Every check returns its warnings as one-line strings,
+each starting with what it is about ("scan: ", "scan landmarks: ", "template
+landmarks: "), so a job can put the file's name there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
+from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
+
+__all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT",
+           "landmark_spread", "robust_similarity", "check_reflection",
+           "swapped_pairs", "mispaired_landmarks", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
+           "unique_faces", "opposed_normal_fraction", "checked_scan", "check_scale"]
+
+#: refuse a landmark similarity when the best mirrored fit's residual is below this
+#: fraction of the best proper fit's (nearly planar or few landmarks fit both alike)
+MIRROR_RATIO = 0.5
+#: warn when a landmark stays farther than this (fraction of the landmarks' spread)
+#: from its target after the robust similarity
+RESIDUAL_LIMIT = 1.0
+#: similarity scales outside this range suggest template and scan in other units
+#: (cm to mm, 10, is common and fine)
+SCALE_RANGE = (0.05, 20.0)
+#: the scan's faces are taken as flipped when more than this fraction of the
+#: template vertices near the scan face the opposite way
+OPPOSED_LIMIT = 0.5
+#: landmarks off by less than this (fraction of the spread) are never called swapped
+SWAP_MINIMUM = 0.3
+#: landmarks closer than this (fraction of the landmarks' spread) are the same point
+SAME_POINT = 1e-6
+
+
+def landmark_spread(points) -> float:
+    """Root-mean-square distance of ``points`` (k, 3) from their centroid."""
+    P = np.asarray(points, dtype=np.float64)
+    return float(np.sqrt(((P - P.mean(axis=0)) ** 2).sum(axis=1).mean()))
+
+
+def robust_similarity(sources, targets, weights=None, *, scale: bool = True,
+                      iterations: int = 15) -> tuple[Similarity, np.ndarray]:
+    """Similarity of ``sources`` onto ``targets`` that outliers do not drag.
+
+    Iteratively reweighted Umeyama with Cauchy weights whose width shrinks from
+    twice the sources' spread to a tenth of it (graduated, so the reweighting
+    does not lock onto the first fit's tilt), then stays there: a few mis-paired
+    landmarks keep their large residuals instead of spreading them over all.
+
+    Parameters
+    ----------
+    sources, targets : (k, 3) float, k >= 3
+    weights : (k,) float, optional
+        Prior weights of the pairs (``alignment_weights``).
+    scale : bool
+        Estimate a uniform scale.
+    iterations : int
+        Reweightings (>= 4).
+
+    Returns
+    -------
+    similarity : Similarity
+    residuals : (k,) float64
+        Distances left after it, in the sources' units, over their spread.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> X = rng.normal(size=(20, 3))
+    >>> Y = 3 * X + 1
+    >>> Y[0] += 10
+    >>> S, r = robust_similarity(X, Y)
+    >>> round(S.scale, 3), bool(r[0] > 1), bool(r[1:].max() < 1e-3)
+    (3.0, True, True)
+    """
+    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
+    prior = np.ones(len(X)) if weights is None else np.asarray(weights, np.float64)
+    spread = landmark_spread(X)
+    widths = np.full(iterations, 0.1)
+    widths[:-3] = np.geomspace(2.0, 0.1, max(iterations - 3, 0))
+    w = prior
+    for width in widths:
+        similarity = similarity_transform(X, Y, weights=w, scale=scale)
+        residuals = (np.linalg.norm(similarity.apply(X) - Y, axis=1)
+                     / (similarity.scale * spread))
+        w = prior / (1.0 + (residuals / width) ** 2)
+    return similarity, residuals
+
+
+def _rms(similarity: Similarity, X, Y, w) -> float:
+    d2 = ((similarity.apply(X) - Y) ** 2).sum(axis=1)
+    return float(np.sqrt(w @ d2 / w.sum()))
+
+
+def check_reflection(sources, targets, weights=None, *, scale: bool = True,
+                     allow_mirrored: bool = False) -> list[str]:
+    """Refuse landmark pairs that only a mirror image matches.
+
+    The best proper similarity (det +1) is compared with the best improper one
+    (the sources mirrored first); only when the mirrored fit leaves less than
+    ``MIRROR_RATIO`` of the proper fit's residual is the input called mirrored.
+
+    Parameters
+    ----------
+    sources, targets : (k, 3) float
+    weights : (k,) float, optional
+    scale : bool
+    allow_mirrored : bool
+        Warn instead of refusing.
+
+    Returns
+    -------
+    list of str
+        The warning (with ``allow_mirrored``), else empty.
+
+    Raises
+    ------
+    ValueError
+        For a mirrored input.
+    """
+    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
+    w = np.ones(len(X)) if weights is None else np.asarray(weights, np.float64)
+    mirrored = X * np.array([-1.0, 1.0, 1.0])
+    proper = _rms(similarity_transform(X, Y, weights=w, scale=scale), X, Y, w)
+    improper = _rms(similarity_transform(mirrored, Y, weights=w, scale=scale),
+                    mirrored, Y, w)
+    if not improper < MIRROR_RATIO * proper:
+        return []
+    message = (f"scan landmarks: they match a mirror image of the template's (residual "
+               f"{improper:.3g} mirrored against {proper:.3g} not, in scan units): is the "
+               "scan or its landmark file mirrored (left and right swapped)?")
+    if not allow_mirrored:
+        raise ValueError(message + " (set allow_mirrored to fit it anyway)")
+    return [message]
+
+
+def swapped_pairs(aligned, targets, spread: float) -> np.ndarray:
+    """Pairs of landmarks that would fit far better with their targets swapped.
+
+    Both must be off by more than ``SWAP_MINIMUM`` of ``spread`` and the swap must
+    more than halve their summed distance: an expression moves neighbours alike
+    (an open mouth drops both lips) and does not do that.
+
+    Parameters
+    ----------
+    aligned : (k, 3) float
+        Template landmarks under the similarity.
+    targets : (k, 3) float
+        Their scan partners.
+    spread : float
+        The aligned landmarks' spread.
+
+    Returns
+    -------
+    (p, 2) int64
+        Index pairs ``i < j``.
+    """
+    C = np.linalg.norm(aligned[:, None] - targets[None], axis=2) / spread
+    own = np.diag(C)
+    pair_own = own[:, None] + own[None]
+    far = own > SWAP_MINIMUM
+    swap = far[:, None] & far[None] & (C + C.T < 0.5 * pair_own)
+    return np.argwhere(np.triu(swap, k=1)).astype(np.int64)
+
+
+def mispaired_landmarks(sources, targets, weights=None, *, scale: bool = True
+                        ) -> tuple[Similarity, np.ndarray, np.ndarray]:
+    """The robust similarity, its residuals and the landmarks it calls mis-paired.
+
+    Returns
+    -------
+    similarity : Similarity
+    residuals : (k,) float64
+        Over the sources' spread (:func:`robust_similarity`).
+    flagged : (k,) bool
+        Residual above ``RESIDUAL_LIMIT``, or one of a :func:`swapped_pairs` pair.
+    """
+    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
+    similarity, residuals = robust_similarity(X, Y, weights, scale=scale)
+    flagged = residuals > RESIDUAL_LIMIT
+    spread = similarity.scale * landmark_spread(X)
+    flagged[swapped_pairs(similarity.apply(X), Y, spread).ravel()] = True
+    return similarity, residuals, flagged
+
+
+def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=None, *,
+                             scale: bool = True, show: int = 3) -> list[str]:
+    """Warn about landmarks that a robust similarity leaves far from their targets
+    or that fit far better swapped (:func:`swapped_pairs`).
+
+    Parameters
+    ----------
+    sources, targets : (k, 3) float
+        The paired template and scan landmark positions.
+    landmarks : Landmarks
+        The template landmarks in pair order (their labels name the worst).
+    weights : (k,) float, optional
+    scale : bool
+    show : int
+        How many of the worst landmarks to name.
+
+    Returns
+    -------
+    list of str
+        One warning naming the worst landmarks, their residuals in the template's
+        units and as a percentage of the landmarks' spread, and (when one is) the
+        landmark whose place each target is nearest; else empty.
+    """
+    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
+    similarity, residuals, flagged = mispaired_landmarks(X, Y, weights, scale=scale)
+    bad = np.flatnonzero(flagged)
+    if not len(bad):
+        return []
+    spread = landmark_spread(X)
+    aligned = similarity.apply(X)
+    # where each target lies on the aligned template: another landmark's place
+    # points at a wrong order or a left/right swap
+    nearest = np.argmin(np.linalg.norm(aligned[None, :] - Y[bad, None], axis=2), axis=1)
+    worst = np.argsort(-residuals[bad], kind="stable")[:show]
+    parts = []
+    for j in worst:
+        i = bad[j]
+        text = (f"{landmarks.label(i)} off by {residuals[i] * spread:.3g} "
+                f"({100 * residuals[i]:.0f} %)")
+        if nearest[j] != i:
+            text += f", nearest {landmarks.label(nearest[j])}'s place"
+        parts.append(text)
+    return [f"scan landmarks: {len(bad)} of {len(X)} landmarks are far from their template "
+            f"partners after the similarity (template units; % of the landmarks' "
+            f"spread, {spread:.3g}): {'; '.join(parts)}: wrong order, pairing or a left/right "
+            "swap? The fit follows them: check the landmark files"]
+
+
+def duplicated_landmarks(positions, landmarks: Landmarks, what: str) -> list[str]:
+    """Warn about landmarks at the same point (or the same vertex).
+
+    Parameters
+    ----------
+    positions : (k, 3) float
+        Where ``landmarks`` are.
+    landmarks : Landmarks
+    what : str
+        "template" or "scan", for the message.
+
+    Returns
+    -------
+    list of str
+        One warning naming up to three coinciding pairs, or empty.
+    """
+    P = np.asarray(positions, np.float64)
+    if len(P) < 2:
+        return []
+    tolerance = SAME_POINT * max(landmark_spread(P), 1e-300)
+    d = np.linalg.norm(P[:, None] - P[None], axis=2)
+    i, j = np.nonzero(np.triu(d <= tolerance, k=1))
+    if not len(i):
+        return []
+    pairs = ", ".join(f"{landmarks.label(a)} and {landmarks.label(b)}"
+                      for a, b in zip(i[:3], j[:3]))
+    return [f"{what} landmarks: {len(i)} pair(s) at the same point ({pairs}"
+            f"{', ...' if len(i) > 3 else ''}): a landmark given twice?"]
+
+
+def check_landmarks(template_landmarks: Landmarks, template_positions,
+                    scan_landmarks: Landmarks, scan_positions, pairs, weights, *,
+                    scale: bool = True, allow_mirrored: bool = False
+                    ) -> tuple[list[str], Similarity]:
+    """The landmark checks of a wrap: duplicates on either side, reflection,
+    residuals.
+
+    Parameters
+    ----------
+    template_landmarks, scan_landmarks : Landmarks
+        The full sets.
+    template_positions, scan_positions : (a, 3), (b, 3) float
+        Where they are.
+    pairs : ((l,) int, (l,) int)
+        ``pair_landmarks`` of the two sets.
+    weights : (l,) float
+        The pairs' alignment weights.
+
+    Returns
+    -------
+    warnings : list of str
+    similarity : Similarity or None
+        The robust template → scan similarity (:func:`robust_similarity`), which
+        a few mis-paired landmarks do not tilt: the scan checks place the template
+        by it.  None when half the landmarks or more are mis-paired or the input
+        is mirrored (nothing places the template then).
+
+    Raises
+    ------
+    ValueError
+        For a mirrored input (see :func:`check_reflection`).
+    """
+    ia, ib = pairs
+    notes = duplicated_landmarks(template_positions, template_landmarks, "template")
+    notes += duplicated_landmarks(scan_positions, scan_landmarks, "scan")
+    X, Y = template_positions[ia], scan_positions[ib]
+    mirrored = check_reflection(X, Y, weights, scale=scale, allow_mirrored=allow_mirrored)
+    if mirrored:  # a mirrored input leaves every landmark far: said already
+        return notes + mirrored, None
+    notes += check_landmark_residuals(X, Y, template_landmarks.subset(ia), weights,
+                                      scale=scale)
+    similarity, _, flagged = mispaired_landmarks(X, Y, weights, scale=scale)
+    return notes, similarity if flagged.mean() < 0.5 else None
+
+
+def unique_faces(triangles) -> np.ndarray:
+    """(m,) bool: the first of every set of triangles on the same three vertices
+    (whatever their order or winding).
+
+    >>> unique_faces([[0, 1, 2], [1, 2, 3], [2, 1, 0], [0, 1, 2]]).tolist()
+    [True, True, False, False]
+    """
+    T = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
+    keep = np.zeros(len(T), dtype=bool)
+    if len(T):
+        keep[np.unique(T, axis=0, return_index=True)[1]] = True
+    return keep
+
+
+def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree,
+                            max_distance: float) -> float:
+    """Fraction of points whose closest scan triangle faces against their normal.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Template vertices aligned to the scan.
+    triangles : (m, 3) int
+        The scan's triangles (as in ``tree``).
+    normals : (n, 3) float
+        The aligned template's vertex normals.
+    tree : ClosestPointTree
+        The scan.
+    max_distance : float
+        Points farther from the scan, or closest to its border, do not count.
+
+    Returns
+    -------
+    float
+        In [0, 1]; NaN when no point counts.
+    """
+    cp = tree.query(vertices)
+    near = (cp.distances <= max_distance) & ~tree.boundary_triangles[cp.triangles]
+    if not near.any():
+        return float("nan")
+    scan_normals = face_normals(tree.vertices, triangles)[cp.triangles[near]]
+    return float(np.mean(np.einsum("ij,ij->i", scan_normals, normals[near]) < 0))
+
+
+def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
+                 template_triangles, mask=None) -> tuple[Mesh, ClosestPointTree, list[str]]:
+    """The scan as the fit should see it: duplicated faces dropped, faces turned
+    the template's way; with its tree and a warning for each change.
+
+    Parameters
+    ----------
+    scan : Mesh
+    tree : ClosestPointTree or None
+        The scan's tree, if built (rebuilt only when the scan changes).
+    aligned_template : (n, 3) float or None
+        Template vertices under the landmark similarity; None when nothing places
+        the template (mis-paired landmarks): the faces' orientation is not checked.
+    template_triangles : (t, 3) int
+    mask : (n,) bool, optional
+        Template vertices that take part (not excluded ones).
+
+    Returns
+    -------
+    scan : Mesh
+        ``scan`` itself when nothing was changed, else a triangle mesh of its
+        vertices (UVs dropped: the fit needs none).
+    tree : ClosestPointTree
+    warnings : list of str
+    """
+    notes = []
+    T = scan.triangles
+    keep = unique_faces(T)
+    if not keep.all():
+        notes.append(f"scan: {int((~keep).sum())} of {len(T)} triangles repeat another's "
+                     "vertices (duplicated faces); the fit uses each once")
+        T, tree = T[keep], None
+    if tree is None:
+        tree = ClosestPointTree(scan.vertices, T)
+    opposed = float("nan")
+    if aligned_template is not None:
+        aligned = np.asarray(aligned_template, np.float64)
+        normals = vertex_normals(aligned, template_triangles)
+        if mask is not None:
+            aligned, normals = aligned[mask], normals[mask]
+        opposed = opposed_normal_fraction(aligned, T, normals, tree, 0.05 * scan.scale())
+    if opposed > OPPOSED_LIMIT:
+        notes.append(f"scan: {100 * opposed:.0f} % of the scan under the template faces "
+                     "inward (its faces are flipped); the fit uses them reversed")
+        T = T[:, ::-1]
+        tree = ClosestPointTree(scan.vertices, T)
+    if notes:
+        scan = Mesh(scan.vertices, T)
+    return scan, tree, notes
+
+
+def check_scale(scale: float) -> list[str]:
+    """A warning when the template is scaled by more than ``SCALE_RANGE`` allows."""
+    lo, hi = SCALE_RANGE
+    if lo <= scale <= hi:
+        return []
+    return [f"scan: the template was scaled by {scale:.4g} to fit the scan (more than "
+            f"{1 / lo:g} times up or down): are both in the same units?"]
