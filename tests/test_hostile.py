@@ -596,6 +596,58 @@ def scan_other_scale(ctx):
     return Run(p, ["run", ctx.job(scan=p, scan_landmarks=lm)])
 
 
+# -- plausibility: inputs that read fine but cannot be fitted as given -------------------
+MIRROR_X = np.array([-1.0, 1.0, 1.0])
+
+
+@case("plausibility", "mirrored scan with mirrored landmarks", "error", "mirror image")
+def mirrored_scan_and_landmarks(ctx):
+    p = ctx.mesh("scan.obj", ctx.base.scan_V * MIRROR_X, ctx.base.scan_T[:, ::-1])
+    lm = ctx.points("scan_landmarks.txt", ctx.base.points * MIRROR_X)
+    return ctx.run(lm, scan=p, scan_landmarks=lm)
+
+
+@case("plausibility", "jaw landmarks in reversed order", "warning",
+      "wrong order, pairing or a left/right")
+def jaw_landmarks_reversed(ctx):
+    P = ctx.base.points.copy()
+    P[:17] = P[:17][::-1]
+    lm = ctx.points("scan_landmarks.txt", P)
+    return ctx.run(lm, scan_landmarks=lm)
+
+
+@case("plausibility", "scan landmarks named, template landmarks not", "error",
+      "names")
+def landmark_names_on_one_side(ctx):
+    text = "".join(f"{x!r} {y!r} {z!r} point_{i}\n"
+                   for i, (x, y, z) in enumerate(ctx.base.points.tolist()))
+    lm = ctx.write("scan_landmarks.txt", text)
+    return ctx.run(lm, scan_landmarks=lm)
+
+
+@case("plausibility", "a scan landmark given twice", "warning", "at the same point")
+def landmark_given_twice(ctx):
+    P = ctx.base.points.copy()
+    P[30] = P[33]
+    lm = ctx.points("scan_landmarks.txt", P)
+    return ctx.run(lm, scan_landmarks=lm)
+
+
+@case("plausibility", "every scan face flipped", "warning", "faces are flipped",
+      check=fits_like_base)
+def scan_faces_flipped(ctx):
+    p = ctx.mesh("scan.obj", ctx.base.scan_V, ctx.base.scan_T[:, ::-1])
+    return ctx.run(p, scan=p)
+
+
+@case("plausibility", "every scan face duplicated", "warning", "duplicated faces",
+      check=fits_like_base)
+def scan_faces_duplicated(ctx):
+    T = ctx.base.scan_T
+    p = ctx.mesh("scan.obj", ctx.base.scan_V, np.vstack([T, T]))
+    return ctx.run(p, scan=p)
+
+
 def equals_template(ctx, V):
     T = read_mesh(ctx.base.paths["template"]).vertices
     np.testing.assert_allclose(V, T, atol=1e-9 * np.ptp(T))

@@ -186,16 +186,23 @@ def test_cli_refuses_a_mirrored_scan_and_warns_about_a_flipped_one(sample, tmp_p
     before = _digest(tmp_path / "in")
     out, report = tmp_path / "out" / "fit.obj", tmp_path / "out" / "r.json"
 
-    def run(scan_path, points):
+    def run(scan_path, points, *extra, quiet=True):
         return main(["wrap", str(paths["template"]), str(scan_path), "-o", str(out),
                      "--template-landmarks", str(paths["template_landmarks"]),
                      "--scan-landmarks", str(points), "--model", "rbf",
-                     "--report", str(report), "-q"])
+                     "--report", str(report), *extra, *(["-q"] if quiet else [])])
     capsys.readouterr()
     assert run(mirrored, mirrored_points) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "mirror" in err[0] and "Traceback" not in err[0]
+    assert err[0].startswith(f"facewrap: error: {mirrored_points}: ")   # names the file
     assert not out.exists()
+    # allowed: fitted, with the warning, and the summary line says there were warnings
+    assert run(mirrored, mirrored_points, "--allow-mirrored", quiet=False) == 0
+    captured = capsys.readouterr()
+    assert any("mirror" in w for w in captured.err.splitlines())
+    assert "warning(s) above: check the inputs" in captured.out
+    out.unlink()
     assert run(flipped, paths["scan_landmarks"]) == 0
     err = capsys.readouterr().err
     (line,) = [w for w in err.splitlines() if "flipped" in w]

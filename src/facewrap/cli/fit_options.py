@@ -62,6 +62,9 @@ def add_fit_options(p) -> None:
     p.add_argument("--no-project", action="store_true", help="skip the projection")
     p.add_argument("--rigid-refine", action="store_true",
                    help="refine the alignment with rigid ICP")
+    p.add_argument("--allow-mirrored", action="store_true",
+                   help="fit landmarks that match a mirror image of the template's "
+                        "(refused by default: usually a mirrored scan or landmark file)")
 
 
 def wrap_settings_from_args(args) -> WrapSettings:
@@ -81,4 +84,5 @@ def wrap_settings_from_args(args) -> WrapSettings:
                                       else tuple(args.weight_range)),
                         blend_order=args.blend_order,
                         landmark_pull=not args.no_landmark_pull,
-                        landmark_tolerance=args.landmark_tolerance)
+                        landmark_tolerance=args.landmark_tolerance,
+                        allow_mirrored=args.allow_mirrored)

@@ -27,10 +27,13 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
     if not quiet:
         m, t = report["metrics"], report["timings"]
+        # a run with warnings is never summed up as if it were fine
+        flag = (f"; {len(report['warnings'])} warning(s) above: check the inputs"
+                if report.get("warnings") else "")
         print(f"wrote {job.output}: {report['vertices']} vertices, model "
               f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
               f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
-              f"{t['total']:.2f} s")
+              f"{t['total']:.2f} s{flag}")
     return report
 
 

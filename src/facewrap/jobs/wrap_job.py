@@ -377,14 +377,20 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     t0 = time.perf_counter()
     inputs = load_wrap_inputs(job)
     read_seconds = time.perf_counter() - t0
-    result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
-                  inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
-                  blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
-                  graph_cache=graph_cache)
-    # the wrap's own plausibility warnings (scale, landmarks, scan faces) follow
-    # those of the files, each naming the file it is about
+    # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
+    # here that becomes the file, in its warnings and in a refusal alike
     files = {"scan": job.scan, "scan landmarks": job.scan_landmarks,
              "template landmarks": job.template_landmarks}
+    try:
+        result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
+                      inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
+                      blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
+                      graph_cache=graph_cache)
+    except ValueError as exc:
+        about, _, text = str(exc).partition(": ")
+        if about in files:
+            raise InputError(text, files[about]) from None
+        raise
     notes = list(inputs["warnings"]) + [
         f"{files[about]}: {text}" if about in files else f"{about}: {text}"
         for about, _, text in (note.partition(": ") for note in result.warnings)]

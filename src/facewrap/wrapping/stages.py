@@ -210,7 +210,10 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         raise ValueError(f"model {s.model!r} needs blendshapes")
     if not template_landmarks.on_mesh:
         template_landmarks = _snapped_template_landmarks(template, template_landmarks)
-    ia, ib = pair_landmarks(template_landmarks, scan_landmarks, ("template", "scan"))
+    try:
+        ia, ib = pair_landmarks(template_landmarks, scan_landmarks, ("template", "scan"))
+    except ValueError as exc:  # say what it is about, so a job can name the file
+        raise ValueError(f"scan landmarks: {exc}") from None
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
     excluded = _excluded_mask(exclude, template.n_vertices)
