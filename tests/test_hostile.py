@@ -288,6 +288,30 @@ def ply_huge_count(ctx):
     return ctx.run(p, scan=p)
 
 
+def sparse_file(ctx, name: str, head: bytes, size: int = 2 << 30) -> Path:
+    """A file of ``size`` bytes that is ``head`` and then a hole (takes no disk)."""
+    p = ctx.dir / name
+    with open(p, "wb") as fh:
+        fh.write(head)
+        fh.truncate(size)
+    return p
+
+
+@case("PLY", "2 GB sparse binary PLY claiming 10^8 vertices", "error", "needs at least")
+def ply_sparse_2gb(ctx):
+    head = (b"ply\nformat binary_little_endian 1.0\nelement vertex 100000000\n"
+            b"property double x\nproperty double y\nproperty double z\n"
+            b"element face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    p = sparse_file(ctx, "scan.ply", head)
+    return ctx.run(p, scan=p)
+
+
+@case("OBJ", "2 GB sparse OBJ (a few vertices, then a hole)", "error", "binary data")
+def obj_sparse_2gb(ctx):
+    p = sparse_file(ctx, "scan.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    return ctx.run(p, scan=p)
+
+
 @case("PLY", "face index out of range", "error", "out of range")
 def ply_index_out_of_range(ctx):
     text = ply_bytes(ctx, binary=False).decode().rstrip("\n").rsplit(" ", 1)[0]
@@ -648,6 +672,23 @@ def scan_faces_duplicated(ctx):
     return ctx.run(p, scan=p)
 
 
+@case("plausibility", "left and right eye landmarks swapped", "warning",
+      "wrong order, pairing or a left/right")
+def eyes_swapped(ctx):
+    P = ctx.base.points.copy()
+    P[36:42], P[42:48] = ctx.base.points[42:48], ctx.base.points[36:42]
+    lm = ctx.points("scan_landmarks.txt", P)
+    return ctx.run(lm, scan_landmarks=lm)
+
+
+@case("plausibility", "scan landmarks shuffled", "warning",
+      "wrong order, pairing or a left/right")
+def landmarks_shuffled(ctx):
+    order = np.random.default_rng(5).permutation(len(ctx.base.points))
+    lm = ctx.points("scan_landmarks.txt", ctx.base.points[order])
+    return ctx.run(lm, scan_landmarks=lm)
+
+
 def equals_template(ctx, V):
     T = read_mesh(ctx.base.paths["template"]).vertices
     np.testing.assert_allclose(V, T, atol=1e-9 * np.ptp(T))
@@ -791,6 +832,14 @@ def transfer_into_source_shapes(ctx):
     return Run(shapes, transfer_argv(ctx, p, shapes, "-o", shapes))
 
 
+@case("outputs", "transfer --gltf with neither .glb nor .gltf", "error", r"\.glb \(binary\)")
+def transfer_gltf_extension(ctx):
+    p = sample_copy(ctx)
+    shapes = p["blendshapes/blink"].parent
+    bad = ctx.dir / "shapes.obj"
+    return Run(bad, transfer_argv(ctx, p, shapes, "-o", ctx.dir / "out", "--gltf", bad))
+
+
 @case("outputs", "transfer: a source shape file inside -o", "error", "also an input")
 def transfer_shape_file_in_out(ctx):
     p = sample_copy(ctx)
@@ -896,9 +945,28 @@ def run_case(c: Case, folder: Path, base: Base, capsys=None
     return rc, lines, ctx, r
 
 
+#: files larger than this (the sparse 2 GB cases) are fingerprinted, not read whole
+WHOLE_HASH_LIMIT = 64 << 20
+
+
+def file_fingerprint(p: Path) -> str:
+    """SHA-256 of the file; for a huge one, of its size, mtime and first and last MiB
+    (any write to it changes its mtime; reading 2 GB of holes twice per case would
+    cost seconds and the case's memory)."""
+    st = p.stat()
+    if st.st_size <= WHOLE_HASH_LIMIT:
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+    h = hashlib.sha256(f"{st.st_size} {st.st_mtime_ns}".encode())
+    with open(p, "rb") as fh:
+        h.update(fh.read(1 << 20))
+        fh.seek(-(1 << 20), os.SEEK_END)
+        h.update(fh.read())
+    return h.hexdigest()
+
+
 def digest(folder: Path) -> dict:
-    """Name → SHA-256 of every file under ``folder`` (links followed)."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+    """Name → fingerprint of every file under ``folder`` (links followed)."""
+    return {str(p.relative_to(folder)): file_fingerprint(p)
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
