@@ -128,3 +128,49 @@ def test_sigkill_mid_batch_then_resume(data, tmp_path):
         assert read_mesh(out / f"r{k}.obj").n_vertices == n_template
         assert (out / f"r{k}.obj.done.json").is_file()
     assert not list(out.glob(".tmp-*"))
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_killing_the_batch_alone_ends_its_workers(data, tmp_path, sig):
+    """Only the main process is signalled (as a supervisor or `kill PID` would): its
+    fork server and workers must not go on running the queued jobs."""
+    out = tmp_path / "orphans"
+    n = 12
+    m = manifest(data, out, n)
+    cmd = batch_command() + [str(m), "--job", str(data / "shared.toml"), "--workers", "2"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    try:
+        while not list(out.glob("r*.done.json")):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "batch too slow to start"
+            time.sleep(0.01)
+        os.kill(proc.pid, sig)
+        proc.wait(timeout=30)
+        gone_by = time.monotonic() + 5
+        while _group_alive(proc.pid) and time.monotonic() < gone_by:
+            time.sleep(0.05)
+        assert not _group_alive(proc.pid), "workers outlived the killed batch"
+    finally:
+        if _group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+    if sig == signal.SIGINT:
+        err = proc.stderr.read().decode().strip().splitlines()
+        assert proc.returncode == 130 and err[-1] == "facewrap: interrupted", err
+    finished = {p.name for p in out.glob("r*.done.json")}
+    assert len(finished) < n                                 # it did stop early
+    rerun = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 0, rerun.stderr
+    for k in range(n):
+        assert read_mesh(out / f"r{k}.obj").n_vertices > 0
+    assert not list(out.glob(".facewrap-staged-*")) or sig == signal.SIGKILL

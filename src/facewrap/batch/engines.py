@@ -11,7 +11,9 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
 import time
+from multiprocessing.connection import wait
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 
@@ -52,6 +54,27 @@ _started = None
 def _pool_init(started) -> None:
     global _started
     _started = started
+    exit_with_parent()
+
+
+def exit_with_parent() -> None:
+    """End this worker as soon as the process that started the pool is gone.
+
+    A killed (or interrupted) batch must not leave workers that go on running the
+    jobs already queued to them: a daemon thread waits on the parent's sentinel
+    (closed by the kernel when that process dies, whatever killed it) and ends the
+    worker at once.  Its job's outputs are staged, so nothing partial is left, and
+    it has no done-record, so a re-run does it again.
+    """
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not a multiprocessing child
+        return
+
+    def watch():
+        wait([parent.sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="facewrap-exit-with-parent", daemon=True).start()
 
 
 def _run_tracked(func, bj) -> dict:
@@ -110,7 +133,7 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
             batch, alone = [isolated.pop(0)], True
         else:
             batch, todo, alone = todo, [], False
-        finished = set()
+        finished, interrupted = set(), False
         for bj in batch:
             started[bj.index] = 0
         with single_threaded_blas():
@@ -123,6 +146,13 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
                 row = fut.result()
                 finished.add(row["index"])
                 report(row)
+        except KeyboardInterrupt:
+            # Ctrl-C: stop the workers now rather than after their running jobs
+            # (their outputs are staged: nothing partial is left behind)
+            interrupted = True
+            for worker in multiprocessing.active_children():
+                worker.terminate()
+            raise
         except BrokenProcessPool:
             if alone:
                 report(summary_row(batch[0], FAILED, error="the worker process died "
@@ -132,7 +162,7 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
                                                    idle_breaks)
             isolated += more
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            pool.shutdown(wait=not interrupted, cancel_futures=True)
 
 
 def run_on_dask(jobs, address, workers: int, report, func) -> None:

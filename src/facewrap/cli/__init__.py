@@ -97,6 +97,9 @@ def main(argv=None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"facewrap: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
+        print("facewrap: interrupted", file=sys.stderr)
+        return 130
     except ValueError as exc:  # inconsistent inputs found past the readers
         print(f"facewrap: error: {exc}", file=sys.stderr)
         return 2
