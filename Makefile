@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test test-lowest bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,8 +18,18 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# The suite again, against the lowest numpy and scipy that pyproject.toml allows
+LOWEST := .venv-lowest
+test-lowest:
+	$(PYTHON) -m venv $(LOWEST)
+	$(LOWEST)/bin/python -m pip install --quiet --upgrade pip
+	$(LOWEST)/bin/python -m pip install --quiet --prefer-binary -e ".[test]" \
+		$$($(PYTHON) .ci/lowest_pins.py numpy scipy)
+	$(LOWEST)/bin/python -c "import numpy, scipy; print('lowest: numpy', numpy.__version__, 'scipy', scipy.__version__)"
+	$(LOWEST)/bin/python -m pytest -q
+
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py --out docs/benchmarks.md
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(LOWEST) out .pytest_cache

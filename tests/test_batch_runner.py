@@ -10,6 +10,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from facewrap.batch import done_record_path, read_manifest, run_batch, run_one
@@ -17,6 +18,17 @@ from facewrap.batch.engines import run_in_pool
 from facewrap.io import read_mesh
 from batch_data import batch_command, dask_client, data, manifest, serial  # noqa: F401
 from conftest import facewrap
+
+def assert_same_result(path, reference: Path) -> None:
+    """The same mesh as the serial run's: topology exactly, positions to 1e-6 (mm).
+
+    Not byte for byte: another process may round the last bit differently (BLAS
+    threads, SIMD on differently aligned arrays), and the fit's iterations carry that
+    to ~4e-9 on these ~100 mm coordinates (seen with numpy 1.26's OpenBLAS)."""
+    got, want = read_mesh(path), read_mesh(reference)
+    np.testing.assert_array_equal(got.face_indices, want.face_indices)
+    np.testing.assert_allclose(got.vertices, want.vertices, rtol=0, atol=1e-6)
+
 
 # -- engines and determinism --------------------------------------------------------------------
 def test_dask_cluster_runs_batch_with_one_broken_job(data, tmp_path, dask_client, serial):
@@ -26,8 +38,8 @@ def test_dask_cluster_runs_batch_with_one_broken_job(data, tmp_path, dask_client
     assert [r["status"] for r in result.rows] == ["done"] * 6 + ["failed"]
     assert "missing.txt" in result.rows[6]["error"]
     assert sorted(p.name for p in out.glob("*.obj")) == [f"r{k}.obj" for k in range(6)]
-    for name, reference in serial.items():  # bit-identical to the serial run
-        assert (out / name).read_bytes() == reference
+    for name, reference in serial.items():  # the serial run's results
+        assert_same_result(out / name, reference)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["counts"] == {"done": 6, "skipped": 0, "failed": 1, "pending": 0}
     lines = (tmp_path / "summary.csv").read_text().splitlines()
@@ -36,7 +48,7 @@ def test_dask_cluster_runs_batch_with_one_broken_job(data, tmp_path, dask_client
     assert len(hosts) >= 1 and all(h.split(":")[1] != str(os.getpid()) for h in hosts)
 
 
-def test_process_pool_is_bit_identical_to_serial(data, tmp_path, serial, capsys):
+def test_process_pool_gives_the_serial_results(data, tmp_path, serial, capsys):
     out = tmp_path / "pool"
     m = manifest(data, out, 7, broken=6)
     rc = facewrap("batch", m, "--job", data / "shared.toml", "--workers", 2)
@@ -44,7 +56,7 @@ def test_process_pool_is_bit_identical_to_serial(data, tmp_path, serial, capsys)
     err = capsys.readouterr().err
     assert "job job6 failed" in err and "missing.txt" in err
     for name, reference in serial.items():
-        assert (out / name).read_bytes() == reference
+        assert_same_result(out / name, reference)
     summary = json.loads((out / "manifest.summary.json").read_text())
     assert summary["engine"] == "processes"
     assert summary["counts"]["done"] == 6 and summary["counts"]["failed"] == 1

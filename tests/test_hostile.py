@@ -1200,7 +1200,8 @@ Batches: a job that fails (a missing or malformed file, an exception in the fit,
 worker process killed by the out-of-memory killer) is reported in the summary with its
 error and never stops the others; `kill -9` of a running batch leaves complete outputs
 or none, and the re-run skips finished jobs (`tests/test_batch_runner.py`). The same inputs give
-bit-identical output meshes run to run, serially, in the process pool and on Dask.
+the same output meshes (topology exactly, positions to 1e-6 mm) run to run, serially, in
+the process pool and on Dask.
 """
 
 
