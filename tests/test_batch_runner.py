@@ -102,23 +102,32 @@ def test_a_dying_worker_fails_only_its_job(data, tmp_path):
     assert [rows[k]["status"] for k in (0, 1, 3, 4)] == ["done"] * 4
 
 
+def start_batch(cmd: list, out: Path, done: int) -> subprocess.Popen:
+    """Start ``cmd`` (a batch) in a session of its own; return once ``done`` of its
+    jobs have their done-records."""
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    try:
+        while len(list(out.glob("r*.done.json"))) < done:
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "batch too slow to start"
+            time.sleep(0.01)
+    except BaseException:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    return proc
+
+
 @pytest.mark.slow
 def test_sigkill_mid_batch_then_resume(data, tmp_path):
     out = tmp_path / "killed"
     n = 12
     m = manifest(data, out, n)
     cmd = batch_command() + [str(m), "--job", str(data / "shared.toml"), "--workers", "2"]
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 60
-    try:
-        while len(list(out.glob("r*.done.json"))) < 3:
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.monotonic() < deadline, "batch too slow to start"
-            time.sleep(0.01)
-    finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the batch and its workers, at once
-        proc.wait()
+    proc = start_batch(cmd, out, done=3)
+    os.killpg(proc.pid, signal.SIGKILL)  # the batch and its workers, at once
+    proc.wait()
     finished = sorted(p.name[:-len(".done.json")] for p in out.glob("r*.done.json"))
     assert 3 <= len(finished) < n
     n_template = read_mesh(data / "s0" / "template.obj").n_vertices
@@ -159,14 +168,8 @@ def test_killing_the_batch_alone_ends_its_workers(data, tmp_path, sig):
     n = 12
     m = manifest(data, out, n)
     cmd = batch_command() + [str(m), "--job", str(data / "shared.toml"), "--workers", "2"]
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 60
+    proc = start_batch(cmd, out, done=1)
     try:
-        while not list(out.glob("r*.done.json")):
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.monotonic() < deadline, "batch too slow to start"
-            time.sleep(0.01)
         os.kill(proc.pid, sig)
         proc.wait(timeout=30)
         gone_by = time.monotonic() + 5

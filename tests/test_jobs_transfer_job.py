@@ -8,27 +8,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from facewrap.batch import read_manifest, run_batch
 from facewrap.errors import InputError
 from facewrap.io import read_mesh, write_obj
 from facewrap.jobs import (TransferJob, TransferJobSettings, job_to_toml, load_job,
                            run_transfer_job)
-from facewrap.sample import make_scan, make_template
 from facewrap.transfer import DeformationTransfer, find_correspondence
 from conftest import facewrap
+from transfer_cases import face_scan_markers
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory) -> dict:
     """A template face and a scan of another topology, two source shapes, markers."""
-    tpl = make_template(24)
-    face, vmap = tpl.mesh.submesh(tpl.mesh.face_groups == 0)
-    scan = make_scan(tpl, weights={}, resolution=32, noise=0, holes=0, crop=False,
-                     transform=False, texture_size=8)
-    markers = (tpl.landmarks.vertex,
-               cKDTree(scan.mesh.vertices).query(scan.landmarks.points)[1])
+    tpl, face, vmap, scan, markers = face_scan_markers(24, 32)
     d = tmp_path_factory.mktemp("transfer_job")
     write_obj(d / "src.obj", face)
     write_obj(d / "tgt.obj", scan.mesh)
