@@ -74,7 +74,7 @@ def cmd_track(args) -> int:
     with progress(len(meshes), "tracking") as bar:
         def say(i, result):
             m = result.metrics
-            log.info("frame %d: fit mean %.4g, landmarks mean %.4g, %.2f s", i,
+            log.info("frame %d: fit mean %.4g, landmarks mean %.4g (scan units), %.2f s", i,
                      m["fit_mean"], m["landmark_mean"], result.timings["total"])
             bar.advance()
 

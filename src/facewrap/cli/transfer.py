@@ -37,7 +37,8 @@ def print_transfer_summary(report: dict) -> None:
           f"{report['timings']['total']:.2f} s)")
     ambiguity = report["ambiguity"]
     if ambiguity is not None:
-        print(f"partner ambiguity median {ambiguity['median']:.3g}, p90 "
+        print(f"partner ambiguity (spread of pose gradients, unitless) median "
+              f"{ambiguity['median']:.3g}, p90 "
               f"{ambiguity['p90']:.3g}; markers would help most near target "
               f"vertices {' '.join(map(str, ambiguity['marker_hints']))}")
 

@@ -32,7 +32,7 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
                 if report.get("warnings") else "")
         print(f"wrote {job.output}: {report['vertices']} vertices, model "
               f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
-              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g}, "
+              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g} (scan units), "
               f"{t['total']:.2f} s{flag}")
     return report
 
