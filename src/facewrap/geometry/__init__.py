@@ -16,6 +16,9 @@ Connectivity (:mod:`.adjacency`)
     :func:`boundary_loops`, :func:`connected_components`
 Laplacians (:mod:`.laplacian`), positive semi-definite
     :func:`cotangent_laplacian`, :func:`uniform_laplacian`, :func:`mass_matrix`
+Closest compatible points (:mod:`.matching`), the normalised frame (:mod:`.frames`)
+    :func:`closest_compatible_points`, :func:`compatible`, :class:`Matches`,
+    :class:`NormalisedFrame`
 Similarity transforms (:mod:`.similarity`)
     :class:`Similarity`, :func:`similarity_transform` (Umeyama)
 Triangle quality (:mod:`.quality`)
@@ -39,6 +42,8 @@ from facewrap.geometry.adjacency import (
     edges_of_polygons, triangle_adjacency, vertex_adjacency,
 )
 from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
+from facewrap.geometry.frames import NormalisedFrame
+from facewrap.geometry.matching import Matches, closest_compatible_points, compatible
 from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_normals,
                                        triangle_quality, triangle_to_vertex, turned,
                                        turned_from, turned_triangles)
@@ -56,6 +61,8 @@ __all__ = [
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
     # Laplacians
     "cotangent_laplacian", "uniform_laplacian", "mass_matrix",
+    # closest compatible points, the normalised frame
+    "closest_compatible_points", "compatible", "Matches", "NormalisedFrame",
     # similarity transforms
     "Similarity", "similarity_transform",
     # triangle quality

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
+from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
+                               vertex_normals)
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
@@ -365,12 +366,13 @@ def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree
     float
         In [0, 1]; NaN when no point counts.
     """
-    cp = tree.query(vertices)
-    near = (cp.distances <= max_distance) & ~tree.boundary_triangles[cp.triangles]
-    if not near.any():
+    near = closest_compatible_points(tree, vertices, max_distance=max_distance,
+                                     reject_border=True)
+    if not len(near.index):
         return float("nan")
-    scan_normals = face_normals(tree.vertices, triangles)[cp.triangles[near]]
-    return float(np.mean(np.einsum("ij,ij->i", scan_normals, normals[near]) < 0))
+    scan_normals = face_normals(tree.vertices, triangles)[near.triangles]
+    return float(np.mean(np.einsum("ij,ij->i", scan_normals,
+                                   np.asarray(normals)[near.index]) < 0))
 
 
 def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
