@@ -1,4 +1,4 @@
-"""How job dataclasses describe their fields, and the output guard every job shares.
+"""How job dataclasses describe their fields.
 
 A field of a job dataclass (:class:`~facewrap.jobs.WrapJob`,
 :class:`~facewrap.jobs.TransferJob`) says in its ``metadata`` which job-file table
@@ -12,10 +12,7 @@ from __future__ import annotations
 
 from dataclasses import field
 
-# the one output guard, shared by every command (re-exported for job kinds)
-from facewrap.io.paths import check_output_paths, check_outputs_apart
-
-__all__ = ["input_field", "output_field", "check_outputs_apart", "check_output_paths"]
+__all__ = ["input_field", "output_field"]
 
 
 def input_field(**kw):

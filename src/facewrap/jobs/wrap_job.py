@@ -35,8 +35,8 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
-from facewrap.io.paths import staged_outputs
-from facewrap.jobs.fields import check_output_paths, input_field, output_field
+from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
