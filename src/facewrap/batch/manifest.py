@@ -77,7 +77,7 @@ def done_record_path(job) -> str:
     """``OUTPUT.done.json``: the record that ``job`` finished, beside its main output.
 
     >>> from facewrap.jobs import WrapJob
-    >>> done_record_path(WrapJob("t.obj", "s.obj", "t.txt", "s.txt", "out/a.obj"))
+    >>> done_record_path(WrapJob("t.obj", "s.obj", "s.txt", "out/a.obj", "t.txt"))
     'out/a.obj.done.json'
     """
     return kind_of(job).output_of(job) + ".done.json"

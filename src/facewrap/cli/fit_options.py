@@ -65,6 +65,10 @@ def add_fit_options(p) -> None:
     p.add_argument("--allow-mirrored", action="store_true",
                    help="fit landmarks that match a mirror image of the template's "
                         "(refused by default: usually a mirrored scan or landmark file)")
+    p.add_argument("--fit-hidden", action="store_true",
+                   help="also pull the template's parts (eyeballs, teeth, tongue, lashes) "
+                        "and cavities (nostrils, mouth and eye sockets) onto the scan; by "
+                        "default only what a scanner can see is pulled, the rest follows")
 
 
 def wrap_settings_from_args(args) -> WrapSettings:
@@ -85,4 +89,5 @@ def wrap_settings_from_args(args) -> WrapSettings:
                         blend_order=args.blend_order,
                         landmark_pull=not args.no_landmark_pull,
                         landmark_tolerance=args.landmark_tolerance,
-                        allow_mirrored=args.allow_mirrored)
+                        allow_mirrored=args.allow_mirrored,
+                        follow_hidden=not args.fit_hidden)

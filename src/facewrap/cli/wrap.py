@@ -41,6 +41,8 @@ def cmd_wrap(args) -> int:
     """Fit the template to the scan and write the template-topology result."""
     job = WrapJob(template=args.template, scan=args.scan,
                   template_landmarks=args.template_landmarks,
+                  template_profile=args.template_profile, fit_mask=args.fit_mask,
+                  pin=args.pin,
                   scan_landmarks=args.scan_landmarks, output=args.output,
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
@@ -55,10 +57,20 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scan", help="scan mesh (OBJ/PLY)")
     p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")
-    p.add_argument("--template-landmarks", required=True,
-                   help="template vertex ids (text) or facewrap landmark JSON")
+    p.add_argument("--template-landmarks",
+                   help="template vertex ids (text) or facewrap landmark JSON (default: "
+                        "the template profile's)")
     p.add_argument("--scan-landmarks", required=True,
                    help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
+    p.add_argument("--template-profile", metavar="FILE",
+                   help="the template's landmarks and fitting vertices: ICT-FaceKit's "
+                        "vertex_indices.json or a facewrap profile (default: one found "
+                        "beside the template; 'none' for none)")
+    p.add_argument("--fit-mask", metavar="FILE",
+                   help="template vertex ids to pull onto the scan, and only those")
+    p.add_argument("--pin", metavar="FILE",
+                   help="template vertex ids kept exactly where the landmark alignment "
+                        "puts them")
     add_fit_options(p)
     p.add_argument("--texture", help="scan texture image to bake into the template UVs")
     p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)

@@ -36,11 +36,12 @@ from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
 from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
-from facewrap.wrapping import GraphCache, WrapSettings, wrap
+from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths"]
@@ -63,16 +64,29 @@ class WrapJob:
         Template mesh (OBJ/PLY) whose topology the result keeps.
     scan : path
         Scan mesh (OBJ/PLY).
-    template_landmarks : path
-        Template vertex ids (text) or facewrap landmark JSON.
     scan_landmarks : path
         Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON.
     output : path
         Fitted mesh (OBJ/PLY) in the template's exact topology.
+    template_landmarks : path, optional
+        Template vertex ids (text) or facewrap landmark JSON; default: the
+        template profile's landmarks.
+    template_profile : path, optional
+        The template's profile (:mod:`facewrap.io.profile`: ICT-FaceKit's
+        ``vertex_indices.json`` or facewrap's own): landmarks, and the vertices
+        meant to be fitted (the others are excluded).  Default: the one found
+        beside the template (:func:`~facewrap.io.profile.find_template_profile`),
+        if any; ``"none"`` uses none.
     blendshapes : path, optional
         Folder of meshes in the template's topology (a shape = file − template).
     exclude : path, optional
         Template vertex ids that follow but are not pulled to the scan.
+    fit_mask : path, optional
+        The only template vertex ids pulled onto the scan: replaces the
+        automatic choice of what a scanner can see (``follow_hidden``) and the
+        profile's fitting vertices.
+    pin : path, optional
+        Template vertex ids kept exactly where the landmark similarity puts them.
     texture : path, optional
         Scan texture image to bake into the template's UV layout
         (written next to ``output`` as PNG).
@@ -83,11 +97,14 @@ class WrapJob:
     """
     template: str = input_field()
     scan: str = input_field()
-    template_landmarks: str = input_field()
     scan_landmarks: str = input_field()
     output: str = output_field()
+    template_landmarks: str | None = input_field(default=None)
+    template_profile: str | None = input_field(default=None)
     blendshapes: str | None = input_field(default=None)
     exclude: str | None = input_field(default=None)
+    fit_mask: str | None = input_field(default=None)
+    pin: str | None = input_field(default=None)
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
@@ -98,9 +115,27 @@ def _path_fields(table: str) -> list[str]:
             if f.metadata.get("table", "inputs") == table and f.metadata.get("path")]
 
 
+#: ``template_profile`` value that turns the search for a profile off
+NO_PROFILE = "none"
+
+
+def profile_path(job: WrapJob) -> str | None:
+    """The template profile ``job`` uses: its own, else the one beside the template."""
+    if job.template_profile == NO_PROFILE:
+        return None
+    if job.template_profile:
+        return job.template_profile
+    found = find_template_profile(job.template)
+    return None if found is None else str(found)
+
+
 def job_inputs(job: WrapJob) -> list[str]:
-    """Input paths of ``job`` that are set, in field order (files or folders)."""
-    return [getattr(job, n) for n in _path_fields("inputs") if getattr(job, n)]
+    """Input paths of ``job`` that are set, in field order (files or folders), and
+    the template profile found beside the template."""
+    out = [getattr(job, n) for n in _path_fields("inputs")
+           if getattr(job, n) and n != "template_profile"]
+    profile = profile_path(job)
+    return out + ([profile] if profile else [])
 
 
 def textureoutput_field(job: WrapJob) -> str | None:
@@ -289,11 +324,12 @@ def load_wrap_inputs(job: WrapJob) -> dict:
     scan = read_mesh(job.scan)
     if len(scan.triangles) == 0:
         raise InputError("has no faces; a scan must be a surface", job.scan)
-    tl = read_mesh_landmarks(job.template_landmarks, template, kind="auto")
+    profile = _template_profile(job, template)
+    tl, tl_source = _template_landmarks(job, template, profile)
     sl = read_mesh_landmarks(job.scan_landmarks, scan, kind="points")
     if (tl.names is None or sl.names is None) and len(tl) != len(sl):
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
-                         f"({job.template_landmarks}) have {len(tl)}", job.scan_landmarks)
+                         f"({tl_source}) have {len(tl)}", job.scan_landmarks)
 
     for mesh, where in ((template, job.template), (scan, job.scan)):
         if not np.isfinite(mesh.scale()):
@@ -320,9 +356,17 @@ def load_wrap_inputs(job: WrapJob) -> dict:
     tree = ClosestPointTree(scan.vertices, scan.triangles)
     notes += _check_on_scan(scan_points, sl.names, tree, scan_size, job.scan_landmarks)
 
-    exclude = None
-    if job.exclude:
-        exclude = read_vertex_indices(job.exclude, n_vertices=template.n_vertices).vertex
+    n = template.n_vertices
+    exclude, fit_mask, pinned = (
+        None if not path else read_vertex_indices(path, n_vertices=n).vertex
+        for path in (job.exclude, job.fit_mask, job.pin))
+    if profile is not None and profile.fitting is not None and fit_mask is None:
+        # the profile's fitting vertices: every other one is left out
+        outside = np.ones(n, dtype=bool)
+        outside[profile.fitting] = False
+        if exclude is not None:
+            outside[exclude] = True
+        exclude = np.flatnonzero(outside)
     shapes = None
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
@@ -335,8 +379,33 @@ def load_wrap_inputs(job: WrapJob) -> dict:
             raise InputError("the template has no UV layout to bake into", job.template)
         image = load_image(job.texture)
     return {"template": template, "scan": scan, "template_landmarks": tl,
-            "scan_landmarks": sl, "exclude": exclude, "blendshapes": shapes,
+            "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
+            "pinned": pinned, "profile": profile, "blendshapes": shapes,
             "texture": image, "scan_tree": tree, "warnings": notes}
+
+
+def _template_profile(job: WrapJob, template: Mesh):
+    """The job's template profile, read and checked against the template (None
+    without one)."""
+    path = profile_path(job)
+    if path is None:
+        return None
+    profile = read_template_profile(path)
+    profile.check(template.n_vertices)
+    return profile
+
+
+def _template_landmarks(job: WrapJob, template: Mesh, profile):
+    """The template landmarks (from their file, else the profile) and where they
+    came from."""
+    if job.template_landmarks:
+        return (read_mesh_landmarks(job.template_landmarks, template, kind="auto"),
+                job.template_landmarks)
+    if profile is not None and profile.landmarks is not None:
+        return profile.landmarks, profile.path
+    raise InputError("no template landmarks: give --template-landmarks (template_"
+                     "landmarks in a job file) or a template profile with landmarks "
+                     "(see facewrap.io.profile)", job.template)
 
 
 def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
@@ -384,6 +453,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     try:
         result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                       inputs["scan_landmarks"], settings, exclude=inputs["exclude"],
+                      fit_mask=inputs["fit_mask"], pinned=inputs["pinned"],
                       blendshapes=inputs["blendshapes"], scan_tree=inputs["scan_tree"],
                       graph_cache=graph_cache)
     except ValueError as exc:
@@ -406,7 +476,11 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
               "timings": result.timings, "metrics": result.metrics,
               "iterations": result.history,
               "transform": result.transform.matrix.tolist(),
+              "vertex_roles": role_ranges(result.roles),
               "warnings": notes}
+    if inputs["profile"] is not None:
+        report["template_profile"] = {"path": inputs["profile"].path,
+                                      "gives": inputs["profile"].summary()}
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))

@@ -10,6 +10,8 @@ The modules, in the order data flows through them:
 * :mod:`.icp` — the non-rigid ICP engine, its schedule and energy terms;
 * :mod:`.model_fit` — the coarse pre-fit and ICP fit of a wrap;
 * :mod:`.warp` — the landmark RBF warp and the landmark pull;
+* :mod:`.roles` — which template vertices the scan pulls and which follow (parts,
+  cavities, the user's exclusions and pins);
 * :mod:`.projection` — projection onto the scan along normals;
 * :mod:`.stages` — :func:`wrap`, the named stages over all of the above;
 * :mod:`.track` — 4D sequences, each frame warm-started from the previous one.
@@ -18,10 +20,12 @@ The modules, in the order data flows through them:
 from facewrap.wrapping.icp.schedule import Stage
 from facewrap.wrapping.models import MODEL_REGISTRY, default_schedule
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
+from facewrap.wrapping.roles import VERTEX_ROLES, find_hidden_surface, role_ranges
 from facewrap.wrapping.settings import MODELS, WrapSettings
 from facewrap.wrapping.stages import WrapResult, fit_metrics, wrap
 from facewrap.wrapping.track import track, write_track_outputs
 
 __all__ = ["wrap", "WrapSettings", "WrapResult", "MODELS", "MODEL_REGISTRY",
            "track", "write_track_outputs", "Stage", "default_schedule", "fit_metrics",
-           "GraphCache", "DEFAULT_GRAPH_CACHE"]
+           "GraphCache", "DEFAULT_GRAPH_CACHE", "VERTEX_ROLES", "find_hidden_surface",
+           "role_ranges"]

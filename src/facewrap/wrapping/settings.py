@@ -100,6 +100,12 @@ class WrapSettings:
         Fit landmarks that only a mirror image of the template matches (a mirrored
         scan or landmark file) with a warning instead of refusing them
         (:func:`~facewrap.wrapping.plausibility.check_reflection`).
+    follow_hidden : bool
+        Only what a scanner can see is pulled onto the scan: the template's pieces
+        that are not skin (eyeballs, teeth, tongue, lashes) and its cavities
+        (nostrils, mouth and eye sockets) follow the skin instead
+        (:func:`~facewrap.wrapping.roles.find_hidden_surface`).  Off: every vertex
+        not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` replaces it.
     """
     model: str = "auto"
     scale: bool = True
@@ -121,6 +127,7 @@ class WrapSettings:
     landmark_pull: bool = True
     landmark_tolerance: float = 0.002
     allow_mirrored: bool = False
+    follow_hidden: bool = True
 
     #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
     #: the CLI and job files take their choices from here
@@ -145,6 +152,7 @@ class WrapSettings:
         "landmark_pull": Flag(),
         "landmark_tolerance": Interval(float, 0, None),
         "allow_mirrored": Flag(),
+        "follow_hidden": Flag(),
     }
 
     def __post_init__(self):

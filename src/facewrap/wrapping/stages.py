@@ -8,6 +8,7 @@ The pipeline (SPEC §1–§2), one named function per stage, each testable alone
                           or coarse pre-fit + non-rigid ICP (:mod:`.model_fit`)
     :func:`pull_landmarks` landmarks left far from their targets pulled to them
     :func:`project`       onto the scan along normals, smooth where not projected
+    :func:`pin`           pinned vertices back where the similarity put them
     :func:`fit_metrics`   distances to the scan and landmark errors
 
 :func:`wrap` runs them in this order and returns a :class:`WrapResult` with the
@@ -31,12 +32,13 @@ from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked_scan
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
-from facewrap.wrapping.projection import Projection, project_to_surface
+from facewrap.wrapping.projection import Projection, project_to_surface, smooth_extension
+from facewrap.wrapping.roles import FITTED, PINNED, cached_hidden_surface, vertex_roles
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
-           "fit_model", "pull_landmarks", "project", "alignment_weights"]
+           "fit_model", "pull_landmarks", "project", "pin", "alignment_weights"]
 
 
 @dataclass
@@ -68,6 +70,9 @@ class WrapResult:
         One line per implausible input met (:mod:`facewrap.wrapping.plausibility`):
         mis-paired landmarks, duplicates, flipped or duplicated scan faces, a
         scale that suggests other units.  Empty for a clean run.
+    roles : (n,) int8 or None
+        What each template vertex was (:data:`facewrap.wrapping.roles.VERTEX_ROLES`):
+        fitted, a part or cavity that followed, excluded, pinned.
     """
     mesh: Mesh
     transform: Similarity
@@ -80,6 +85,7 @@ class WrapResult:
     weights: np.ndarray | None = None
     shape_names: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    roles: np.ndarray | None = None
 
     @property
     def vertices(self) -> np.ndarray:
@@ -98,22 +104,25 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
     landmark_positions, scan_landmarks : (k, 3) float, optional
         Fitted and target landmark positions.
     mask : (n,) bool, optional
-        Vertices to include in the fit statistics (e.g. not excluded ones).
+        Vertices to include in the fit statistics (the fitted ones).
 
     Fit distances are taken over the vertices whose closest scan point is not on
-    the scan's border (``fit_coverage`` is their fraction): a template usually
-    covers more than the scanner saw.
+    the scan's border (``fit_coverage`` is their fraction of the vertices in
+    ``mask``): a template usually covers more than the scanner saw.
     """
     V = np.asarray(vertices)
     cp = tree.query(V)
     # Only vertices the scan covers count: where the closest point is on the scan's
     # border (holes, cropped regions) the template has nothing to fit to.
     covered = ~tree.boundary_triangles[cp.triangles]
+    counted = len(V)
     if mask is not None:
         covered &= mask
+        counted = int(np.count_nonzero(mask))
     d = cp.distances[covered] if covered.any() else cp.distances
     out = {"fit_mean": float(d.mean()), "fit_p95": float(np.percentile(d, 95)),
-           "fit_max": float(d.max()), "fit_coverage": float(covered.mean())}
+           "fit_max": float(d.max()),
+           "fit_coverage": float(covered.sum() / counted) if counted else 0.0}
     if landmark_positions is not None:
         e = np.linalg.norm(np.asarray(landmark_positions) - np.asarray(scan_landmarks),
                            axis=1)
@@ -141,8 +150,10 @@ class WrapProblem:
         Their partners' positions on the scan.
     alignment_weights : (l,) float64
         Weights of the pairs in the similarity.
+    roles : (n,) int8
+        Role of each template vertex (:func:`facewrap.wrapping.roles.vertex_roles`).
     excluded : (n,) bool
-        Template vertices not pulled onto the scan.
+        Template vertices not pulled onto the scan (``roles != FITTED``).
     blendshapes : dict or None
     settings : WrapSettings
         With ``model`` resolved from "auto".
@@ -159,6 +170,7 @@ class WrapProblem:
     sources: np.ndarray
     targets: np.ndarray
     alignment_weights: np.ndarray
+    roles: np.ndarray
     excluded: np.ndarray
     blendshapes: dict | None
     settings: WrapSettings
@@ -167,25 +179,10 @@ class WrapProblem:
     warnings: tuple = ()
 
 
-def _excluded_mask(exclude, n: int) -> np.ndarray:
-    """``exclude`` (bool mask or vertex ids) as an (n,) bool mask."""
-    excluded = np.zeros(n, dtype=bool)
-    if exclude is None:
-        return excluded
-    ex = np.asarray(exclude)
-    if ex.dtype == bool:
-        if ex.shape != (n,):
-            raise ValueError(f"exclude mask must have shape ({n},)")
-        return ex.copy()
-    if len(ex) and (ex.min() < 0 or ex.max() >= n):
-        raise ValueError(f"exclude holds vertex ids outside [0, {n})")
-    excluded[ex.astype(np.int64)] = True
-    return excluded
-
-
 def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                  scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
-                 exclude=None, blendshapes=None, scan_tree: ClosestPointTree | None = None,
+                 exclude=None, fit_mask=None, pinned=None, blendshapes=None,
+                 scan_tree: ClosestPointTree | None = None,
                  graph_cache: GraphCache | None = None) -> WrapProblem:
     """Check a wrap's inputs, resolve its model and pair its landmarks.
 
@@ -201,7 +198,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         For a model that needs blendshapes without them, fewer than 3 landmark
         pairs, template landmarks far off the template, landmarks that only a
         mirror image matches (unless ``settings.allow_mirrored``), or a bad
-        ``exclude``.
+        ``exclude``, ``fit_mask`` or ``pinned``.
     """
     s = replace(settings or WrapSettings())
     spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
@@ -216,7 +213,11 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         raise ValueError(f"scan landmarks: {exc}") from None
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
-    excluded = _excluded_mask(exclude, template.n_vertices)
+    hidden = (cached_hidden_surface(template.vertices, template.triangles)
+              if s.follow_hidden and fit_mask is None else None)
+    roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
+                         pinned=pinned)
+    excluded = roles != FITTED
     template_points = template_landmarks.positions(template)
     scan_points = scan_landmarks.positions(scan)
     weights = alignment_weights(template_landmarks, ia)
@@ -230,7 +231,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
                                           mask=~excluded)
     return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
-                       template_points[ia], scan_points[ib], weights, excluded,
+                       template_points[ia], scan_points[ib], weights, roles, excluded,
                        blendshapes, s, spec,
                        DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,
                        tuple(notes + scan_notes))
@@ -316,9 +317,36 @@ def project(problem: WrapProblem, vertices) -> Projection | None:
                               blend_order=s.blend_order)
 
 
+def pin(problem: WrapProblem, vertices, similarity: Similarity,
+        projection: Projection | None) -> np.ndarray:
+    """Pinned vertices back where ``similarity`` puts them, the rest blended.
+
+    Projected vertices stay on the scan; pinned ones move to their aligned
+    template positions exactly; every other vertex takes the smooth
+    (``settings.blend_order``) extension of those two displacements, so nothing
+    tears where pinned and fitted regions meet.
+
+    Returns
+    -------
+    (n, 3) float64
+        ``vertices`` unchanged when nothing is pinned.
+    """
+    pinned = problem.roles == PINNED
+    if not pinned.any():
+        return vertices
+    template = problem.template
+    known = pinned.copy()
+    if projection is not None:
+        known |= projection.projected
+    displacement = np.zeros_like(vertices)
+    displacement[pinned] = similarity.apply(template.vertices[pinned]) - vertices[pinned]
+    return vertices + smooth_extension(template, displacement, known,
+                                       order=problem.settings.blend_order)
+
+
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
-         exclude=None, blendshapes=None,
+         exclude=None, fit_mask=None, pinned=None, blendshapes=None,
          scan_tree: ClosestPointTree | None = None,
          initial: WrapResult | None = None,
          graph_cache: GraphCache | None = None) -> WrapResult:
@@ -334,8 +362,15 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         On the scan (free points, or vertex/surface landmarks of the scan).
     settings : WrapSettings, optional
     exclude : (n,) bool or int array, optional
-        Template vertices that must not be pulled onto the scan (eyes, mouth
-        interior...): they follow smoothly.
+        Template vertices that must not be pulled onto the scan: they follow
+        smoothly.  The template's parts and cavities follow anyway
+        (``settings.follow_hidden``).
+    fit_mask : (n,) bool or int array, optional
+        The only vertices pulled onto the scan (replaces the automatic choice of
+        ``follow_hidden``; ``exclude`` still applies).
+    pinned : (n,) bool or int array, optional
+        Vertices kept exactly where the landmark similarity puts the template
+        (a neck seam that must meet a body, say); the fit blends into them.
     blendshapes : dict name -> (n, 3) float, optional
         Shapes in the template's topology (positions, not deltas), for the
         "blendshape" and "hybrid" models.
@@ -356,7 +391,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     timings = {}
     t0 = time.perf_counter()
     problem = prepare_wrap(template, scan, template_landmarks, scan_landmarks, settings,
-                           exclude=exclude, blendshapes=blendshapes, scan_tree=scan_tree,
+                           exclude=exclude, fit_mask=fit_mask, pinned=pinned,
+                           blendshapes=blendshapes, scan_tree=scan_tree,
                            graph_cache=graph_cache)
     timings["setup"] = time.perf_counter() - t0
 
@@ -382,7 +418,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
 
     t = time.perf_counter()
     projection = project(problem, V)
-    out = V if projection is None else projection.vertices
+    out = pin(problem, V if projection is None else projection.vertices, similarity,
+              projection)
     timings["project"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
 
@@ -396,7 +433,7 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
-                      warnings=list(problem.warnings))
+                      warnings=list(problem.warnings), roles=problem.roles)
 
 
 #: template landmarks given as points may lie this far off the template's surface

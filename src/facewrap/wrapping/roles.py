@@ -1,0 +1,259 @@
+"""Which template vertices the scan pulls, and which follow the skin.
+
+A production head is more than the skin a scanner records: eyeballs, teeth,
+gums, tongue, lashes and tear films are separate pieces, and the skin itself
+turns into cavities no outside camera sees (nostrils, the mouth socket, the eye
+sockets behind the eyeballs, ear canals).  Pulled onto a scan, those land on
+the lips, the eyelids or the nose, and the teeth come through the lips.  So by
+default only what a scanner can see is pulled (:func:`find_hidden_surface`,
+from the template alone); everything else follows the skin by the deformation
+model and the smooth extension of the projection.
+
+Each template vertex gets one role (:data:`VERTEX_ROLES`):
+
+``fitted``    pulled onto the scan;
+``part``      a piece that is not skin (its own connected component);
+``cavity``    skin no outside camera sees;
+``excluded``  left out by the user (``exclude``, or outside ``fit_mask``);
+``pinned``    kept where the landmark similarity puts it (the user's ``pinned``).
+
+>>> VERTEX_ROLES.index("cavity") == CAVITY
+True
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from facewrap.geometry import boundary_edges, connected_components, face_areas
+from facewrap.geometry.visibility import outside_views
+
+__all__ = ["VERTEX_ROLES", "FITTED", "PART", "CAVITY", "EXCLUDED", "PINNED",
+           "HiddenSurface", "find_hidden_surface", "vertex_roles", "role_ranges",
+           "role_counts"]
+
+#: role names, indexed by the codes of :func:`vertex_roles`
+VERTEX_ROLES = ("fitted", "part", "cavity", "excluded", "pinned")
+FITTED, PART, CAVITY, EXCLUDED, PINNED = range(len(VERTEX_ROLES))
+
+#: a piece other than the largest is skin when it has at least this share of the
+#: largest's area and most of it is seen (a face template split at the ears)
+_SKIN_AREA_SHARE = 0.1
+_SKIN_SEEN_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class HiddenSurface:
+    """What of a template a scanner cannot record (see :func:`find_hidden_surface`).
+
+    Attributes
+    ----------
+    part : (n,) bool
+        Vertices of pieces that are not skin (and vertices in no triangle).
+    cavity : (n,) bool
+        Skin vertices no outside camera sees.
+    skin_pieces : int
+        Connected pieces counted as skin.
+    """
+    part: np.ndarray
+    cavity: np.ndarray
+    skin_pieces: int
+
+    @property
+    def hidden(self) -> np.ndarray:
+        """(n,) bool: ``part | cavity``."""
+        return self.part | self.cavity
+
+
+def _closed_pieces(T, labels, pieces: int) -> np.ndarray:
+    """(pieces,) bool: pieces without a border edge (eyeballs: solid, they hide
+    what lies behind them; an open tear film or lash strip does not)."""
+    open_ = np.zeros(pieces, dtype=bool)
+    E = boundary_edges(T)
+    if len(E):
+        open_[np.unique(labels[E[:, 0]])] = True
+    return ~open_
+
+
+def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
+    """Outside visibility of the candidate pieces' vertices, hidden by the
+    candidates and the closed pieces."""
+    vertices = np.flatnonzero(candidate[labels])
+    occluders = (candidate | closed)[labels[T[:, 0]]]
+    return outside_views(V, T if normals_out else T[:, ::-1], vertices=vertices,
+                         occluders=occluders)
+
+
+def find_hidden_surface(V, T) -> HiddenSurface:
+    """Find the pieces and cavities of a template that a scanner cannot see.
+
+    The skin is the connected piece of largest area, and any other piece with at
+    least a tenth of its area that is mostly seen from outside.  Every other piece
+    is a *part*.  Skin vertices seen from fewer than two of 64 directions around the
+    head (:func:`facewrap.geometry.visibility.outside_views`, hidden by the skin and
+    by closed parts such as eyeballs) are *cavities*.  A template whose normals
+    point inwards is read the other way round.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+
+    Returns
+    -------
+    HiddenSurface
+
+    Examples
+    --------
+    The built-in sample head: its mouth and eyes are pieces of their own, or
+    cavities:
+
+    >>> from facewrap.sample import make_template
+    >>> t = make_template().mesh
+    >>> h = find_hidden_surface(t.vertices, t.triangles)
+    >>> bool(h.hidden.mean() < 0.5)
+    True
+    """
+    V = np.asarray(V, dtype=np.float64)
+    T = np.asarray(T, dtype=np.int64)
+    n = len(V)
+    labels = connected_components(T, n)
+    pieces = int(labels.max()) + 1 if n else 0
+    area = np.bincount(labels[T[:, 0]], face_areas(V, T), minlength=pieces)
+    used = np.zeros(n, dtype=bool)
+    used[T.ravel()] = True
+    if not used.any():
+        return HiddenSurface(np.ones(n, dtype=bool), np.zeros(n, dtype=bool), 0)
+    largest = int(np.argmax(area))
+    candidate = area >= _SKIN_AREA_SHARE * area[largest]
+    closed = _closed_pieces(T, labels, pieces) & ~candidate
+    seen = _seen(V, T, labels, candidate, closed, normals_out=True)
+    cand_v = candidate[labels] & used
+    if seen[cand_v].mean() < 0.25:       # normals point inwards: look the other way
+        flipped = _seen(V, T, labels, candidate, closed, normals_out=False)
+        if flipped[cand_v].sum() > seen[cand_v].sum():
+            seen = flipped
+    share = np.bincount(labels[seen], minlength=pieces) / np.maximum(
+        np.bincount(labels, minlength=pieces), 1)
+    skin = candidate & (share >= _SKIN_SEEN_SHARE)
+    skin[largest] = True
+    skin_v = skin[labels] & used
+    return HiddenSurface(part=~skin_v, cavity=skin_v & ~seen,
+                         skin_pieces=int(skin.sum()))
+
+
+class _HiddenSurfaceCache:
+    """The last few templates' hidden surfaces, keyed by their content (a batch or
+    a sequence wraps one template many times; finding them casts ~10⁶ lines)."""
+
+    def __init__(self, size: int = 4):
+        self.size = size
+        self._items: OrderedDict = OrderedDict()
+
+    def __call__(self, V, T) -> HiddenSurface:
+        h = hashlib.blake2b(digest_size=16)
+        for a in (np.ascontiguousarray(V, np.float64), np.ascontiguousarray(T, np.int64)):
+            h.update(str(a.shape).encode())
+            h.update(a.tobytes())
+        key = h.digest()
+        if key in self._items:
+            self._items.move_to_end(key)
+            return self._items[key]
+        found = find_hidden_surface(V, T)
+        self._items[key] = found
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+        return found
+
+
+#: the hidden surfaces of the last templates wrapped in this process
+cached_hidden_surface = _HiddenSurfaceCache()
+
+
+def _as_mask(ids, n: int, name: str) -> np.ndarray:
+    """``ids`` (bool mask or vertex ids) as an (n,) bool mask."""
+    mask = np.zeros(n, dtype=bool)
+    if ids is None:
+        return mask
+    a = np.asarray(ids)
+    if a.dtype == bool:
+        if a.shape != (n,):
+            raise ValueError(f"{name} mask must have shape ({n},), got {a.shape}")
+        return a.copy()
+    a = a.astype(np.int64).ravel()
+    if len(a) and (a.min() < 0 or a.max() >= n):
+        raise ValueError(f"{name} holds vertex ids outside [0, {n})")
+    mask[a] = True
+    return mask
+
+
+def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
+                 fit_mask=None, pinned=None) -> np.ndarray:
+    """The role code (:data:`VERTEX_ROLES`) of each of ``n`` template vertices.
+
+    Parameters
+    ----------
+    n : int
+    hidden : HiddenSurface, optional
+        Parts and cavities that follow (None: every vertex may be fitted).
+    exclude : (n,) bool or int array, optional
+        Vertices the user leaves out.
+    fit_mask : (n,) bool or int array, optional
+        The only vertices the user wants fitted: the others are ``excluded``, and
+        the hidden surface is not consulted.
+    pinned : (n,) bool or int array, optional
+        Vertices kept where the similarity puts them (they win over every other role).
+
+    Returns
+    -------
+    (n,) int8
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, for ids outside ``[0, n)`` or masks of another length.
+
+    Examples
+    --------
+    >>> vertex_roles(5, exclude=[1], fit_mask=[0, 1, 2, 3], pinned=[0]).tolist()
+    [4, 3, 0, 0, 3]
+    """
+    roles = np.full(n, FITTED, dtype=np.int8)
+    if fit_mask is not None:
+        roles[~_as_mask(fit_mask, n, "fit_mask")] = EXCLUDED
+    elif hidden is not None:
+        roles[hidden.cavity] = CAVITY
+        roles[hidden.part] = PART
+    roles[_as_mask(exclude, n, "exclude")] = EXCLUDED
+    roles[_as_mask(pinned, n, "pinned")] = PINNED
+    return roles
+
+
+def role_ranges(roles) -> dict:
+    """Each role's vertices as half-open ``[start, stop)`` id ranges (for JSON).
+
+    >>> role_ranges(np.array([0, 0, 1, 1, 0, 2], np.int8))
+    {'fitted': [[0, 2], [4, 5]], 'part': [[2, 4]], 'cavity': [[5, 6]], 'excluded': [], 'pinned': []}
+    """
+    r = np.asarray(roles)
+    change = np.flatnonzero(np.diff(r)) + 1
+    starts = np.concatenate([[0], change]) if len(r) else np.zeros(0, np.int64)
+    stops = np.concatenate([change, [len(r)]]) if len(r) else np.zeros(0, np.int64)
+    out = {name: [] for name in VERTEX_ROLES}
+    for a, b in zip(starts.tolist(), stops.tolist()):
+        out[VERTEX_ROLES[int(r[a])]].append([a, b])
+    return out
+
+
+def role_counts(roles) -> dict:
+    """Vertices per role name.
+
+    >>> role_counts(np.array([0, 0, 2], np.int8))
+    {'fitted': 2, 'part': 0, 'cavity': 1, 'excluded': 0, 'pinned': 0}
+    """
+    counts = np.bincount(np.asarray(roles, dtype=np.int64), minlength=len(VERTEX_ROLES))
+    return {name: int(c) for name, c in zip(VERTEX_ROLES, counts)}
