@@ -79,12 +79,17 @@ class ModelFit:
     shape_names : list of str
     setup_seconds : float
         Spent building models and graphs and in the coarse pre-fit.
+    rest : (n, 3) float64 or None
+        The expression the blend weights make (aligned template plus weighted
+        shapes), which the fit's triangles should face like; None for models
+        without blendshapes (the aligned template is that pose).
     """
     vertices: np.ndarray
     history: list = field(default_factory=list)
     weights: np.ndarray | None = None
     shape_names: list = field(default_factory=list)
     setup_seconds: float = 0.0
+    rest: np.ndarray | None = None
 
 
 def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
@@ -263,5 +268,8 @@ def icp_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, excluded
         history += [dict(h, model=spec.name, stage=h["stage"] + first, nodes=nodes)
                     for h in icp.history_]
         first += len(group)
-    return ModelFit(icp.vertices_, history, getattr(icp.params_, "w", None),
-                    start.shape_names, setup)
+    weights = getattr(icp.params_, "w", None)
+    rest = None
+    if weights is not None and start.deltas.shape[1]:
+        rest = start.frame.from_frame(start.base + (start.deltas @ weights).reshape(-1, 3))
+    return ModelFit(icp.vertices_, history, weights, start.shape_names, setup, rest)

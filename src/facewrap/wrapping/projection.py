@@ -25,14 +25,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals, turned,
-                               uniform_laplacian, vertex_normals)
+from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
+                               triangle_adjacency, turned, uniform_laplacian,
+                               vertex_adjacency, vertex_normals)
 from facewrap.geometry.matching import compatible
 from facewrap.mesh import Mesh
 from facewrap.solve.fixed import FixedSystem
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
-           "extension_operator",
+           "extension_operator", "relax_flips", "folded_in",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
 
 METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
@@ -277,6 +278,105 @@ def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle
             break
         ok &= ~bad
     return out, ok
+
+
+#: relax_flips stops after this many rounds that unfold nothing, or once it has
+#: relaxed this fraction of the vertices
+_STALLED_ROUNDS = 3
+_MOST_RELAXED = 0.02
+
+
+def folded_in(normals, T) -> np.ndarray:
+    """(t,) bool: triangles facing away (> 90 degrees) from each of their edge
+    neighbours, two at least, given the triangles' ``normals`` (t, 3): folded
+    inside out.
+
+    >>> T = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 3]])
+    >>> n = np.array([[0, 0, 1.], [0, 0, -1], [0, 0, 1]])
+    >>> folded_in(n, T).tolist()
+    [False, True, False]
+    """
+    nb = triangle_adjacency(T)
+    has = nb >= 0
+    dots = np.where(has, np.einsum("ij,ikj->ik", normals, normals[np.maximum(nb, 0)]), 1.0)
+    return (has.sum(axis=1) >= 2) & ((dots < 0) | ~has).all(axis=1)
+
+
+def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int = 1,
+                rounds: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Unfold triangles that face away from ``reference``, by smoothing locally.
+
+    A fit can leave a few triangles turned over where the scan ends, in a crease
+    or beside a cavity.  Their vertices and one ring around them give up their
+    displacement from ``reference`` and take the smooth extension of their
+    neighbours' (:func:`smooth_extension`); the region grows by a ring a round
+    until no triangle is turned past 90 degrees, ``rounds`` are done, three rounds
+    unfold nothing more or 2 % of the vertices are relaxed.  Triangles already folded over in ``reference`` (facing
+    away from every neighbour: needles a modeller left inside out) are not
+    counted: the fit turning them with their neighbours is no fold.  Nothing else
+    moves.
+
+    Parameters
+    ----------
+    template : Mesh
+        Topology.
+    reference : (n, 3) float
+        Positions whose orientation is right (the aligned template).
+    vertices : (n, 3) float
+        The fit.
+    fixed : (n,) bool, optional
+        Vertices that must not move (pinned ones).
+    order : {1, 2}
+    rounds : int
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    relaxed : (n,) bool
+        The vertices that moved.
+
+    Examples
+    --------
+    >>> from facewrap.mesh import Mesh
+    >>> g = np.stack(np.meshgrid(np.arange(4.0), np.arange(4.0)), -1).reshape(-1, 2)
+    >>> V = np.c_[g, np.zeros(16)]
+    >>> T = np.array([[i, i + 1, i + 5] for i in (0, 1, 2, 4, 5, 6, 8, 9, 10)]
+    ...              + [[i, i + 5, i + 4] for i in (0, 1, 2, 4, 5, 6, 8, 9, 10)])
+    >>> fit = V.copy(); fit[5] = [2.6, 2.6, 0]          # pushed past its neighbours
+    >>> out, moved = relax_flips(Mesh(V, T), V, fit)
+    >>> bool(np.allclose(out[5], [1, 1, 0])), int(moved.sum()) > 0
+    (True, True)
+    """
+    V0 = np.asarray(reference, dtype=np.float64)
+    X = np.asarray(vertices, dtype=np.float64)
+    T = template.triangles
+    n0 = face_normals(V0, T)
+    folded = folded_in(n0, T)
+    keep = np.zeros(len(X), dtype=bool) if fixed is None else np.asarray(fixed, bool)
+    relaxed = np.zeros(len(X), dtype=bool)
+    out = X
+    A = None
+    operator = None
+    last, stalled = len(T) + 1, 0
+    for _ in range(rounds):
+        flipped = turned(n0, face_normals(out, T), 90.0) & ~folded
+        if not flipped.any():
+            break
+        stalled = stalled + 1 if flipped.sum() >= last else 0
+        if stalled >= _STALLED_ROUNDS or relaxed.mean() > _MOST_RELAXED:
+            break               # smoothing wider no longer helps
+        last = int(flipped.sum())
+        if A is None:
+            A = vertex_adjacency(T, len(X))
+            operator = extension_operator(template, order)
+        # the flipped triangles' vertices, and what was relaxed before, grow by a ring
+        grown = relaxed.copy()
+        grown[T[flipped]] = True
+        grown |= (A @ grown.astype(np.float64)) > 0
+        relaxed |= grown & ~keep
+        out = V0 + smooth_extension(template, X - V0, ~relaxed, operator=operator)
+        out[~relaxed] = X[~relaxed]
+    return out, relaxed
 
 
 def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,

@@ -201,7 +201,8 @@ def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
     hidden : HiddenSurface, optional
         Parts and cavities that follow (None: every vertex may be fitted).
     exclude : (n,) bool or int array, optional
-        Vertices the user leaves out.
+        Vertices the user leaves out (parts and cavities among them keep those
+        roles).
     fit_mask : (n,) bool or int array, optional
         The only vertices the user wants fitted: the others are ``excluded``, and
         the hidden surface is not consulted.
@@ -221,14 +222,19 @@ def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
     --------
     >>> vertex_roles(5, exclude=[1], fit_mask=[0, 1, 2, 3], pinned=[0]).tolist()
     [4, 3, 0, 0, 3]
+    >>> h = HiddenSurface(np.array([0, 0, 0, 1, 1], bool), np.array([1, 0, 0, 0, 0], bool), 1)
+    >>> vertex_roles(5, h, exclude=[0, 1, 4]).tolist()
+    [2, 3, 0, 1, 1]
     """
     roles = np.full(n, FITTED, dtype=np.int8)
     if fit_mask is not None:
         roles[~_as_mask(fit_mask, n, "fit_mask")] = EXCLUDED
-    elif hidden is not None:
+    roles[_as_mask(exclude, n, "exclude")] = EXCLUDED
+    if fit_mask is None and hidden is not None:
+        # what a vertex is wins over why it is left out: an excluded eyeball is
+        # still a part, and follows as one
         roles[hidden.cavity] = CAVITY
         roles[hidden.part] = PART
-    roles[_as_mask(exclude, n, "exclude")] = EXCLUDED
     roles[_as_mask(pinned, n, "pinned")] = PINNED
     return roles
 

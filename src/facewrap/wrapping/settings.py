@@ -106,6 +106,10 @@ class WrapSettings:
         (nostrils, mouth and eye sockets) follow the skin instead
         (:func:`~facewrap.wrapping.roles.find_hidden_surface`).  Off: every vertex
         not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` replaces it.
+    unfold : bool
+        Unfold triangles the fit turned over (facing away from the aligned
+        template) by smoothing them and a ring around them
+        (:func:`~facewrap.wrapping.projection.relax_flips`); pinned vertices stay.
     """
     model: str = "auto"
     scale: bool = True
@@ -128,6 +132,7 @@ class WrapSettings:
     landmark_tolerance: float = 0.002
     allow_mirrored: bool = False
     follow_hidden: bool = True
+    unfold: bool = True
 
     #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
     #: the CLI and job files take their choices from here
@@ -153,6 +158,7 @@ class WrapSettings:
         "landmark_tolerance": Interval(float, 0, None),
         "allow_mirrored": Flag(),
         "follow_hidden": Flag(),
+        "unfold": Flag(),
     }
 
     def __post_init__(self):

@@ -8,7 +8,7 @@ The pipeline (SPEC §1–§2), one named function per stage, each testable alone
                           or coarse pre-fit + non-rigid ICP (:mod:`.model_fit`)
     :func:`pull_landmarks` landmarks left far from their targets pulled to them
     :func:`project`       onto the scan along normals, smooth where not projected
-    :func:`pin`           pinned vertices back where the similarity put them
+    :func:`finish_fit`    pinned vertices back, folds unfolded, parts follow the skin
     :func:`fit_metrics`   distances to the scan and landmark errors
 
 :func:`wrap` runs them in this order and returns a :class:`WrapResult` with the
@@ -28,17 +28,20 @@ from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
 from facewrap.wrapping.align import rigid_icp
+from facewrap.wrapping.follow import follow_skin
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked_scan
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
-from facewrap.wrapping.projection import Projection, project_to_surface, smooth_extension
+from facewrap.wrapping.projection import (Projection, project_to_surface, relax_flips,
+                                          smooth_extension)
 from facewrap.wrapping.roles import FITTED, PINNED, cached_hidden_surface, vertex_roles
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
-           "fit_model", "pull_landmarks", "project", "pin", "alignment_weights"]
+           "fit_model", "pull_landmarks", "project", "pin", "finish_fit",
+           "alignment_weights"]
 
 
 @dataclass
@@ -344,6 +347,37 @@ def pin(problem: WrapProblem, vertices, similarity: Similarity,
                                        order=problem.settings.blend_order)
 
 
+def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
+               projection: Projection | None, rest=None) -> tuple[np.ndarray, dict]:
+    """The last stage: pinned vertices put back (:func:`pin`), triangles the fit
+    turned over unfolded (``settings.unfold``,
+    :func:`~facewrap.wrapping.projection.relax_flips`), the template's parts
+    moved with the skin nearest to them and kept on their side of it
+    (:mod:`facewrap.wrapping.follow`).
+
+    ``rest`` (n, 3) is the pose a triangle is turned over from: the expression the
+    blend weights make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape
+    is not "unfolded"; default the aligned template.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    summary : dict
+        ``pinned`` and ``unfolded`` (vertices).
+    """
+    template, roles = problem.template, problem.roles
+    out = pin(problem, vertices, similarity, projection)
+    aligned = similarity.apply(template.vertices)
+    summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
+    if problem.settings.unfold:
+        out, relaxed = relax_flips(template, aligned if rest is None else rest, out,
+                                   fixed=roles == PINNED,
+                                   order=problem.settings.blend_order)
+        summary["unfolded"] = int(relaxed.sum())
+    out = follow_skin(template.triangles, aligned, out, roles)
+    return out, summary
+
+
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
          exclude=None, fit_mask=None, pinned=None, blendshapes=None,
@@ -418,9 +452,11 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
 
     t = time.perf_counter()
     projection = project(problem, V)
-    out = pin(problem, V if projection is None else projection.vertices, similarity,
-              projection)
     timings["project"] = time.perf_counter() - t
+    t = time.perf_counter()
+    out, finish = finish_fit(problem, V if projection is None else projection.vertices,
+                             similarity, projection, rest=fitted.rest)
+    timings["finish"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
 
     metrics = fit_metrics(out, problem.tree,
@@ -430,6 +466,7 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         metrics["projection"] = projection.summary()
     if pull is not None:
         metrics["landmark_pull"] = pull
+    metrics["finish"] = finish
     return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,

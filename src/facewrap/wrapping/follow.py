@@ -1,0 +1,157 @@
+"""How the template's parts follow the skin, and stay on their side of it.
+
+The template's parts (eyeballs, teeth, gums, tongue, lashes: :mod:`.roles`) are
+not pulled by the scan.  :func:`follow_skin` moves each piece by a smooth warp of
+space that carries the skin around it (its anchors: the skin vertices nearest to
+each of its vertices, at most 200 of them spread by farthest-point sampling) as
+the fit carried it: the biharmonic RBF warp of SPEC §1.2
+(:class:`~facewrap.wrapping.warp.RBFWarp`).  An eyeball moves with its socket and
+lids, a tooth with the mouth socket and inner lips, whatever the deformation
+model did between them, and being smooth the warp folds no triangle.  A closed
+piece (no border: an eyeball, a tooth) is a solid body: it moves by the rigid
+motion nearest to the warp unless that leaves more of its vertices on the wrong
+side of the skin than the warp does (an eyeball squeezed between lids and a
+socket the scan moved apart bends with them instead).  A part
+vertex that still ends up on the other side of the skin than on the template
+(signed distance by libigl's pseudonormal test; the skin is every triangle that is
+not part) is put back at its template offset from the closest skin point, along
+the skin's normal there; vertices that touch the skin on the template (closer
+than ``2e-4`` of its size) have no side to keep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from facewrap.geometry import (boundary_edges, connected_components, farthest_point_sampling,
+                               similarity_transform)
+from facewrap.wrapping.roles import PART
+from facewrap.wrapping.warp import RBFWarp
+
+__all__ = ["follow_skin", "side_changes"]
+
+_ANCHORS = 8           # skin vertices nearest to each part vertex that carry it
+_MOST_ANCHORS = 200    # per piece: enough to follow a socket, a small solve
+_CONTACT = 2e-4        # of the template's size: a part vertex this near touches the skin
+
+
+def _signed(points, V, T):
+    """Signed distances, closest points and normals of ``points`` to ``(V, T)``."""
+    import igl    # the compiled core, loaded on use
+    S, _, C, N = igl.signed_distance(np.ascontiguousarray(points), V, T,
+                                     igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)
+    return S, C, N
+
+
+def side_changes(template_triangles, reference, vertices, roles) -> np.ndarray:
+    """(p,) bool: part vertices (in id order) on the other side of the skin than on
+    the aligned template (``reference``); see the module docstring.  Vertices that
+    touch the skin on the template do not count.
+
+    >>> import numpy as np
+    >>> from facewrap.wrapping.roles import PART
+    >>> V = np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [1, 1, -1.]])
+    >>> roles = np.array([0, 0, 0, PART], np.int8)
+    >>> fit = V.copy(); fit[3, 2] = 1.0                  # came through the skin
+    >>> side_changes([[0, 1, 2]], V, fit, roles).tolist()
+    [True]
+    """
+    T = np.asarray(template_triangles, dtype=np.int64)
+    part = np.flatnonzero(np.asarray(roles) == PART)
+    skin_T = T[(np.asarray(roles)[T] != PART).all(axis=1)]
+    if len(part) == 0 or len(skin_T) == 0:
+        return np.zeros(len(part), dtype=bool)
+    R = np.asarray(reference, dtype=np.float64)
+    X = np.asarray(vertices, dtype=np.float64)
+    s0, _, _ = _signed(R[part], R, skin_T)
+    s1, _, _ = _signed(X[part], X, skin_T)
+    contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
+    return (np.sign(s0) != np.sign(s1)) & (np.abs(s0) > contact)
+
+
+def follow_skin(template_triangles, reference, vertices, roles, *,
+                rounds: int = 3) -> np.ndarray:
+    """Move the template's part vertices with the skin nearest to them.
+
+    Parameters
+    ----------
+    template_triangles : (t, 3) int64
+    reference : (n, 3) float
+        The aligned template.
+    vertices : (n, 3) float
+        The fit (skin vertices are kept as they are).
+    roles : (n,) int8
+        :func:`facewrap.wrapping.roles.vertex_roles`.
+    rounds : int
+        Passes of the side check.
+
+    Returns
+    -------
+    (n, 3) float64
+
+    Examples
+    --------
+    A part under a skin patch that the fit lifted: it is lifted alike.
+
+    >>> import numpy as np
+    >>> from facewrap.wrapping.roles import PART
+    >>> g = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), -1).reshape(-1, 2)
+    >>> skin = np.c_[g, np.zeros(25)]
+    >>> T = np.array([[i, i + 1, i + 6] for i in range(19) if i % 5 < 4]
+    ...              + [[i, i + 6, i + 5] for i in range(19) if i % 5 < 4])
+    >>> R = np.vstack([skin, [[2.0, 2.0, -0.5]]])
+    >>> roles = np.r_[np.zeros(25, np.int8), [PART]].astype(np.int8)
+    >>> fit = R + [0, 0, 3.0]; fit[25] = [9, 9, 9]       # the model left it behind
+    >>> out = follow_skin(T, R, fit, roles)
+    >>> np.round(out[25], 6).tolist()
+    [2.0, 2.0, 2.5]
+    """
+    T = np.asarray(template_triangles, dtype=np.int64)
+    roles = np.asarray(roles)
+    X = np.array(vertices, dtype=np.float64)
+    R = np.asarray(reference, dtype=np.float64)
+    part = np.flatnonzero(roles == PART)
+    skin = np.flatnonzero(roles != PART)
+    if len(part) == 0 or len(skin) == 0:
+        return X
+    k = min(_ANCHORS, len(skin))
+    _, near = cKDTree(R[skin]).query(R[part], k=k)
+    near = skin[np.asarray(near).reshape(len(part), k)]
+    labels = connected_components(T, len(X))
+    solid = np.ones(int(labels.max()) + 1, dtype=bool)
+    solid[labels[boundary_edges(T)[:, 0]]] = False
+    pieces = labels[part]
+    rigid = X[part].copy()
+    for piece in np.unique(pieces):
+        mine = pieces == piece
+        anchors = np.unique(near[mine].ravel())
+        if len(anchors) > _MOST_ANCHORS:
+            anchors = anchors[farthest_point_sampling(R[anchors], _MOST_ANCHORS)]
+        warp = RBFWarp().fit(R[anchors], X[anchors] - R[anchors])
+        X[part[mine]] = warp.transform(R[part[mine]])
+        if solid[piece]:
+            rigid[mine] = similarity_transform(R[part[mine]], X[part[mine]],
+                                               scale=False).apply(R[part[mine]])
+    skin_T = T[(roles[T] != PART).all(axis=1)]
+    if len(skin_T) == 0:
+        return X
+    s0, _, _ = _signed(R[part], R, skin_T)
+    contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
+
+    def wrong_side(P) -> np.ndarray:
+        s1, C, N = _signed(P, X, skin_T)
+        return (np.sign(s1) != np.sign(s0)) & (np.abs(s0) > contact), C, N
+
+    if solid[pieces].any():
+        bent = np.bincount(pieces, wrong_side(X[part])[0], minlength=len(solid))
+        kept = np.bincount(pieces, wrong_side(rigid)[0], minlength=len(solid))
+        whole = (solid & (kept <= bent))[pieces]
+        X[part[whole]] = rigid[whole]
+    for _ in range(rounds):
+        wrong, C, N = wrong_side(X[part])
+        if not wrong.any():
+            break
+        n = N[wrong] / np.maximum(np.linalg.norm(N[wrong], axis=1, keepdims=True), 1e-300)
+        X[part[wrong]] = C[wrong] + n * s0[wrong, None]
+    return X
