@@ -43,10 +43,13 @@ from facewrap.texture import bake_texture, load_image, save_png
 from facewrap.wrapping import GraphCache, WrapSettings, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
-           "job_inputs", "job_outputs", "check_job_paths"]
+           "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES"]
 
 #: Mesh formats an output may have.
 MESH_EXTENSIONS = (".obj", ".ply")
+
+#: Frames the fitted mesh may be written in (:attr:`WrapJob.output_frame`).
+OUTPUT_FRAMES = ("scan", "template")
 
 
 class InputWarning(UserWarning):
@@ -80,6 +83,11 @@ class WrapJob:
         Baked image size in pixels.
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
+    output_frame : {"scan", "template"}
+        Where the written mesh lies: on the scan (default), or mapped back through
+        the inverse of the template → scan landmark similarity, so it overlays the
+        template (a texture is baked before, on the scan).  The report's
+        ``"output_frame"`` records it.
     """
     template: str = input_field()
     scan: str = input_field()
@@ -91,6 +99,7 @@ class WrapJob:
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
+    output_frame: str = output_field(path=False, default="scan")
 
 
 def _path_fields(table: str) -> list[str]:
@@ -138,6 +147,9 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
+    if job.output_frame not in OUTPUT_FRAMES:
+        raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
+                         f" got {job.output_frame!r}", source or job.output)
 
 
 # -- checks of legal but odd inputs -------------------------------------------------
@@ -346,7 +358,10 @@ def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> Non
     job's outputs behind (and an earlier run's outputs untouched).
     """
     with staged_outputs() as stage:
-        write_mesh(stage.file(job.output), result.mesh)
+        mesh = result.mesh
+        if job.output_frame == "template":  # the bake below still reads the scan frame
+            mesh = mesh.with_vertices(result.transform.inverse().apply(mesh.vertices))
+        write_mesh(stage.file(job.output), mesh)
         if inputs["texture"] is not None:
             t = time.perf_counter()
             baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
@@ -406,6 +421,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
               "timings": result.timings, "metrics": result.metrics,
               "iterations": result.history,
               "transform": result.transform.matrix.tolist(),
+              "output_frame": job.output_frame,
               "warnings": notes}
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
