@@ -493,7 +493,7 @@ def off_bad_counts(ctx):
     return ctx.run(p, scan=p)
 
 
-@case("OFF", "face index beyond the vertex count", "error", "outside the range|out of range")
+@case("OFF", "face index beyond the vertex count", "error", "outside the range|must lie in")
 def off_bad_index(ctx):
     lines = trimesh_scan(ctx, "scan.off").decode().splitlines()
     lines[-1] = f"3 0 1 {len(ctx.base.scan_V) + 7}"
