@@ -135,3 +135,19 @@ def test_a_job_file_output_frame_is_checked_at_the_door(sample_files, tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "output_frame" in err[0] and "'template'" in err[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_no_scale_keeps_the_template_size(sample_files, tmp_path):
+    import json
+    import numpy as np
+    from facewrap.geometry.similarity import Similarity
+
+    def scale(*extra):
+        out = tmp_path / f"s{len(extra)}.obj"
+        assert _wrap(sample_files, out, *extra) == 0
+        report = json.loads(out.with_suffix(".json").read_text())
+        assert report["settings"]["scale"] is not bool(extra)
+        return Similarity.from_matrix(np.asarray(report["transform"])).scale
+
+    assert scale("--no-scale") == pytest.approx(1.0, abs=1e-9)
+    assert abs(scale() - 1.0) > 1e-3  # the sample's scan is of another size
