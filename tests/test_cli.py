@@ -45,7 +45,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path):
                         str(tmp_path / "none.obj")], capture_output=True, text=True)
     assert r.returncode == 2 and "no such file" in r.stderr
     r = subprocess.run([sys.executable, "-m", "facewrap.cli", "info",
-                        str(tmp_path / "x.stl")], capture_output=True, text=True)
+                        str(tmp_path / "x.fbx")], capture_output=True, text=True)
     assert r.returncode == 2 and "unknown mesh format" in r.stderr
 
 

@@ -445,6 +445,123 @@ def lm_binary(ctx):
     return ctx.run(p, scan_landmarks=p)
 
 
+# -- STL, OFF, glTF scans (through trimesh) and iBUG .pts landmarks ------------------------
+def trimesh_scan(ctx, name: str, **kw) -> bytes:
+    """The sample scan exported by trimesh (the format from ``name``'s extension)."""
+    import trimesh
+    p = ctx.dir / ("_" + name)
+    trimesh.Trimesh(ctx.base.scan_V, ctx.base.scan_T, process=False).export(p, **kw)
+    return p.read_bytes()
+
+
+def glb_bytes(doc: dict) -> bytes:
+    """A GLB file holding only the glTF JSON ``doc``."""
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    return (b"glTF" + (2).to_bytes(4, "little") + (20 + len(js)).to_bytes(4, "little")
+            + len(js).to_bytes(4, "little") + b"JSON" + js)
+
+
+@case("STL", "binary STL scan (a triangle soup: corners merged)", "ok",
+      check=close_to_base(atol=1e-3))
+def stl_binary_ok(ctx):
+    p = ctx.write("scan.stl", trimesh_scan(ctx, "scan.stl"))
+    return ctx.run(p, scan=p)
+
+
+@case("STL", "binary STL cut short", "error", r"header says \d+ triangles")
+def stl_truncated(ctx):
+    p = ctx.write("scan.stl", trimesh_scan(ctx, "scan.stl")[:-100])
+    return ctx.run(p, scan=p)
+
+
+@case("STL", "2 GB sparse STL claiming 10^9 triangles", "error", "header says 1000000000")
+def stl_sparse_2gb(ctx):
+    p = sparse_file(ctx, "scan.stl", b"\0" * 80 + (10 ** 9).to_bytes(4, "little"))
+    return ctx.run(p, scan=p)
+
+
+@case("OFF", "OFF scan", "ok", check=close_to_base(atol=1e-3))
+def off_ok(ctx):
+    p = ctx.write("scan.off", trimesh_scan(ctx, "scan.off"))
+    return ctx.run(p, scan=p)
+
+
+@case("OFF", "header counts more faces than follow", "error", "rows follow")
+def off_bad_counts(ctx):
+    text = trimesh_scan(ctx, "scan.off").decode()
+    nv, nf = len(ctx.base.scan_V), len(ctx.base.scan_T)
+    p = ctx.write("scan.off", text.replace(f"{nv} {nf} 0", f"{nv} {nf + 50} 0", 1))
+    return ctx.run(p, scan=p)
+
+
+@case("OFF", "face index beyond the vertex count", "error", "outside the range|must lie in")
+def off_bad_index(ctx):
+    lines = trimesh_scan(ctx, "scan.off").decode().splitlines()
+    lines[-1] = f"3 0 1 {len(ctx.base.scan_V) + 7}"
+    p = ctx.write("scan.off", "\n".join(lines) + "\n")
+    return ctx.run(p, scan=p)
+
+
+@case("glTF", "GLB scan placed by its node's transform", "ok",
+      check=close_to_base(atol=1e-3))
+def glb_node_transform_ok(ctx):
+    import trimesh
+    move = trimesh.transformations.translation_matrix([0, 0, 50.0])
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.Trimesh(ctx.base.scan_V - move[:3, 3], ctx.base.scan_T,
+                                       process=False), node_name="scan", transform=move)
+    p = ctx.dir / "scan.glb"
+    scene.export(p)
+    return ctx.run(p, scan=p)
+
+
+@case("glTF", "GLB with no mesh (an empty scene)", "error", "holds no triangle mesh")
+def glb_no_mesh(ctx):
+    p = ctx.write("scan.glb", glb_bytes({"asset": {"version": "2.0"}, "scene": 0,
+                                         "scenes": [{"nodes": []}]}))
+    return ctx.run(p, scan=p)
+
+
+@case("glTF", "GLB cut short", "error", "truncated GLB")
+def glb_truncated(ctx):
+    p = ctx.write("scan.glb", trimesh_scan(ctx, "scan.glb")[:-64])
+    return ctx.run(p, scan=p)
+
+
+@case("glTF", ".gltf that is not JSON", "error", "not glTF JSON")
+def gltf_not_json(ctx):
+    p = ctx.write("scan.gltf", "solid scan\nfacet normal 0 0 1\n")
+    return ctx.run(p, scan=p)
+
+
+def pts_text(P) -> str:
+    rows = "".join(" ".join(repr(float(x)) for x in r) + "\n" for r in np.asarray(P))
+    return f"version: 1\nn_points: {len(P)}\n{{\n{rows}}}\n"
+
+
+@case("landmarks", "iBUG .pts scan landmarks (3-D rows)", "ok", check=close_to_base())
+def pts_3d_ok(ctx):
+    p = ctx.write("scan_landmarks.pts", pts_text(ctx.base.points))
+    return ctx.run(p, scan_landmarks=p)
+
+
+@case("landmarks", "iBUG .pts with 2-D rows (image landmarks)", "error",
+      "2-D landmarks; facewrap needs 3-D points")
+def pts_2d(ctx):
+    p = ctx.write("scan_landmarks.pts", pts_text(ctx.base.points[:, :2]))
+    return ctx.run(p, scan_landmarks=p)
+
+
+@case("landmarks", ".pts whose n_points disagrees with its rows", "error",
+      "n_points says")
+def pts_count(ctx):
+    text = pts_text(ctx.base.points)
+    p = ctx.write("scan_landmarks.pts", text.replace(f"n_points: {len(ctx.base.points)}",
+                                                     f"n_points: {len(ctx.base.points) + 1}"))
+    return ctx.run(p, scan_landmarks=p)
+
+
 # -- markers (read by transfer jobs; the reader directly) ---------------------------------
 @case("markers", "count line disagrees with the pairs", "error", "count line says 3")
 def markers_count_mismatch(ctx):
@@ -1111,6 +1228,7 @@ _LANDMARK_SEEDS = {
              b'{"triangle": 1, "barycentric": [0.2, 0.3, 0.5]}, {"point": [1, 2, 3]}]}',
     ".ljson": b'{"version": 3, "groups": {"LJSON": {"landmarks": {"points": [[1, 2, 3], '
               b'[4, 5, 6]]}, "labels": [{"label": "nose", "mask": [0, 1]}]}}}',
+    ".pts": b"version: 1\nn_points: 3\n{\n1 2 3\n4.5 5 6\n7 8 9e1\n}\n",
 }
 
 
@@ -1122,6 +1240,23 @@ def test_fuzz_landmark_readers(case_):
     lm = _read_or_input_error(read_landmarks, data, ext)
     if lm is not None:
         assert len(lm) > 0
+
+
+def _trimesh_seed(ext: str) -> bytes:
+    import trimesh
+    p = _fuzz_file(b"x", ext)
+    trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5]], [[0, 1, 2], [1, 3, 2]],
+                    process=False).export(p)
+    return p.read_bytes()
+
+
+@pytest.mark.slow
+@_FUZZ
+@given(st.sampled_from([".stl", ".off", ".glb"]).flatmap(
+    lambda ext: st.tuples(st.just(ext), _mutations(_trimesh_seed(ext)))))
+def test_fuzz_trimesh_formats(case_):
+    ext, data = case_
+    _check_mesh(_read_or_input_error(read_mesh, data, ext))
 
 
 _MARKER_SEEDS = {".cons": b"2\n1 2\n3, 4\n", ".yaml": b"markers: ['1:2', '3:4']\n",
@@ -1193,7 +1328,8 @@ odd: the fit is done and correct, and one warning line names the file and the od
 """
 
 DOC_TAIL = """
-Beyond the table: the OBJ, PLY, landmark, marker and manifest readers are fuzzed with
+Beyond the table: the OBJ, PLY, STL, OFF, GLB, landmark (`.pts` too), marker and
+manifest readers are fuzzed with
 Hypothesis (random bytes, valid files with bytes changed, cut short or spliced): every
 input is read or rejected with one `InputError` naming the file, never another
 exception. Job files are fuzzed the same way in `tests/test_jobs_jobfile.py`.

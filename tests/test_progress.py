@@ -176,3 +176,100 @@ def test_quiet_silences_bars_and_terminal_logs_use_rich():
 def test_bad_verbosity():
     with pytest.raises(ValueError, match="verbosity"):
         configure_logging("2")
+
+
+# -- the commands, on a pseudo-terminal and in pipes -------------------------------------------
+def _env():
+    import os
+    env = {k: v for k, v in os.environ.items() if k != "FACEWRAP_PROGRESS"}
+    env.update(TERM="xterm-256color", COLUMNS="120",
+               PYTHONPATH=os.pathsep.join(filter(None, [str(SRC), env.get("PYTHONPATH")])))
+    return env
+
+
+SRC = __import__("pathlib").Path(__file__).resolve().parents[1] / "src"
+
+
+def on_terminal(argv) -> tuple[int, str]:
+    """Run ``facewrap ARGV`` with its standard streams on a pseudo-terminal;
+    (exit status, everything it drew)."""
+    import os
+    import pty
+    import subprocess
+    import sys
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "facewrap.cli", *map(str, argv)],
+                            stdin=slave, stdout=slave, stderr=slave, env=_env(),
+                            close_fds=True)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 65536)
+        except OSError:  # EIO: the other end is closed
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    return proc.wait(timeout=120), b"".join(chunks).decode("utf-8", "replace")
+
+
+def in_pipes(argv):
+    import subprocess
+    import sys
+    return subprocess.run([sys.executable, "-m", "facewrap.cli", *map(str, argv)],
+                          capture_output=True, text=True, env=_env(), timeout=120)
+
+
+@pytest.fixture(scope="module")
+def sample_files(tmp_path_factory):
+    from facewrap.sample import make_scan, make_template, write_sample
+    tpl = make_template(24)
+    return write_sample(tmp_path_factory.mktemp("sample"), tpl,
+                        make_scan(tpl, resolution=40, texture_size=16))
+
+
+def _wrap_argv(p, out):
+    return ["wrap", p["template"], p["scan"], "-o", out, "--template-landmarks",
+            p["template_landmarks"], "--scan-landmarks", p["scan_landmarks"]]
+
+
+@needs_rich
+@pytest.mark.slow
+def test_wrap_draws_its_stages_and_iterations_on_a_terminal_only(sample_files, tmp_path):
+    rc, drawn = on_terminal(_wrap_argv(sample_files, tmp_path / "a.obj"))
+    assert rc == 0, drawn
+    assert "fitting graph" in drawn and "ICP stage" in drawn and "\x1b[" in drawn
+    assert f"wrote {tmp_path / 'a.obj'}" in drawn
+    r = in_pipes(_wrap_argv(sample_files, tmp_path / "b.obj"))
+    assert r.returncode == 0 and r.stderr == ""
+    assert r.stdout.splitlines() == [r.stdout.strip()]
+    assert r.stdout.startswith(f"wrote {tmp_path / 'b.obj'}: ") and "\x1b" not in r.stdout
+
+
+@needs_rich
+@pytest.mark.slow
+def test_batch_draws_a_bar_of_jobs_and_prints_the_same_lines_in_pipes(sample_files,
+                                                                      tmp_path):
+    p = sample_files
+    job = tmp_path / "shared.toml"
+    job.write_text(f'[inputs]\ntemplate = "{p["template"]}"\ntemplate_landmarks = '
+                   f'"{p["template_landmarks"]}"\n[wrap]\nmodel = "rbf"\n')
+
+    def manifest(folder):
+        folder.mkdir()
+        rows = "".join(f'{p["scan"]},{p["scan_landmarks"]},{folder}/r{k}.obj\n'
+                       for k in range(3))
+        (folder / "m.csv").write_text("scan,scan_landmarks,output\n" + rows)
+        return ["batch", folder / "m.csv", "--job", job, "--workers", "1"]
+
+    rc, drawn = on_terminal(manifest(tmp_path / "tty"))
+    import re
+    assert rc == 0 and re.search(r"\bbatch \S*\s.*3/3.*100%", drawn), drawn
+    r = in_pipes(manifest(tmp_path / "pipe"))
+    assert r.returncode == 0 and r.stderr == ""
+    lines = r.stdout.splitlines()
+    assert [ln.split(" (")[0] for ln in lines[:3]] == [f"[{k}/3] done r{k - 1}.obj"
+                                                       for k in (1, 2, 3)]
+    assert len(lines) == 4 and lines[3].startswith("3 done, 0 skipped, 0 failed")

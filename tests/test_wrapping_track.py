@@ -104,3 +104,56 @@ def test_track_without_later_landmarks_keeps_up_with_the_expression(ramp):
     # predicted landmarks guide the fit but never pull it (first frame: given ones)
     assert "landmark_pull" in result.frames[0].metrics
     assert not any("landmark_pull" in f.metrics for f in result.frames[1:])
+
+
+@pytest.mark.slow
+def test_track_cli_prints_and_records_each_frames_input_warnings(ramp, tmp_path, capsys):
+    from facewrap.cli import main
+    from facewrap.io import write_mesh
+    from facewrap.mesh import Mesh
+    from facewrap.sample import write_sample
+    template, seq = ramp
+    paths = write_sample(tmp_path / "in", template, seq[0])
+    scans = []
+    for i, s in enumerate(seq[:3]):
+        mesh = s.mesh
+        if i == 1:  # every face twice: legal, odd, fixed for the fit with a warning
+            mesh = Mesh(mesh.vertices, np.vstack([mesh.triangles, mesh.triangles]))
+        scans.append(tmp_path / f"take_{i}.obj")
+        write_mesh(scans[-1], mesh)
+    out = tmp_path / "out"
+    capsys.readouterr()
+    rc = main(["track", str(paths["template"]), *map(str, scans), "-o", str(out),
+               "--template-landmarks", str(paths["template_landmarks"]),
+               "--scan-landmarks", str(paths["scan_landmarks"]), "--model", "graph",
+               "--output-frame", "template", "-q"])
+    assert rc == 0
+    warned = [ln for ln in capsys.readouterr().err.splitlines()
+              if ln.startswith("facewrap: warning: ")]
+    assert warned and all(ln.startswith(f"facewrap: warning: frame 1 ({scans[1]}): ")
+                          for ln in warned)
+    assert any("duplicated faces" in ln for ln in warned)
+    report = json.loads((out / "track.json").read_text())
+    assert report["warnings"] == [ln[len("facewrap: warning: "):] for ln in warned]
+    assert [bool(f["warnings"]) for f in report["frames"]] == [False, True, False]
+    assert report["output_frame"] == "template"
+
+
+def test_track_outputs_in_the_template_frame_undo_the_first_similarity(ramp, tmp_path):
+    from facewrap.io import read_mesh
+    from facewrap.wrapping.track import write_track_outputs
+    template, seq = ramp
+    result = track(template.mesh, [s.mesh for s in seq[:2]], template.landmarks,
+                   [seq[0].landmarks, None], model_settings("rigid"))
+    paths = write_track_outputs(tmp_path / "t", result, output_frame="template")
+    back = result.frames[0].transform.inverse()
+    size = template.mesh.scale()
+    for path, frame in zip(paths["meshes"], result.frames):
+        assert np.abs(read_mesh(path).vertices - back.apply(frame.vertices)).max() < 1e-6 * size
+    with pytest.raises(ValueError, match="output_frame"):
+        write_track_outputs(tmp_path / "u", result, output_frame="world")
+
+
+def model_settings(model):
+    from facewrap.wrapping import WrapSettings
+    return WrapSettings(model=model)

@@ -141,10 +141,14 @@ class Progress:
                                        TimeRemainingColumn)
             from rich.progress import Progress as RichProgress
             console = _console_for(self._stream)
+            # lines printed on standard output while a bar draws go above the bar
+            # when that is the same screen; into a pipe or file they go unchanged
             _live = RichProgress(SpinnerColumn(), TextColumn("{task.description}"),
                                  BarColumn(), MofNCompleteColumn(), TaskProgressColumn(),
                                  TimeElapsedColumn(), TimeRemainingColumn(),
-                                 console=console, transient=False)
+                                 console=console, transient=False,
+                                 redirect_stdout=_isatty(sys.stdout),
+                                 redirect_stderr=self._stream is sys.stderr)
             _live.start()
             self._owner = True
         self._task = _live.add_task(self.description, total=self.total,

@@ -9,6 +9,7 @@ error.
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
 import os
 import threading
@@ -49,12 +50,15 @@ def single_threaded_blas():
 
 # flags "job i has started", shared with the pool's workers (set by their initializer)
 _started = None
+# whether this process already watches its parent (exit_with_parent)
+_watching = False
 
 
 def _pool_init(started) -> None:
     global _started
     _started = started
     exit_with_parent()
+    os.environ["FACEWRAP_PROGRESS"] = "0"  # workers draw no bars: the batch draws one
 
 
 def exit_with_parent() -> None:
@@ -66,9 +70,11 @@ def exit_with_parent() -> None:
     worker at once.  Its job's outputs are staged, so nothing partial is left, and
     it has no done-record, so a re-run does it again.
     """
+    global _watching
     parent = multiprocessing.parent_process()
-    if parent is None:  # not a multiprocessing child
+    if parent is None or _watching:  # not a multiprocessing child, or watched already
         return
+    _watching = True
 
     def watch():
         wait([parent.sentinel])
@@ -165,6 +171,32 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
             pool.shutdown(wait=not interrupted, cancel_futures=True)
 
 
+def _local_dask_task(func, bj) -> dict:
+    """``func(bj)`` on a worker of the batch's own LocalCluster.
+
+    The worker is a process the batch started: it ends as soon as the batch does
+    (:func:`exit_with_parent`; a SIGKILL of the batch gives Dask no chance to stop
+    it) and draws no progress bars (the batch draws one).
+    """
+    exit_with_parent()
+    os.environ["FACEWRAP_PROGRESS"] = "0"
+    return func(bj)
+
+
+def _quiet_task(func, bj) -> dict:
+    """``func(bj)`` on a worker of a cluster given by address: no progress bars."""
+    os.environ["FACEWRAP_PROGRESS"] = "0"
+    return func(bj)
+
+
+def _stop_local_workers() -> None:
+    """Ctrl-C: end the LocalCluster's worker processes now (their jobs' outputs are
+    staged, so nothing partial is left), before Dask's orderly close."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)  # no shutdown noise
+    for worker in multiprocessing.active_children():
+        worker.kill()
+
+
 def run_on_dask(jobs, address, workers: int, report, func) -> None:
     """Run ``func(job)`` for every job on a Dask cluster; ``report(row)`` per result.
 
@@ -189,11 +221,12 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
         client = Client(address)
     else:  # a Client given by the caller
         client, address = address, None
+    task = _local_dask_task if cluster is not None else _quiet_task
     try:
         futures = {}
         for bj in jobs:
-            fut = client.submit(func, bj, key=f"facewrap-job-{bj.index}-{os.getpid()}"
-                                f"-{time.time_ns()}", pure=False)
+            fut = client.submit(task, func, bj, key=f"facewrap-job-{bj.index}-"
+                                f"{os.getpid()}-{time.time_ns()}", pure=False)
             futures[fut] = bj
         for fut in dask_completed(list(futures)):
             bj = futures[fut]
@@ -202,6 +235,10 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
             except Exception as exc:  # noqa: BLE001 - worker lost, cancelled...
                 report(summary_row(bj, FAILED, error=f"{type(exc).__name__} on the Dask "
                                    f"cluster: {' '.join(str(exc).split())}"))
+    except KeyboardInterrupt:
+        if cluster is not None:
+            _stop_local_workers()
+        raise
     finally:
         if address is not None:
             client.close()

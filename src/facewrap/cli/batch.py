@@ -36,6 +36,7 @@ def cmd_batch(args) -> int:
     from facewrap.batch import (FAILED, SKIPPED, fingerprint, read_done_record, read_manifest,
                                 record_matches, run_batch, summary_stem)
     from facewrap.io.paths import check_output_paths
+    from facewrap.progress import progress
     jobs = read_manifest(args.manifest, job_file=args.job)
     if args.dry_run:
         for bj in jobs:
@@ -47,8 +48,9 @@ def cmd_batch(args) -> int:
         return 0
     total, seen = len(jobs), [0]
 
-    def progress(row):
+    def on_result(row):
         seen[0] += 1
+        bar.advance()
         if row["status"] == FAILED:
             print(f"facewrap: job {row['name']} failed: {row['error']}", file=sys.stderr)
         elif not args.quiet:
@@ -61,8 +63,10 @@ def cmd_batch(args) -> int:
                        inputs=[args.manifest, *([args.job] if args.job else []),
                                *(p for bj in jobs for p in bj.kind.inputs(bj.job)),
                                *(p for bj in jobs for p in bj.kind.outputs(bj.job))])
-    result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
-                       on_result=progress, manifest=os.path.abspath(args.manifest))
+    # a bar of finished jobs on a terminal (the lines above print whatever the output)
+    with progress(total, "batch") as bar:
+        result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
+                           on_result=on_result, manifest=os.path.abspath(args.manifest))
     counts = ", ".join(f"{result.count(s)} {s}" for s in ("done", "skipped", "failed"))
     if not args.quiet or not result.ok:
         print(f"{counts}; summary: {result.csv_path}", file=sys.stdout if result.ok

@@ -9,12 +9,19 @@ from __future__ import annotations
 
 import dataclasses
 
+from facewrap.jobs.wrap_job import OUTPUT_FRAMES, WrapJob
 from facewrap.params import choices_of
 from facewrap.wrapping import WrapSettings
 
 __all__ = ["add_fit_options", "wrap_settings_from_args"]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(WrapSettings)}
+
+
+def _allowed(field: str) -> str:
+    """The allowed values of a WrapSettings field in words, from its constraint table."""
+    rule = WrapSettings.constraints[field]
+    return " or ".join(r.describe() for r in (rule if isinstance(rule, tuple) else (rule,)))
 
 
 def _choice_option(p, option: str, field: str, help: str, type=str) -> None:
@@ -62,6 +69,23 @@ def add_fit_options(p) -> None:
     p.add_argument("--no-project", action="store_true", help="skip the projection")
     p.add_argument("--rigid-refine", action="store_true",
                    help="refine the alignment with rigid ICP")
+    p.add_argument("--no-scale", action="store_true",
+                   help="align with a rotation and translation only (the template is "
+                        "already at the scan's size and units)")
+    p.add_argument("--max-normal-angle", type=float, metavar="DEG",
+                   default=_DEFAULTS["max_normal_angle"],
+                   help="scan points whose normal differs from the template's by more "
+                        f"than this many degrees are not matched ({_allowed('max_normal_angle')}; "
+                        "default %(default)s)")
+    p.add_argument("--point-weight", type=float, metavar="W",
+                   default=_DEFAULTS["point_weight"],
+                   help="weight of point-to-point against point-to-plane (weight 1) "
+                        f"distances in the fit ({_allowed('point_weight')}; default "
+                        "%(default)s)")
+    p.add_argument("--output-frame", choices=OUTPUT_FRAMES, default=WrapJob.output_frame,
+                   help="write the result where the scan is ('scan') or mapped back "
+                        "through the inverse of the landmark similarity so it overlays "
+                        "the template ('template'; default %(default)s)")
     p.add_argument("--allow-mirrored", action="store_true",
                    help="fit landmarks that match a mirror image of the template's "
                         "(refused by default: usually a mirrored scan or landmark file)")
@@ -81,6 +105,8 @@ def wrap_settings_from_args(args) -> WrapSettings:
         naming the field.
     """
     return WrapSettings(model=args.model, kernel=args.kernel, smoothing=args.smoothing,
+                        scale=not args.no_scale, max_normal_angle=args.max_normal_angle,
+                        point_weight=args.point_weight,
                         project=not args.no_project, max_distance=args.max_distance,
                         rigid_refine=args.rigid_refine, node_spacing=args.node_spacing,
                         robust=args.robust, pca_components=args.pca_components,

@@ -8,6 +8,7 @@ errors over time, iterations, seconds).  See :mod:`facewrap.wrapping.track`.
 from __future__ import annotations
 
 import logging
+import sys
 from pathlib import Path
 
 from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
@@ -21,7 +22,7 @@ from facewrap.progress import progress
 from facewrap.wrapping import track, write_track_outputs
 from facewrap.wrapping.track import track_output_files
 
-__all__ = ["register", "cmd_track"]
+__all__ = ["register", "cmd_track", "frame_warnings"]
 
 _MESH_SUFFIXES = (".obj", ".ply")
 
@@ -39,6 +40,13 @@ def _scan_paths(items) -> list[Path]:
         else:
             paths.append(p)
     return paths
+
+
+def frame_warnings(result, scans) -> list[str]:
+    """Each frame's input warnings as ``frame N (FILE): ...`` lines, in frame order."""
+    return [f"frame {i} ({path}): {note}"
+            for i, (path, frame) in enumerate(zip(scans, result.frames))
+            for note in frame.warnings]
 
 
 def cmd_track(args) -> int:
@@ -80,10 +88,13 @@ def cmd_track(args) -> int:
 
         result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
                        blendshapes=shapes, exclude=exclude, progress=say)
+    notes = frame_warnings(result, scans)
+    for note in notes:
+        print(f"facewrap: warning: {note}", file=sys.stderr)
     paths = write_track_outputs(
-        args.out, result,
+        args.out, result, output_frame=args.output_frame,
         extra_report={"template": str(args.template), "scans": [str(p) for p in scans],
-                      "shape_names": result.shape_names})
+                      "shape_names": result.shape_names, "warnings": notes})
     if not args.quiet:
         print(f"wrote {len(paths['meshes'])} frames to {args.out}")
     return 0

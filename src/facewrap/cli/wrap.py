@@ -46,7 +46,7 @@ def cmd_wrap(args) -> int:
                   scan_landmarks=args.scan_landmarks, output=args.output,
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
-                  report=args.report)
+                  report=args.report, output_frame=args.output_frame)
     run_wrap_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
     return 0
 

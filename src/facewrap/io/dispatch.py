@@ -1,4 +1,10 @@
-"""Pick a mesh reader or writer from the file extension."""
+"""Pick a mesh reader or writer from the file extension.
+
+OBJ and PLY are read and written by facewrap's own exact readers
+(:mod:`facewrap.io.obj`, :mod:`facewrap.io.ply`); STL, OFF and glTF scans
+(``.stl``, ``.off``, ``.glb``, ``.gltf``) are read through trimesh
+(:mod:`facewrap.io.trimesh_formats`).  Outputs are OBJ or PLY.
+"""
 
 from __future__ import annotations
 
@@ -7,40 +13,72 @@ import os
 from facewrap.errors import InputError
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
+from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
+                                         read_trimesh_format)
 from facewrap.mesh import Mesh
 
-__all__ = ["read_mesh", "write_mesh"]
+__all__ = ["read_mesh", "write_mesh", "read_mesh_texture", "MESH_READ_EXTENSIONS",
+           "MESH_WRITE_EXTENSIONS"]
+
+#: Extensions :func:`write_mesh` writes.
+MESH_WRITE_EXTENSIONS = (".obj", ".ply")
+#: Extensions :func:`read_mesh` reads.
+MESH_READ_EXTENSIONS = (*MESH_WRITE_EXTENSIONS, *TRIMESH_EXTENSIONS)
 
 
 def _ext(path) -> str:
     return os.path.splitext(os.fspath(path))[1].lower()
 
 
+def _unknown(ext: str, known, path) -> InputError:
+    return InputError(f"unknown mesh format {ext or '(no extension)'!r}; use "
+                      + ", ".join(known), path)
+
+
 def read_mesh(path) -> Mesh:
-    """Read an OBJ or PLY mesh, chosen by extension.
+    """Read a mesh, the reader chosen by extension (:data:`MESH_READ_EXTENSIONS`).
 
     Raises
     ------
     InputError
-        For a missing file, an unknown extension or malformed content.
+        For a missing file, an unknown extension or malformed content, naming
+        the file.
     """
     ext = _ext(path)
-    if ext not in (".obj", ".ply"):
-        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
-                         "use .obj or .ply", path)
+    if ext not in MESH_READ_EXTENSIONS:
+        raise _unknown(ext, MESH_READ_EXTENSIONS, path)
     if not os.path.isfile(path):
         raise InputError("no such file", path)
     if ext == ".obj":
         return read_obj(path)
-    return read_ply(path)
+    if ext == ".ply":
+        return read_ply(path)
+    return read_trimesh_format(path)
+
+
+def read_mesh_texture(path):
+    """The texture image a mesh file carries inside it (glTF), or None.
+
+    OBJ and PLY files only name their images (:attr:`Mesh.texture`, ``.mtl``);
+    a ``.glb`` holds its base-colour image itself
+    (:func:`~facewrap.io.trimesh_formats.read_scene_texture`).
+
+    Returns
+    -------
+    (H, W, 3) uint8 or None
+    """
+    if _ext(path) not in (".glb", ".gltf"):
+        return None
+    if not os.path.isfile(path):
+        raise InputError("no such file", path)
+    return read_scene_texture(path)
 
 
 def write_mesh(path, mesh: Mesh) -> None:
     """Write an OBJ or PLY mesh, chosen by extension (atomic)."""
     ext = _ext(path)
-    if ext not in (".obj", ".ply"):
-        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; "
-                         "use .obj or .ply", path)
+    if ext not in MESH_WRITE_EXTENSIONS:
+        raise _unknown(ext, MESH_WRITE_EXTENSIONS, path)
     if ext == ".obj":
         write_obj(path, mesh)
     else:

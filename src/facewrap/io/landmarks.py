@@ -6,6 +6,9 @@ Formats read (and, where it makes sense, written):
   many (ICT, Onizuka ``landmarks_*.txt``): :func:`read_vertex_indices`;
 * **point lists** — one ``x y z`` (or ``x,y,z``) per line, optional ``name`` as a
   fourth column: :func:`read_points`;
+* **iBUG ``.pts``** — ``version: 1`` / ``n_points: N`` / ``{`` one ``x y z`` row per
+  point ``}``: :func:`read_pts` (2-D rows, the usual image landmarks, are refused:
+  a wrap needs points in space);
 * **menpo LJSON** v1–v3 (``.ljson``) — points named ``<label>_<k>`` by their label
   group: :func:`read_ljson`;
 * **marker pairs** — ``src tgt`` (or ``src, tgt``) per line with an optional count
@@ -43,7 +46,7 @@ from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import read_file_bytes, read_format_items, read_json
 
-__all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_ljson",
+__all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_pts", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
            "write_vertex_indices", "read_markers", "write_markers"]
 
@@ -163,6 +166,70 @@ def write_points(path, points_or_landmarks, names=None) -> None:
         rows = [f"{r} {n}" for r, n in zip(rows, names)]
     with atomic_write(path, "w") as fh:
         fh.write("\n".join(rows) + "\n")
+
+
+def _pts_header(rows, path) -> tuple[int, int]:
+    """(number of points the header promises, index of the row after ``{``)."""
+    n_points = None
+    for k, (no, s) in enumerate(rows):
+        if s == "{":
+            if n_points is None:
+                raise InputError("no 'n_points:' line before '{'", path, no)
+            return n_points, k + 1
+        key, colon, value = s.partition(":")
+        key = key.strip().lower()
+        if not colon or key not in ("version", "n_points", "image_size_x",
+                                    "image_size_y"):
+            raise InputError(f"not an iBUG .pts header line: {s[:60]!r}", path, no)
+        if key == "n_points":
+            if not _INT.match(value.strip()) or int(value) < 1:
+                raise InputError(f"n_points must be a positive integer, got "
+                                 f"{value.strip()[:30]!r}", path, no)
+            n_points = _bounded(int(value), path, no)
+    raise InputError("no '{' opening the points", path)
+
+
+def read_pts(path) -> Landmarks:
+    """Read iBUG ``.pts`` landmarks with 3-D rows.
+
+    The format: ``version: 1``, ``n_points: N``, then ``{``, N rows of coordinates
+    and ``}``.  Rows of three numbers are points in space (3-D landmarks of a scan);
+    rows of two are image landmarks, which a wrap cannot use.
+
+    Returns
+    -------
+    Landmarks
+        ``N`` free points, in file order, unnamed.
+
+    Raises
+    ------
+    InputError
+        Naming the file (and line): 2-D rows ("2-D landmarks; facewrap needs 3-D
+        points"), a count that differs from ``n_points``, rows of mixed sizes, a
+        missing ``{`` or ``}``, values that are not finite numbers.
+    """
+    rows = list(_content_lines(_text(path)))
+    n_points, start = _pts_header(rows, path)
+    body = rows[start:]
+    if not body or body[-1][1] != "}":
+        raise InputError("no '}' closing the points", path)
+    body = body[:-1]
+    if len(body) != n_points:
+        raise InputError(f"n_points says {n_points} but {len(body)} rows follow", path)
+    widths = {len(s.replace(",", " ").split()) for _, s in body}
+    if widths == {2}:
+        raise InputError("2-D landmarks; facewrap needs 3-D points", path)
+    for no, s in body:
+        if len(s.replace(",", " ").split()) != 3:
+            raise InputError(f"expected 'x y z', found {s[:60]!r}", path, no)
+    try:
+        pts = np.array([s.replace(",", " ").split() for _, s in body], dtype=np.float64)
+    except ValueError:
+        raise InputError("a coordinate is not a number", path) from None
+    if not np.isfinite(pts).all():
+        line = body[int(np.argmax(~np.isfinite(pts).all(axis=1)))][0]
+        raise InputError("NaN or infinite coordinate", path, line)
+    return Landmarks.from_points(pts)
 
 
 def read_ljson(path, ibug68: bool = True) -> Landmarks:
@@ -330,6 +397,8 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
         raise InputError("no such file", path)
     if ext == ".ljson":
         return read_ljson(path)
+    if ext == ".pts":
+        return read_pts(path)
     if ext == ".json":
         return read_landmarks_json(path)
     if kind == "vertices":

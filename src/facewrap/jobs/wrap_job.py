@@ -44,10 +44,13 @@ from facewrap.texture import bake_texture, load_image, save_png
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
-           "job_inputs", "job_outputs", "check_job_paths"]
+           "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES"]
 
 #: Mesh formats an output may have.
 MESH_EXTENSIONS = (".obj", ".ply")
+
+#: Frames the fitted mesh may be written in (:attr:`WrapJob.output_frame`).
+OUTPUT_FRAMES = ("scan", "template")
 
 
 class InputWarning(UserWarning):
@@ -94,6 +97,11 @@ class WrapJob:
         Baked image size in pixels.
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
+    output_frame : {"scan", "template"}
+        Where the written mesh lies: on the scan (default), or mapped back through
+        the inverse of the template → scan landmark similarity, so it overlays the
+        template (a texture is baked before, on the scan).  The report's
+        ``"output_frame"`` records it.
     """
     template: str = input_field()
     scan: str = input_field()
@@ -108,6 +116,7 @@ class WrapJob:
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
+    output_frame: str = output_field(path=False, default="scan")
 
 
 def _path_fields(table: str) -> list[str]:
@@ -173,6 +182,9 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
+    if job.output_frame not in OUTPUT_FRAMES:
+        raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
+                         f" got {job.output_frame!r}", source or job.output)
 
 
 # -- checks of legal but odd inputs -------------------------------------------------
@@ -415,7 +427,10 @@ def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> Non
     job's outputs behind (and an earlier run's outputs untouched).
     """
     with staged_outputs() as stage:
-        write_mesh(stage.file(job.output), result.mesh)
+        mesh = result.mesh
+        if job.output_frame == "template":  # the bake below still reads the scan frame
+            mesh = mesh.with_vertices(result.transform.inverse().apply(mesh.vertices))
+        write_mesh(stage.file(job.output), mesh)
         if inputs["texture"] is not None:
             t = time.perf_counter()
             baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
@@ -477,6 +492,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
               "iterations": result.history,
               "transform": result.transform.matrix.tolist(),
               "vertex_roles": role_ranges(result.roles),
+              "output_frame": job.output_frame,
               "warnings": notes}
     if inputs["profile"] is not None:
         report["template_profile"] = {"path": inputs["profile"].path,

@@ -23,6 +23,7 @@ import numpy as np
 
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.geometry.similarity import Similarity
+from facewrap.progress import progress
 from facewrap.wrapping.icp.engine import NonRigidICP
 from facewrap.wrapping.icp.terms import landmark_rows
 from facewrap.wrapping.models import MODEL_REGISTRY, ModelParts, ModelSpec
@@ -186,7 +187,8 @@ def coarse_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, exclu
     stages = [replace(st, sample=min(st.sample, COARSE_SAMPLE),
                       landmark_weight=st.landmark_weight * settings.landmark_scale)
               for st in coarse.schedule() if not (warm and st.data_weight == 0)]
-    icp = _run(settings, start, pre, stages, template, tree, excluded, p_init)
+    with progress(None, f"coarse {coarse.name} pre-fit"):  # a spinner on a terminal
+        icp = _run(settings, start, pre, stages, template, tree, excluded, p_init)
     history = [dict(h, model="pre-" + coarse.name) for h in icp.history_]
     p0 = icp.params_
     if not coarse.needs_blendshapes:
@@ -257,17 +259,21 @@ def icp_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, excluded
     setup = time.perf_counter() - setup_started
     params = None if start.weights is None else model.initial_params(start.weights)
     history, first = [], 0          # first: index of the group's first stage
-    for factor, group in groups:
-        if spec.uses_graph and first > 0:
-            # coarse-to-fine: the next graph continues the deformation so far
-            model, params = model.on_graph(graph_of(factor), params if params is not None
-                                           else model.initial_params())
-        icp = _run(settings, start, model, group, template, tree, excluded, params)
-        params = icp.params_
-        nodes = getattr(getattr(model, "graph", None), "n_nodes", None)
-        history += [dict(h, model=spec.name, stage=h["stage"] + first, nodes=nodes)
-                    for h in icp.history_]
-        first += len(group)
+    # on a terminal: a bar of stage groups (one graph each) over the engine's bar
+    with progress(len(groups), f"fitting {spec.name}") as bar:
+        for factor, group in groups:
+            if spec.uses_graph and first > 0:
+                # coarse-to-fine: the next graph continues the deformation so far
+                model, params = model.on_graph(graph_of(factor), params
+                                               if params is not None
+                                               else model.initial_params())
+            icp = _run(settings, start, model, group, template, tree, excluded, params)
+            params = icp.params_
+            nodes = getattr(getattr(model, "graph", None), "n_nodes", None)
+            history += [dict(h, model=spec.name, stage=h["stage"] + first, nodes=nodes)
+                        for h in icp.history_]
+            first += len(group)
+            bar.advance()
     weights = getattr(icp.params_, "w", None)
     rest = None
     if weights is not None and start.deltas.shape[1]:

@@ -77,11 +77,13 @@ class TrackResult:
     landmarks_given: np.ndarray
 
     def summary(self) -> list[dict]:
-        """Per-frame numbers (fit, landmarks, iterations, seconds)."""
+        """Per-frame numbers (fit, landmarks, iterations, seconds) and the frame's
+        input warnings (:attr:`WrapResult.warnings`)."""
         out = []
         for i, r in enumerate(self.frames):
             row = {"frame": i, "landmarks_given": bool(self.landmarks_given[i]),
-                   "iterations": len(r.history), "seconds": r.timings.get("total")}
+                   "iterations": len(r.history), "seconds": r.timings.get("total"),
+                   "warnings": list(r.warnings)}
             row.update({k: v for k, v in r.metrics.items() if not isinstance(v, dict)})
             out.append(row)
         return out
@@ -185,20 +187,29 @@ def track_output_files(folder, n_frames: int, *, prefix: str = "frame",
 
 
 def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
-                        extra_report: dict | None = None) -> dict:
+                        extra_report: dict | None = None,
+                        output_frame: str = "scan") -> dict:
     """Write ``prefix_0000.obj``…, ``weights.csv`` and ``track.json`` into ``folder``.
 
     The files are staged and moved into ``folder`` together
     (:func:`facewrap.io.paths.staged_outputs`): a failure leaves none of them.
+    ``output_frame="template"`` writes every frame mapped back through the inverse
+    of the first frame's landmark similarity (one map for the whole sequence, so
+    the performer's head motion relative to frame 0 is kept); ``"scan"`` (the
+    default) writes them where the scans are.  ``track.json`` records it.
     Returns the paths written.
     """
+    if output_frame not in ("scan", "template"):
+        raise ValueError(f"output_frame must be 'scan' or 'template', got {output_frame!r}")
     has_weights = result.weights is not None
     final = track_output_files(folder, len(result.frames), prefix=prefix,
                                weights=has_weights)
+    back = result.frames[0].transform.inverse() if output_frame == "template" else None
     with staged_outputs() as stage:
         staged = stage.folder(folder)
         for path, r in zip(final, result.frames):
-            write_mesh(staged / path.name, r.mesh)
+            mesh = r.mesh if back is None else r.mesh.with_vertices(back.apply(r.vertices))
+            write_mesh(staged / path.name, mesh)
         if has_weights:
             buf = _io.StringIO()
             w = csv.writer(buf, lineterminator="\n")
@@ -207,7 +218,8 @@ def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
                 w.writerow([i, *(f"{x:.6f}" for x in row)])
             with atomic_write(staged / "weights.csv", "w") as fh:
                 fh.write(buf.getvalue())
-        report = {"frames": result.summary(), **(extra_report or {})}
+        report = {"frames": result.summary(), "output_frame": output_frame,
+                  **(extra_report or {})}
         with atomic_write(staged / "track.json", "w") as fh:
             json.dump(report, fh, indent=1)
     paths = {"meshes": final[:len(result.frames)]}

@@ -36,6 +36,7 @@ from threadpoolctl import threadpool_limits
 from facewrap.geometry import ClosestPointTree, vertex_normals
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.geometry.matching import Matches, closest_compatible_points
+from facewrap.progress import progress
 from facewrap.solve import gauss_newton_step
 from facewrap.wrapping.icp.schedule import Stage, graph_schedule
 from facewrap.wrapping.icp.terms import (landmark_residual, landmark_term,
@@ -227,17 +228,27 @@ class NonRigidICP:
         V = model.vertices(p)
         history = []
         mu = self.damping
-        for s_index, stage in enumerate(self.stages or graph_schedule()):
-            for it in range(stage.iterations):
-                t0 = time.perf_counter()
-                pairs = self.scan_pairs(problem, stage, V) if stage.data_weight > 0 else None
-                p_new, V_new, energy, mu = self._damped_step(problem, stage, pairs, p, V, mu)
-                moved = float(np.abs(V_new - V).max())
-                p, V = p_new, V_new
-                history.append(self._history_entry(problem, pairs, V, s_index, it, energy,
-                                                   moved, mu, time.perf_counter() - t0))
-                if moved < self.tolerance:
-                    break
+        stages = self.stages or graph_schedule()
+        # on a terminal: one bar of iterations (a stage that converges early counts
+        # its remaining ones as done); silent elsewhere (facewrap.progress)
+        with progress(sum(st.iterations for st in stages), "ICP") as bar:
+            for s_index, stage in enumerate(stages):
+                bar.update(description=f"ICP stage {s_index + 1}/{len(stages)}")
+                for it in range(stage.iterations):
+                    t0 = time.perf_counter()
+                    pairs = (self.scan_pairs(problem, stage, V) if stage.data_weight > 0
+                             else None)
+                    p_new, V_new, energy, mu = self._damped_step(problem, stage, pairs, p,
+                                                                 V, mu)
+                    moved = float(np.abs(V_new - V).max())
+                    p, V = p_new, V_new
+                    history.append(self._history_entry(problem, pairs, V, s_index, it,
+                                                       energy, moved, mu,
+                                                       time.perf_counter() - t0))
+                    bar.advance()
+                    if moved < self.tolerance:
+                        bar.advance(stage.iterations - it - 1)
+                        break
         return p, V, history
 
     def scan_pairs(self, problem: ICPProblem, stage: Stage, V) -> ScanPairs:

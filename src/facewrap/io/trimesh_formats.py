@@ -1,0 +1,305 @@
+"""Scans in STL, OFF and glTF (``.glb``/``.gltf``), read through trimesh.
+
+These formats are read by `trimesh <https://trimesh.org>`_ (imported on first use:
+no other command pays for it) and turned into a :class:`~facewrap.mesh.Mesh`:
+
+* **STL** — a triangle soup by design (three corners per triangle); exactly
+  coincident corners are merged into shared vertices here, so the scan is one
+  surface and not a heap of loose triangles.  Binary or ASCII.
+* **OFF** (and ``COFF``) — vertices in file order, polygons triangulated by trimesh.
+* **glTF 2.0** (binary ``.glb``, or ``.gltf`` with its buffers) — every triangle
+  mesh of the scene, each instance placed by its node's world transform, one after
+  another in the order of the file's meshes; per-vertex texture coordinates are kept
+  when every piece has them, and each piece's material name is kept per face.
+  :func:`read_scene_texture` gives the base-colour image the pieces use, so a GLB
+  scan can be baked from.
+
+The errors follow the other readers: anything wrong is one
+:class:`~facewrap.errors.InputError` naming the file.  Counts the file's header
+states (STL triangles, OFF vertices and faces, the GLB length and chunks) are
+checked against its size before trimesh is asked to read it, so a bogus file is
+refused without reading it whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import struct
+
+import numpy as np
+
+from facewrap.errors import InputError
+from facewrap.io.files import file_size, nul_at_ends, read_file_head
+from facewrap.mesh import Mesh
+
+__all__ = ["TRIMESH_EXTENSIONS", "read_trimesh_format", "read_scene_texture"]
+
+#: Extensions read here (lower case, with the dot) and trimesh's name of each format.
+TRIMESH_EXTENSIONS = {".stl": "stl", ".off": "off", ".glb": "glb", ".gltf": "gltf"}
+
+# Fewest bytes a vertex and a face line of an OFF file can take ("0 0 0\n",
+# "3 0 1 2\n"): a header promising more than the file can hold is refused at once.
+_OFF_VERTEX_BYTES, _OFF_FACE_BYTES = 6, 8
+_GLB_MAGIC, _GLB_JSON, _GLB_BIN = b"glTF", 0x4E4F534A, 0x004E4942
+
+
+def _check_stl(path, size: int) -> None:
+    """Binary STL: 80-byte header, triangle count, 50 bytes per triangle; else ASCII."""
+    head = read_file_head(path, 84)
+    if len(head) == 84:
+        count = struct.unpack("<I", head[80:84])[0]
+        if 84 + 50 * count == size:
+            if count == 0:
+                raise InputError("STL holds no triangles", path)
+            return
+    if head.lstrip()[:5].lower() == b"solid" and not nul_at_ends(path, size):
+        return  # ASCII STL (binary ones may start with "solid" too: their size decides)
+    if len(head) < 84:
+        raise InputError(f"not an STL file ({size} bytes: shorter than a binary STL "
+                         "header)", path)
+    count = struct.unpack("<I", head[80:84])[0]
+    raise InputError(f"truncated or not a binary STL: the header says {count} triangles "
+                     f"({84 + 50 * count} bytes), the file has {size} bytes", path)
+
+
+def _content_rows(text: str) -> list[str]:
+    """Lines that are not blank or ``#`` comments, stripped."""
+    return [r for r in (ln.split("#", 1)[0].strip() for ln in text.splitlines()) if r]
+
+
+def _off_counts(path) -> tuple[int, int, int]:
+    """(vertices, faces, header rows) from an OFF header; only the head is read."""
+    rows = _content_rows(read_file_head(path, 4096).decode("ascii", errors="replace"))
+    tokens = " ".join(rows[:2]).split()
+    if not tokens or tokens[0] not in ("OFF", "COFF"):
+        raise InputError("not an OFF file (no 'OFF' or 'COFF' first; this reader "
+                         "takes those two)", path)
+    counts = tokens[1:3]
+    if len(counts) < 2 or not all(re.fullmatch(r"\d+", t) for t in counts):
+        raise InputError("OFF header needs the vertex and face counts after 'OFF'", path)
+    return int(counts[0]), int(counts[1]), 2 if rows[0] == tokens[0] else 1
+
+
+def _check_off(path, size: int) -> tuple[int, int]:
+    """The OFF header's counts, checked against the file's size and its rows."""
+    if nul_at_ends(path, size):  # before reading it whole: a sparse or binary file
+        raise InputError("binary data, not a text OFF file", path)
+    nv, nf, header_rows = _off_counts(path)
+    if nv == 0 or nf == 0:
+        raise InputError(f"OFF header says {nv} vertices and {nf} faces; a scan needs "
+                         "both", path)
+    need = nv * _OFF_VERTEX_BYTES + nf * _OFF_FACE_BYTES
+    if need > size:
+        raise InputError(f"OFF header says {nv} vertices and {nf} faces (at least "
+                         f"{need} bytes) but the file has {size} bytes", path)
+    # every row must be there: trimesh stops short without a word
+    with open(path, "rb") as fh:
+        rows = len(_content_rows(fh.read().decode("utf-8", errors="replace")))
+    if rows - header_rows < nv + nf:
+        raise InputError(f"OFF header says {nv} vertices and {nf} faces but only "
+                         f"{rows - header_rows} rows follow", path)
+    return nv, nf
+
+
+def _check_glb(path, size: int) -> None:
+    """GLB: magic, version 2, the stated length is the file's, chunks inside it."""
+    head = read_file_head(path, 20)
+    if len(head) < 20 or head[:4] != _GLB_MAGIC:
+        raise InputError("not a binary glTF file (no 'glTF' magic)", path)
+    version, length, chunk_length, chunk_type = struct.unpack("<IIII", head[4:20])
+    if version != 2:
+        raise InputError(f"glTF version {version}; this reader takes version 2", path)
+    if length != size:
+        raise InputError(f"truncated GLB: its header says {length} bytes, the file has "
+                         f"{size}", path)
+    if chunk_type != _GLB_JSON or 20 + chunk_length > size:
+        raise InputError("GLB does not start with a JSON chunk that fits in the file",
+                         path)
+
+
+def _check_gltf(path, size: int) -> None:
+    """A ``.gltf`` must be JSON with an ``asset`` (buffers are checked by trimesh)."""
+    if size > 256 << 20:
+        raise InputError(f"a .gltf of {size} bytes is not JSON a scan needs; embed "
+                         "large buffers as .bin files or use .glb", path)
+    with open(path, "rb") as fh:
+        try:
+            doc = json.loads(fh.read())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"not glTF JSON: {' '.join(str(exc).split())}", path) from None
+    if not isinstance(doc, dict) or "asset" not in doc:
+        raise InputError("not glTF JSON (no 'asset')", path)
+
+
+def _load(path, kind: str):
+    """trimesh's scene of the file, with every error as one line naming it."""
+    import trimesh  # deferred: only these formats need it
+    try:
+        return trimesh.load(os.fspath(path), file_type=kind, force="scene",
+                            process=False)
+    except Exception as exc:  # noqa: BLE001 - trimesh raises many types for bad files
+        text = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(f"cannot read {kind.upper()}: {text}", path) from None
+
+
+def _pieces(scene) -> list:
+    """(world transform, trimesh.Trimesh, geometry name) of every mesh instance, in
+    the order of the file's meshes (instances of one mesh by node name)."""
+    import trimesh
+    order = {name: k for k, name in enumerate(scene.geometry)}
+    found = []
+    for node in scene.graph.nodes_geometry:
+        transform, name = scene.graph[node]
+        geom = scene.geometry.get(name)
+        if isinstance(geom, trimesh.Trimesh) and len(geom.faces):
+            found.append((order[name], str(node), np.asarray(transform), geom, name))
+    found.sort(key=lambda item: item[:2])
+    return [(T, geom, name) for _, _, T, geom, name in found]
+
+
+def _uv_of(geom):
+    visual = getattr(geom, "visual", None)
+    uv = getattr(visual, "uv", None) if getattr(visual, "kind", None) == "texture" else None
+    return None if uv is None or len(uv) != len(geom.vertices) else np.asarray(uv)
+
+
+def _scene_mesh(scene, path) -> Mesh:
+    """Every piece of a scene in world space, one Mesh (see the module docstring)."""
+    pieces = _pieces(scene)
+    if not pieces:
+        raise InputError("holds no triangle mesh", path)
+    V, F, uvs, face_material, materials = [], [], [], [], []
+    offset = 0
+    for T, geom, name in pieces:
+        v = np.asarray(geom.vertices, dtype=np.float64)
+        V.append(v @ T[:3, :3].T + T[:3, 3])
+        F.append(np.asarray(geom.faces, dtype=np.int64) + offset)
+        uvs.append(_uv_of(geom))
+        material = getattr(getattr(geom.visual, "material", None), "name", None) or name
+        if material not in materials:
+            materials.append(material)
+        face_material.append(np.full(len(geom.faces), materials.index(material)))
+        offset += len(v)
+    kw = {}
+    if all(uv is not None for uv in uvs):
+        kw["uvs"] = np.vstack(uvs)
+    return _mesh(np.vstack(V), np.vstack(F), path, face_materials=np.concatenate(
+        face_material), materials=materials, **kw)
+
+
+def _mesh(V, F, path, **kw) -> Mesh:
+    if not np.isfinite(V).all():
+        raise InputError("NaN or infinite coordinate", path)
+    try:
+        return Mesh(V, F, **kw)
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None
+
+
+def _welded(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exactly coincident vertices merged (first occurrence kept, in order)."""
+    rows = np.ascontiguousarray(V).view(np.dtype((np.void, V.dtype.itemsize * 3)))[:, 0]
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    order = np.argsort(first)              # unique vertices in order of first use
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return V[first[order]], rank[inverse.reshape(-1)][F]
+
+
+def read_trimesh_format(path) -> Mesh:
+    """Read an STL, OFF, GLB or glTF scan (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        With one of the extensions of :data:`TRIMESH_EXTENSIONS`.
+
+    Returns
+    -------
+    Mesh
+        Triangles; vertices in file order (STL: coincident corners merged); for glTF
+        every mesh instance in world space, with per-vertex UVs when all have them
+        and material names per face.
+
+    Raises
+    ------
+    InputError
+        Naming the file: missing, truncated, counts beyond the file's size, no
+        triangles, NaN coordinates, or anything trimesh cannot read.
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    kind = TRIMESH_EXTENSIONS.get(ext)
+    if kind is None:
+        raise InputError(f"not a trimesh format: {ext!r}", path)
+    size = file_size(path)
+    if size == 0:
+        raise InputError("empty file", path)
+    counts = None
+    if kind == "stl":
+        _check_stl(path, size)
+    elif kind == "off":
+        counts = _check_off(path, size)
+    elif kind == "glb":
+        _check_glb(path, size)
+    else:
+        _check_gltf(path, size)
+    scene = _load(path, kind)
+    if kind in ("glb", "gltf"):
+        return _scene_mesh(scene, path)
+    pieces = _pieces(scene)
+    if not pieces:
+        raise InputError("holds no triangles", path)
+    V = np.vstack([np.asarray(g.vertices, dtype=np.float64) for _, g, _ in pieces])
+    F = np.vstack([np.asarray(g.faces, dtype=np.int64) for _, g, _ in pieces])
+    if kind == "stl":
+        V, F = _welded(V, F)
+    elif len(V) != counts[0]:
+        raise InputError(f"OFF header says {counts[0]} vertices, {len(V)} were read",
+                         path)
+    return _mesh(V, F, path)
+
+
+def read_scene_texture(path) -> np.ndarray | None:
+    """The base-colour image of a glTF scan's textured pieces, or None.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.glb`` or ``.gltf`` file.
+
+    Returns
+    -------
+    (H, W, 3) uint8 or None
+        RGB, row 0 at the top (as :func:`facewrap.io.images.load_image` gives);
+        None when some piece has no texture coordinates (then the mesh read has
+        none either) or none has a base-colour image.
+
+    Raises
+    ------
+    InputError
+        Naming the file when it cannot be read, or when its pieces use more than
+        one base-colour image (a bake reads one image).
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext not in (".glb", ".gltf"):
+        raise InputError("only glTF files (.glb, .gltf) carry a texture image", path)
+    size = file_size(path)
+    (_check_glb if ext == ".glb" else _check_gltf)(path, size)
+    images, pieces = [], _pieces(_load(path, ext[1:]))
+    if any(_uv_of(geom) is None for _, geom, _ in pieces):
+        return None  # the mesh read keeps UVs only when every piece has them
+    for _, geom, _ in pieces:
+        material = getattr(geom.visual, "material", None)
+        image = getattr(material, "baseColorTexture", None) or getattr(material, "image",
+                                                                       None)
+        if image is not None and _uv_of(geom) is not None:
+            array = np.asarray(image.convert("RGB"), dtype=np.uint8)
+            if not any(a.shape == array.shape and np.array_equal(a, array)
+                       for a in images):
+                images.append(array)
+    if len(images) > 1:
+        raise InputError(f"its meshes use {len(images)} different base-colour images; "
+                         "bake from one image (export the scan with one texture)", path)
+    return images[0] if images else None
