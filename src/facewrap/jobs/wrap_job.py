@@ -24,7 +24,7 @@ import json
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,7 @@ from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
+from facewrap.units import check_units_choice, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
@@ -80,6 +81,9 @@ class WrapJob:
         Baked image size in pixels.
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
+    units : str
+        Unit of the scan's coordinates (and so of every distance): auto (inferred
+        from the head's size), mm, cm, m or in.
     """
     template: str = input_field()
     scan: str = input_field()
@@ -91,6 +95,8 @@ class WrapJob:
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
+    # a property of the input data, not a path: the [inputs] table, never resolved
+    units: str = field(default="auto", metadata={"table": "inputs", "path": False})
 
 
 def _path_fields(table: str) -> list[str]:
@@ -138,6 +144,10 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
+    try:
+        check_units_choice(job.units)
+    except ValueError as exc:
+        raise InputError(str(exc), source or job.output) from None
 
 
 # -- checks of legal but odd inputs -------------------------------------------------
@@ -407,6 +417,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
               "iterations": result.history,
               "transform": result.transform.matrix.tolist(),
               "warnings": notes}
+    report["units"], report["units_source"] = resolve_units(job.units,
+                                                            result.mesh.vertices)
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
