@@ -23,7 +23,6 @@ import base64
 import datetime as _dt
 import html
 import json
-import math
 import os
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -31,6 +30,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from facewrap.io.atomic import atomic_write
+from facewrap.report.tables import summary_html
 from facewrap.version import __version__
 
 __all__ = ["write_html_report", "STATIC", "THREE_VERSION", "VIEW_NAMES"]
@@ -180,123 +180,6 @@ def _unit(v, name) -> list:
     if a.shape != (3,) or not np.isfinite(a).all() or np.linalg.norm(a) == 0:
         raise ValueError(f"{name} must be a non-zero 3-vector, got {v!r}")
     return (a / np.linalg.norm(a)).tolist()
-
-
-# ---------------------------------------------------------------------------------
-# Tables
-# ---------------------------------------------------------------------------------
-def _label(key) -> str:
-    return str(key).replace("_", " ")
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-
-
-def _fmt(v) -> tuple[str, str]:
-    """``(text, css class)`` of one table value."""
-    if v is None:
-        return "–", "num"
-    if isinstance(v, (bool, np.bool_)):
-        return ("yes" if v else "no"), "num"
-    if isinstance(v, (int, np.integer)):
-        return f"{int(v):,}", "num"
-    if _is_number(v):
-        x = float(v)
-        if not math.isfinite(x):
-            return str(x), "num"
-        if x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e6):
-            return f"{x:.3e}", "num"
-        return f"{x:.4g}" if abs(x) < 1e4 else f"{x:,.1f}", "num"
-    if isinstance(v, (list, tuple)) and all(_is_number(x) for x in v) and len(v) <= 6:
-        return ", ".join(_fmt(x)[0] for x in v), "num"
-    return str(v), "txt"
-
-
-def _flatten(d: Mapping, prefix: str = "") -> list[tuple[str, object]]:
-    rows = []
-    for k, v in d.items():
-        key = f"{prefix}{_label(k)}"
-        if isinstance(v, Mapping):
-            rows += _flatten(v, key + " › ")
-        else:
-            rows.append((key, v))
-    return rows
-
-
-def _is_matrix(v) -> bool:
-    return (isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0
-            and all(isinstance(r, (list, tuple, np.ndarray)) and len(r) == len(v[0])
-                    and all(_is_number(x) for x in r) for r in v))
-
-
-def _is_records(v) -> bool:
-    return (isinstance(v, (list, tuple)) and len(v) > 0
-            and all(isinstance(r, Mapping) for r in v))
-
-
-def _key_value_table(rows) -> str:
-    body = []
-    for k, v in rows:
-        if _is_matrix(v):
-            cell = _matrix_table(v)
-            cls = ""
-        else:
-            text, cls = _fmt(v)
-            cell = html.escape(text)
-        body.append(f'<tr><td class="k">{html.escape(k)}</td>'
-                    f'<td class="{cls}">{cell}</td></tr>')
-    return '<table class="kv">' + "".join(body) + "</table>"
-
-
-def _matrix_table(m) -> str:
-    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(x)[0])}</td>" for x in r)
-                   + "</tr>" for r in m)
-    return f'<table class="matrix">{rows}</table>'
-
-
-def _records_table(records) -> str:
-    cols: list = []
-    flat = [dict(_flatten(r)) for r in records]
-    for r in flat:
-        cols += [c for c in r if c not in cols]
-    numeric = {c: all(_is_number(r.get(c)) or r.get(c) is None for r in flat) for c in cols}
-    head = "".join(f'<th class="{"num" if numeric[c] else ""}">{html.escape(c)}</th>'
-                   for c in cols)
-    body = []
-    for r in flat:
-        cells = []
-        for c in cols:
-            text, cls = _fmt(r.get(c))
-            cells.append(f'<td class="{cls}">{html.escape(text)}</td>')
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
-            f'<tbody>{"".join(body)}</tbody></table></div>')
-
-
-def _summary_html(summary: Mapping) -> str:
-    """Cards of tables: top-level values in one, each dict or record list in its own."""
-    loose, cards = [], []
-    for key, value in summary.items():
-        if isinstance(value, Mapping):
-            if value:
-                rows = _flatten(value)
-                long_text = any(isinstance(v, str) and len(v) > 40 for _, v in rows)
-                cards.append((" wide" if long_text else "", key, _key_value_table(rows)))
-        elif isinstance(value, (list, tuple)) and value and all(
-                isinstance(x, str) for x in value):
-            items = "".join(f"<li>{html.escape(x)}</li>" for x in value)
-            cards.append((" wide", key, f'<ul class="notes">{items}</ul>'))
-        elif _is_records(value):
-            cards.append((" wide", key, _records_table(value)))
-        elif _is_matrix(value):
-            cards.append(("", key, _matrix_table(value)))
-        else:
-            loose.append((_label(key), value))
-    if loose:
-        cards.insert(0, ("", "overview", _key_value_table(loose)))
-    return "".join(f'<section class="card{wide}"><h4>{html.escape(_label(t)).capitalize()}'
-                   f'</h4>{table}</section>' for wide, t, table in cards)
 
 
 # ---------------------------------------------------------------------------------
@@ -498,7 +381,7 @@ def _body_parts(title, subtitle, summary, figures, data, created: str) -> list[s
                      f'color:var(--muted);font-size:12.5px">— {counts}</span></h2>')
         parts.append(_viewer_html(data))
     if summary:
-        parts.append(f'<h2>Numbers</h2><div class="tables">{_summary_html(summary)}</div>')
+        parts.append(f'<h2>Numbers</h2><div class="tables">{summary_html(summary)}</div>')
     if figures:
         figs = "".join(f'<figure class="card"><img src="{uri}" alt="{e(cap)}">'
                        f'<figcaption>{e(cap)}</figcaption></figure>'
