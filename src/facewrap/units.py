@@ -36,6 +36,7 @@ import numpy as np
 __all__ = ["UNITS", "UNIT_NAMES", "UNIT_CHOICES", "UNKNOWN", "HEAD_SIZE_M",
            "metres_per_unit", "check_units_choice", "head_size", "infer_units",
            "resolve_units", "units_note", "format_distance", "distance_decimals",
+           "resolution_decimals",
            "add_units_argument"]
 
 #: Metres per unit of each known unit of length.
@@ -137,10 +138,19 @@ def units_note(unit: str, source: str) -> str:
     return f"units: {unit} (inferred from the head's size; --units to set)"
 
 
+def resolution_decimals(unit: str) -> int:
+    """Decimals of ``unit``'s resolution (about a micrometre): 3 for mm.
+
+    >>> resolution_decimals("mm"), resolution_decimals("cm"), resolution_decimals("units")
+    (3, 4, 4)
+    """
+    return _DECIMALS.get(unit, _DECIMALS[UNKNOWN])
+
+
 def distance_decimals(value: float, unit: str) -> int:
     """Decimals for ``value``: about four significant digits, at most the unit's
     resolution (:data:`UNKNOWN` and unknown labels: 4)."""
-    most = _DECIMALS.get(unit, _DECIMALS[UNKNOWN])
+    most = resolution_decimals(unit)
     a = abs(float(value))
     if a == 0 or not math.isfinite(a):
         return most
@@ -166,7 +176,7 @@ def format_distance(value, unit: str, *, with_unit: bool = True) -> str:
     if value is None or not math.isfinite(float(value)):
         return "n/a"
     v = float(value)
-    most = _DECIMALS.get(unit, _DECIMALS[UNKNOWN])
+    most = resolution_decimals(unit)
     if v == 0:
         return "0" + tail
     if abs(v) < 0.5 * 10.0 ** -most:

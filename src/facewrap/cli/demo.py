@@ -86,6 +86,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     pictures = _pictures(out, template, scan, fitted, face, seen, err)
     page_dir = out / "report"
     print(build_report_page(report, page_dir, images=pictures,
+                            ground_truth=scan.ground_truth,
                             title="facewrap demo: hybrid wrap of the built-in sample"))
     if verbose:
         for name, st in stats.items():

@@ -23,7 +23,7 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
                             resolve_units, units_note)
 
-__all__ = ["register", "cmd_evaluate"]
+__all__ = ["register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -42,8 +42,14 @@ def _same_topology(mesh, other, path, what):
                          "faces differ)", path)
 
 
-def _read_ground_truth(path, result):
-    """(n, 3) positions from a mesh in the result's topology or an .npy array."""
+def read_ground_truth(path, result):
+    """(n, 3) positions from a mesh in the result's topology or an .npy array.
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: unreadable, or not one row per vertex of ``result``.
+    """
     if str(path).lower().endswith(".npy"):
         try:
             G = np.load(path, allow_pickle=False)
@@ -165,7 +171,7 @@ def cmd_evaluate(args) -> int:
     scan = read_mesh(args.scan)
     gt = ref = None
     if args.ground_truth:
-        gt = _read_ground_truth(args.ground_truth, result)
+        gt = read_ground_truth(args.ground_truth, result)
     if args.reference:
         ref = read_mesh(args.reference)
         _same_topology(result, ref, args.reference, "the reference")
