@@ -207,7 +207,10 @@ def _landmark_points(job: dict, report_path: Path, template, scan, result, M):
               "landmarks: scan": on_scan, "landmarks: result": on_result}
     errors = np.linalg.norm(on_result - on_scan, axis=1)
     worst = np.argsort(-errors, kind="stable")[:WORST_LANDMARKS_LABELLED]
-    labels = [(int(j), on_result[j], tl.label(int(ia[j]))) for j in worst]
+    # names from the template's file, else the scan's (a menpo .ljson names them)
+    name = ((lambda j: tl.label(int(ia[j]))) if tl.names is not None or sl.names is None
+            else (lambda j: sl.label(int(ib[j]))))
+    labels = [(int(j), on_result[j], name(j)) for j in worst]
     return points, labels, errors
 
 

@@ -187,15 +187,27 @@
 
     function placeLabels() {
       const w = host.clientWidth, h = host.clientHeight, q = new T.Vector3();
+      const placed = [];  // boxes already placed: a label that would overlap moves down
       labels.forEach(function (l) {
         q.copy(l.at).project(camera);
         const shown = l.set.obj.visible && q.z < 1 && Math.abs(q.x) <= 1 &&
                       Math.abs(q.y) <= 1;
         l.div.hidden = !shown;
-        if (shown) {
-          l.div.style.left = ((q.x + 1) / 2 * w) + "px";
-          l.div.style.top = ((1 - q.y) / 2 * h) + "px";
+        if (!shown) return;
+        const x = (q.x + 1) / 2 * w, lw = l.div.offsetWidth + 4, lh = l.div.offsetHeight + 2;
+        let y = (1 - q.y) / 2 * h;
+        for (let moved = true; moved;) {
+          moved = false;
+          placed.forEach(function (b) {
+            if (Math.abs(b.x - x) < Math.max(lw, b.w) && Math.abs(b.y - y) < lh) {
+              y = b.y + lh;
+              moved = true;
+            }
+          });
         }
+        placed.push({ x: x, y: y, w: lw });
+        l.div.style.left = x + "px";
+        l.div.style.top = y + "px";
       });
     }
 
