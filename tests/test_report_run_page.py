@@ -251,3 +251,56 @@ def test_table_distances_carry_units(page):
             assert text.endswith(" mm"), (key, text)
     assert format_distance(1.589e-14, "mm") == "< 0.001 mm"
     assert "e-1" not in " ".join(tables["Metrics"].values())
+
+
+# ---------------------------------------------------------------------------------
+# The same agreement in a real browser: what the colour bar prints
+# ---------------------------------------------------------------------------------
+from test_report_html import CHROMIUM, Browser, needs_chromium  # noqa: E402
+
+
+def colour_bar_numbers(text: str) -> dict:
+    """{"mean", "p95", "max", "count"} of the colour bar's line
+    ``mean 1.209 mm · p95 4.099 mm · max 105.2 mm over 9805 vertices · ...``."""
+    m = re.match(r"mean (.+?) (\w+) · p95 (.+?) \w+ · max (.+?) \w+ over (\d+) vertices",
+                 text)
+    assert m, text
+    return {"mean": number(m.group(1)), "p95": number(m.group(3)),
+            "max": number(m.group(4)), "count": int(m.group(5)), "unit": m.group(2)}
+
+
+@needs_chromium
+def test_viewer_numbers_in_headless_chromium_agree_with_the_tables(page):
+    tables = table_rows(page)
+    browser = Browser(CHROMIUM)
+    try:
+        browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+        state = browser.evaluate("window.facewrapViewer")
+        shown = {}
+        for k, s in enumerate(page_data(page)["scalars"]):
+            shown[s["name"]] = browser.evaluate(
+                "(() => { const s = document.getElementById('fw-heatmap');"
+                f" s.value = '{k}'; s.dispatchEvent(new Event('change'));"
+                " return document.getElementById('fw-colorbar-stats').textContent; })()")
+        toggled = browser.evaluate(
+            "(() => { const b = document.querySelector('[data-fw-points=\"2\"]');"
+            " b.checked = false; b.dispatchEvent(new Event('change'));"
+            " return new Promise(r => requestAnimationFrame(() => r(Array.from("
+            "document.querySelectorAll('#fw-labels .fw-label')).map(l => l.hidden))))"
+            "})()")
+    finally:
+        browser.close()
+    assert browser.errors == []
+    assert state["error"] is None and state["points"] == 3 and state["labels"] == 5
+    assert state["meshes"] == 5
+    fit = colour_bar_numbers(shown["distance to scan"])
+    assert fit["unit"] == "mm"
+    for key, stat in (("fit mean", "mean"), ("fit p95", "p95"), ("fit max", "max")):
+        assert fit[stat] == pytest.approx(number(tables["Metrics"][key]), rel=1e-3,
+                                          abs=1e-3)
+    truth = colour_bar_numbers(shown["distance to ground truth"])
+    table = tables["Distance to ground truth (fitted vertices)"]
+    assert truth["count"] == int(table["vertices"].replace(",", ""))
+    for stat in ("mean", "p95", "max"):
+        assert truth[stat] == pytest.approx(number(table[stat]), rel=1e-3, abs=1e-3)
+    assert all(toggled)  # the labels go with their landmark set
