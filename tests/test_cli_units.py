@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,3 +155,34 @@ def test_evaluate_heatmap_caption_in_the_given_unit(inputs, wrapped, tmp_path, c
 
 def test_role_names_are_the_interface_table():
     assert VERTEX_ROLE_NAMES == ("fitted", "part", "cavity", "excluded", "pinned")
+
+
+def test_track_states_and_records_its_units(inputs, tmp_path):
+    import os
+    import shutil
+    import subprocess
+    import sys
+    d = inputs["dir"]
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for k in range(2):
+        shutil.copy(d / "scan.obj", seq / f"frame_{k:04d}.obj")
+    argv = [sys.executable, "-m", "facewrap.cli", "-v", "track", d / "template.obj", seq,
+            "--template-landmarks", d / "template_landmarks.txt", "--scan-landmarks",
+            d / "scan_landmarks.txt",
+            "--model", "rigid"]  # quick; a second frame refuses rbf (no schedule)
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    env = dict(os.environ, PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    done = subprocess.run([str(a) for a in argv] + ["-o", str(tmp_path / "a")],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout.splitlines()
+    assert out[-1] == "units: mm (inferred from the head's size; --units to set)"
+    frames = [line for line in done.stderr.splitlines() if "frame " in line]
+    assert len(frames) == 2 and all(re.search(rf"fit mean {DISTANCE}mm, landmarks mean "
+                                              rf"{DISTANCE}mm", f) for f in frames), frames
+    report = json.loads((tmp_path / "a" / "track.json").read_text())
+    assert (report["units"], report["units_source"]) == ("mm", "inferred")
+    assert facewrap(*argv[4:], "-o", tmp_path / "b", "--units", "cm", "-q") == 0
+    report = json.loads((tmp_path / "b" / "track.json").read_text())
+    assert (report["units"], report["units_source"]) == ("cm", "given")
