@@ -35,7 +35,7 @@ import numpy as np
 
 __all__ = ["UNITS", "UNIT_NAMES", "UNIT_CHOICES", "UNKNOWN", "HEAD_SIZE_M",
            "metres_per_unit", "check_units_choice", "head_size", "infer_units",
-           "resolve_units", "units_note", "format_distance", "distance_decimals",
+           "resolve_units", "describe_units", "units_note", "format_distance", "distance_decimals",
            "resolution_decimals",
            "add_units_argument"]
 
@@ -123,19 +123,30 @@ def resolve_units(choice: str, points) -> tuple[str, str]:
     return infer_units(points), "inferred"
 
 
+def describe_units(unit: str, source: str) -> str:
+    """The unit and where it came from, for a table.
+
+    >>> describe_units("mm", "given"), describe_units("cm", "inferred")
+    ('mm (given)', "cm (inferred from the head's size)")
+    """
+    if source == "given":
+        return f"{unit} (given)"
+    if unit == UNKNOWN:
+        return "unknown (the head's size fits none of mm, cm, m)"
+    return f"{unit} (inferred from the head's size)"
+
+
 def units_note(unit: str, source: str) -> str:
-    """One line that states the unit and where it came from.
+    """One line that states the unit and where it came from (and, when inferred,
+    how to set it).
 
     >>> units_note("cm", "inferred")
     "units: cm (inferred from the head's size; --units to set)"
     >>> units_note("units", "inferred")
     "units: unknown (the head's size fits none of mm, cm, m; --units to set)"
     """
-    if source == "given":
-        return f"units: {unit} (given)"
-    if unit == UNKNOWN:
-        return "units: unknown (the head's size fits none of mm, cm, m; --units to set)"
-    return f"units: {unit} (inferred from the head's size; --units to set)"
+    text = describe_units(unit, source)
+    return f"units: {text}" if source == "given" else f"units: {text[:-1]}; --units to set)"
 
 
 def resolution_decimals(unit: str) -> int:

@@ -43,7 +43,7 @@ from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.landmarks import pair_landmarks
 from facewrap.report.html import write_html_report
 from facewrap.report.run_tables import run_summary
-from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units, units_note
+from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
 __all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
            "WORST_LANDMARKS_LABELLED"]
@@ -314,7 +314,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     if truth is not None:  # the truest measure comes first, shown at start
         scalars = {"distance to ground truth": ("result", truth, unit), **scalars}
     counts = np.bincount(codes, minlength=len(VERTEX_ROLE_NAMES))
-    summary = run_summary(run, unit, units_note(unit, source),
+    summary = run_summary(run, unit, source,
                           roles=dict(zip(VERTEX_ROLE_NAMES, counts.tolist())),
                           worst_landmarks=labelled, ground_truth=truth)
     layers = _result_layers(result, codes)

@@ -15,7 +15,7 @@ from typing import Mapping
 
 import numpy as np
 
-from facewrap.units import format_distance
+from facewrap.units import describe_units, format_distance
 
 __all__ = ["run_summary", "RUN_SECTIONS", "DISTANCE_SECTIONS", "is_distance_key"]
 
@@ -54,6 +54,8 @@ def _with_units(value, unit: str, key: str = ""):
         return [_with_units(r, unit) for r in value]
     if _is_float(value) and (key == "seconds" or key.endswith("_seconds")):
         return f"{value:.3g} s"
+    if _is_float(value) and key.endswith("coverage"):
+        return f"{100 * value:.1f} %"
     if _is_float(value) and is_distance_key(key):
         return format_distance(value, unit)
     return value
@@ -63,7 +65,7 @@ def _seconds(d: Mapping) -> dict:
     return {k: (f"{v:.3g} s" if _is_float(v) else v) for k, v in d.items()}
 
 
-def run_summary(run: dict, unit: str, units_line: str, *, roles: Mapping | None = None,
+def run_summary(run: dict, unit: str, unit_source: str, *, roles: Mapping | None = None,
                 worst_landmarks=(), ground_truth=None) -> dict:
     """The page's tables of a run report: an overview, then the sections.
 
@@ -73,8 +75,8 @@ def run_summary(run: dict, unit: str, units_line: str, *, roles: Mapping | None 
         The run's JSON report.
     unit : str
         Unit of its distances (:data:`facewrap.units.UNIT_NAMES` or "units").
-    units_line : str
-        How the unit was settled (:func:`facewrap.units.units_note`).
+    unit_source : {"given", "inferred"}
+        How the unit was settled (:func:`facewrap.units.resolve_units`).
     roles : dict of str to int, optional
         Vertices per role (fitted, part, cavity, excluded, pinned).
     worst_landmarks : sequence of (str, float)
@@ -91,11 +93,9 @@ def run_summary(run: dict, unit: str, units_line: str, *, roles: Mapping | None 
     job, settings = run["job"], run.get("settings", {})
     overview = {"scan": Path(job["scan"]).name, "template": Path(job["template"]).name,
                 "model": settings.get("model"), "vertices": run.get("vertices"),
-                "units": units_line.partition(": ")[2],
-                "total seconds": run.get("timings", {}).get("total")}
-    summary = {k: v for k, v in overview.items() if v is not None}
-    if isinstance(summary.get("total seconds"), float):
-        summary["total seconds"] = f"{summary['total seconds']:.3g} s"
+                "units": describe_units(unit, unit_source),
+                "total_seconds": run.get("timings", {}).get("total")}
+    summary = {k: _with_units(v, unit, k) for k, v in overview.items() if v is not None}
     extra = {"vertex_roles": {k: v for k, v in (roles or {}).items() if v},
              "worst_landmarks": [{"landmark": name, "error": format_distance(e, unit)}
                                  for name, e in worst_landmarks]}
@@ -109,6 +109,8 @@ def run_summary(run: dict, unit: str, units_line: str, *, roles: Mapping | None 
             value = _with_units(value, unit)
         elif key == "timings" and isinstance(value, Mapping):
             value = _seconds(value)
+        else:
+            value = _with_units(value, unit, key) if _is_float(value) else value
         summary[_TITLES.get(key, key)] = value
     if ground_truth is not None:
         e = np.asarray(ground_truth, dtype=np.float64)
