@@ -13,8 +13,10 @@ archived as one file:
   classic scripts, so no module loading and no network.
 
 The viewer orbits and zooms (OrbitControls), toggles each mesh and its opacity,
-colours a mesh by one of the ``scalars`` with a viridis colour bar (editable range,
-value under the pointer), and deforms a mesh with one slider per blendshape.
+colours a mesh by one of the ``scalars`` with a viridis colour bar (a robust
+initial range, editable; the statistics of the values given and their unit; the
+value under the pointer), draws point sets such as landmarks with labels, and
+deforms a mesh with one slider per blendshape.  The run's warnings open the page.
 """
 
 from __future__ import annotations

@@ -321,7 +321,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,
-        warnings=run.get("warnings") or (),
+        warnings=run["warnings"] if isinstance(run.get("warnings"), list) else (),
         images=_pictures(run, report_path, images),
         meshes={"template (aligned)": (template.vertices @ A.T + t, template.triangles),
                 "scan": scan, **layers},
