@@ -304,3 +304,22 @@ def test_viewer_numbers_in_headless_chromium_agree_with_the_tables(page):
     for stat in ("mean", "p95", "max"):
         assert truth[stat] == pytest.approx(number(table[stat]), rel=1e-3, abs=1e-3)
     assert all(toggled)  # the labels go with their landmark set
+
+
+@needs_chromium
+def test_the_viewers_formatter_is_the_twin_of_format_distance(page):
+    rng = np.random.default_rng(7)
+    values = np.concatenate([10.0 ** rng.uniform(-16, 6, 200), [0.0, 1.589e-14, 0.0005,
+                                                                 12345.678, -2.5]])
+    browser = Browser(CHROMIUM)
+    try:
+        browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+        shown = browser.evaluate(
+            f"(() => {{ const f = window.facewrapViewer.formatDistance;"
+            f" return {json.dumps(values.tolist())}.flatMap(v =>"
+            f" [3, 4, 6].map(d => f(v, d))); }})()")
+    finally:
+        browser.close()
+    want = [format_distance(v, u, with_unit=False) for v in values
+            for u in ("mm", "cm", "m")]
+    assert shown == want

@@ -59,8 +59,10 @@
     const a = Math.abs(v), step = Math.pow(10, -most);
     if (a < 0.5 * step) return "< " + step.toFixed(most);
     const d = Math.max(0, Math.min(most, 3 - Math.floor(Math.log10(a))));
-    return v.toFixed(d);
+    if (a < 1e4) return v.toFixed(d);
+    return v.toLocaleString("en-US", { minimumFractionDigits: d, maximumFractionDigits: d });
   }
+  state.formatDistance = fmtDistance;  // for tests: the twin of format_distance
 
   // one ball for the landmarks: an icosahedron, scaled and moved per point
   const ICO = (function () {
