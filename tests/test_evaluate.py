@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from facewrap.errors import InputError
-from facewrap.evaluate import evaluate, ground_truth_errors, landmark_errors, surface_distances
+from facewrap.evaluate import (VERTEX_ROLE_NAMES, evaluate, ground_truth_errors,
+                               landmark_errors, role_codes, surface_distances)
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
 
@@ -69,8 +70,39 @@ def test_fit_summary_matches_wrap_fit_metrics(sample):
     mask[tpl.parts["eyeball_left"]] = False
     old = fit_metrics(res.vertices, tree, mask=mask)
     new = surface_distances(res.vertices, tree, mask=mask).summary("fit_")
-    for key in ("fit_mean", "fit_p95", "fit_max", "fit_coverage"):
+    for key in ("fit_mean", "fit_p95", "fit_max"):
         assert new[key] == pytest.approx(old[key], rel=1e-12, abs=1e-12)
+    # coverage is the covered share of the masked (fitted) vertices: vertices left
+    # out by the mask are not in its denominator (issue 17)
+    on_scan = ~tree.boundary_triangles[tree.query(res.vertices).triangles]
+    assert new["fit_coverage"] == pytest.approx((on_scan & mask).sum() / mask.sum())
+    assert new["fit_coverage"] > (on_scan & mask).sum() / len(mask)
+
+
+def test_coverage_counts_only_masked_vertices():
+    V, T = flat_square()
+    # the masked points all sit above the square's middle, the others reach its rim
+    inner = (V[:, 0] > 2) & (V[:, 0] < 8) & (V[:, 1] > 2) & (V[:, 1] < 8)
+    P = V + [0.0, 0.0, 0.1]
+    d = surface_distances(P, (V, T), mask=inner)
+    assert d.coverage == pytest.approx(1.0)
+    assert d.summary()["coverage"] == pytest.approx(1.0)
+    assert surface_distances(P, (V, T)).coverage < 1.0
+
+
+def test_role_codes_read_report_ranges():
+    codes = role_codes({"fitted": [[0, 4]], "part": [[4, 6]], "cavity": [],
+                        "excluded": [[6, 7]], "pinned": [[7, 8]]}, 8)
+    assert [VERTEX_ROLE_NAMES[c] for c in codes] == (
+        ["fitted"] * 4 + ["part"] * 2 + ["excluded", "pinned"])
+    for bad, match in [({"fitted": [[0, 7]]}, "vertex 7 has no role"),
+                       ({"fitted": [[0, 8]], "part": [[2, 3]]}, "in two ranges"),
+                       ({"fitted": [[0, 9]]}, "0 <= start < stop <= 8"),
+                       ({"fitted": [[3, 3]], "part": [[0, 8]]}, "start < stop"),
+                       ({"skin": [[0, 8]]}, "unknown role 'skin'"),
+                       ([[0, 8]], "must map role names")]:
+        with pytest.raises(ValueError, match=match):
+            role_codes(bad, 8)
 
 
 def test_surface_distances_validates_points():

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facewrap.report.html import STATIC, THREE_VERSION, write_html_report
+from facewrap.report.html import (COLOR_RANGE_PERCENTILE, STATIC, THREE_VERSION,
+                                  write_html_report)
 from facewrap.sample import make_scan, make_template
 
 
@@ -281,8 +282,11 @@ def test_mesh_data_round_trip(tmp_path, sample):
     err = sample["error"]
     np.testing.assert_array_equal(np.isnan(values), np.isnan(err))
     assert s["stats"]["missing"] == int(np.isnan(err).sum()) > 0
+    # a robust colour range: 0 to the 98th percentile of the values, not the max
     assert s["range"][0] == 0 and s["range"][1] == pytest.approx(
-        np.nanpercentile(err, 99))
+        np.nanpercentile(err, COLOR_RANGE_PERCENTILE))
+    assert s["range"][1] < np.nanmax(err)
+    assert s["stats"]["count"] == int(np.isfinite(err).sum())
     # blendshapes: sparse offsets reproduce the shapes
     bs = data["blendshapes"]
     assert bs["mesh"] == "result"

@@ -16,7 +16,9 @@ per-item arrays (for pictures) and a ``summary()`` of JSON-able statistics:
   and against a reference mesh flipped triangles, area change and stretch.
 
 :func:`evaluate` runs all that apply and returns an :class:`Evaluation`.
-Distances are in the meshes' units (millimetres for face scans).
+Distances are in the meshes' units (see :mod:`facewrap.units`).
+:func:`role_codes` reads a run report's ``vertex_roles`` (half-open vertex-id
+ranges per role), so that measures can be taken over the fitted vertices only.
 """
 
 from __future__ import annotations
@@ -31,7 +33,13 @@ from facewrap.geometry.checks import as_points, mesh_arrays
 from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "GroundTruthErrors", "Evaluation",
-           "surface_distances", "landmark_errors", "ground_truth_errors", "evaluate"]
+           "surface_distances", "landmark_errors", "ground_truth_errors", "evaluate",
+           "VERTEX_ROLE_NAMES", "role_codes"]
+
+#: Roles of template vertices in a wrap (a run report's ``vertex_roles`` keys, in
+#: code order): pulled onto the scan, or following it (parts that are not skin,
+#: cavities no camera sees, the user's exclusions, pinned vertices).
+VERTEX_ROLE_NAMES = ("fitted", "part", "cavity", "excluded", "pinned")
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -62,6 +70,54 @@ def _vertex_mask(mask, n: int, name: str = "mask") -> np.ndarray:
     return out
 
 
+# -- vertex roles -----------------------------------------------------------------------------
+
+def role_codes(vertex_roles, n: int) -> np.ndarray:
+    """(n,) int8 role code per vertex (index into :data:`VERTEX_ROLE_NAMES`).
+
+    Parameters
+    ----------
+    vertex_roles : dict of str to list of [start, stop)
+        A run report's ``vertex_roles``: half-open vertex-id ranges per role.
+    n : int
+        Vertices of the template.
+
+    Raises
+    ------
+    ValueError
+        For an unknown role, a malformed or out-of-range range, or a vertex in no
+        role or in two.
+
+    Examples
+    --------
+    >>> role_codes({"fitted": [[0, 3], [5, 6]], "part": [[3, 5]]}, 6).tolist()
+    [0, 0, 0, 1, 1, 0]
+    """
+    if not isinstance(vertex_roles, dict):
+        raise ValueError("vertex_roles must map role names to [start, stop) ranges")
+    codes = np.full(n, -1, dtype=np.int8)
+    for role, ranges in vertex_roles.items():
+        if role not in VERTEX_ROLE_NAMES:
+            raise ValueError(f"vertex_roles: unknown role {role!r}; roles are "
+                             f"{', '.join(VERTEX_ROLE_NAMES)}")
+        R = np.asarray(ranges if len(ranges) else np.zeros((0, 2)))
+        if R.ndim != 2 or R.shape[1] != 2 or not np.all(R == np.round(R)) or (
+                len(R) and (R.min() < 0 or R.max() > n or np.any(R[:, 0] >= R[:, 1]))):
+            raise ValueError(f"vertex_roles[{role!r}] must be [start, stop) ranges "
+                             f"with 0 <= start < stop <= {n}")
+        # per-vertex marks from the ranges without a loop over vertices
+        marks = np.zeros(n + 1, dtype=np.int64)
+        np.add.at(marks, R[:, 0].astype(np.int64), 1)
+        np.add.at(marks, R[:, 1].astype(np.int64), -1)
+        inside = np.cumsum(marks[:-1])
+        if np.any(inside > 1) or np.any(codes[inside > 0] >= 0):
+            raise ValueError(f"vertex_roles: a vertex of {role!r} is in two ranges")
+        codes[inside > 0] = VERTEX_ROLE_NAMES.index(role)
+    if np.any(codes < 0):
+        raise ValueError(f"vertex_roles: vertex {int(np.argmax(codes < 0))} has no role")
+    return codes
+
+
 # -- surface distances ----------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
@@ -79,16 +135,20 @@ class SurfaceDistances:
         Point counts in the statistics: its closest surface point is not on a
         border triangle of the surface (when borders are excluded) and it is in the
         mask.
+    eligible : (k,) bool or None
+        Points in the mask (None: all), the denominator of :attr:`coverage`.
     """
 
     distances: np.ndarray
     signed: np.ndarray
     covered: np.ndarray
+    eligible: np.ndarray | None = None
 
     @property
     def coverage(self) -> float:
-        """Fraction of the points that are covered."""
-        return float(self.covered.mean()) if len(self.covered) else 0.0
+        """Fraction of the eligible points (the mask's) that are covered."""
+        n = len(self.covered) if self.eligible is None else int(self.eligible.sum())
+        return float(self.covered.sum()) / n if n else 0.0
 
     def counted(self) -> np.ndarray:
         """Distances of the covered points (all points when none is covered)."""
@@ -104,6 +164,7 @@ class SurfaceDistances:
 
         Statistics are over the covered points, or over all points when none is
         covered (``coverage`` is then 0); None when there are no points.
+        ``coverage`` is the covered fraction of the mask's points.
         """
         s = _stats(self.counted())
         s["coverage"] = self.coverage
@@ -141,16 +202,17 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     P = as_points(points, "points")
     tree = surface if isinstance(surface, ClosestPointTree) else \
         ClosestPointTree(*mesh_arrays(surface, "surface"))
-    covered = _vertex_mask(mask, len(P))
+    eligible = _vertex_mask(mask, len(P))
     if len(P) == 0:
         z = np.zeros(0)
-        return SurfaceDistances(z, z.copy(), covered)
+        return SurfaceDistances(z, z.copy(), eligible.copy(), eligible)
     cp = tree.query(P)
     side = np.einsum("ij,ij->i", P - cp.points, cp.normals)
     signed = np.where(side < 0, -cp.distances, cp.distances)
+    covered = eligible.copy()
     if exclude_border:
         covered &= ~tree.boundary_triangles[cp.triangles]
-    return SurfaceDistances(cp.distances, signed, covered)
+    return SurfaceDistances(cp.distances, signed, covered, eligible)
 
 
 # -- landmarks ---------------------------------------------------------------------------------
@@ -370,8 +432,9 @@ def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,
         The template before fitting, same topology: enables flipped triangles,
         area change and stretch.
     mask : (n,) bool or int ids, optional
-        Result vertices to evaluate (fit distances and ground-truth errors), e.g. the
-        face without eyeballs.
+        Result vertices to evaluate (fit distances, their coverage, and
+        ground-truth errors): the fitted ones (:func:`role_codes`), e.g. the face
+        without eyeballs and teeth.
     exclude_border : bool
         Leave points whose closest point is on the other mesh's border out of the
         distance statistics (see :func:`surface_distances`).

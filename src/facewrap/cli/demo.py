@@ -24,6 +24,7 @@ from facewrap.io.landmarks import write_vertex_indices
 from facewrap.io.paths import check_writable
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
+from facewrap.units import format_distance
 from facewrap.wrapping import WrapSettings
 
 __all__ = ["register", "cmd_demo", "run_demo"]
@@ -85,12 +86,14 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     pictures = _pictures(out, template, scan, fitted, face, seen, err)
     page_dir = out / "report"
     print(build_report_page(report, page_dir, images=pictures,
+                            ground_truth=scan.ground_truth,
                             title="facewrap demo: hybrid wrap of the built-in sample"))
     if verbose:
         for name, st in stats.items():
             print(f"ground-truth vertex error, {name.replace('_', ' ')} "
-                  f"({st['vertices']} vertices): mean {st['mean']:.2f} mm, "
-                  f"p95 {st['p95']:.2f} mm")
+                  f"({st['vertices']} vertices): mean "
+                  f"{format_distance(st['mean'], data['units'])}, p95 "
+                  f"{format_distance(st['p95'], data['units'])}")
         print(f"outputs in {out.resolve()}:")
         for p in sorted(out.iterdir()):
             print(f"  {p.name}")

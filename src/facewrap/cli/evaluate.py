@@ -9,18 +9,21 @@ full summary as JSON.  Input problems raise :class:`~facewrap.errors.InputError`
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.evaluate import evaluate
+from facewrap.evaluate import VERTEX_ROLE_NAMES, evaluate, role_codes
 from facewrap.geometry import similarity_transform
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
+                            resolve_units, units_note)
 
-__all__ = ["register", "cmd_evaluate"]
+__all__ = ["register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -39,8 +42,14 @@ def _same_topology(mesh, other, path, what):
                          "faces differ)", path)
 
 
-def _read_ground_truth(path, result):
-    """(n, 3) positions from a mesh in the result's topology or an .npy array."""
+def read_ground_truth(path, result):
+    """(n, 3) positions from a mesh in the result's topology or an .npy array.
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: unreadable, or not one row per vertex of ``result``.
+    """
     if str(path).lower().endswith(".npy"):
         try:
             G = np.load(path, allow_pickle=False)
@@ -78,31 +87,69 @@ def _frame(args, result, reference):
     return F
 
 
-def _num(v) -> str:
-    """Three significant digits; rounding noise (below 1e-4) prints as 0."""
+def _format_line(s: dict, unit: str) -> str:
+    def f(key):
+        return format_distance(s.get(key), unit)
+    parts = [f"fit mean {f('fit_mean')} p95 {f('fit_p95')} max {f('fit_max')}, "
+             f"coverage {100 * s['fit_coverage']:.1f} % of "
+             f"{s['fit_vertices']:,} vertices",
+             f"scan->result mean {f('scan_to_result_mean')} p95 "
+             f"{f('scan_to_result_p95')}"]
+    if "landmark_mean" in s:
+        parts.append(f"landmarks mean {f('landmark_mean')} max {f('landmark_max')} "
+                     f"(worst {s.get('landmark_worst')})")
+    if "correspondence_mean" in s:
+        parts.append(f"correspondence mean {f('correspondence_mean')} p95 "
+                     f"{f('correspondence_p95')}")
+    tri = f"triangles: min angle {_ratio(s.get('triangles_min_angle_min'))} deg"
+    if "triangles_flipped" in s:
+        tri += (f", {s['triangles_flipped']} flipped, area ratio p5-p95 "
+                f"{_ratio(s.get('triangles_area_ratio_p5'))}-"
+                f"{_ratio(s.get('triangles_area_ratio_p95'))}, stretch p95 "
+                f"{_ratio(s.get('triangles_stretch_p95'))}")
+    parts.append(tri)
+    if s.get("units_source") == "inferred":
+        parts.append(units_note(unit, "inferred"))
+    return "\n".join(parts)
+
+
+def _ratio(v) -> str:
+    """A unitless number (angle, ratio) to three significant digits."""
     return "n/a" if v is None else f"{round(v, 4):.3g}"
 
 
-def _format_line(s: dict, units: str) -> str:
-    def f(key):
-        return _num(s.get(key))
-    parts = [f"fit mean {f('fit_mean')} p95 {f('fit_p95')} max {f('fit_max')} {units}, "
-             f"coverage {100 * s['fit_coverage']:.1f} %",
-             f"scan->result mean {f('scan_to_result_mean')} p95 "
-             f"{f('scan_to_result_p95')} {units}"]
-    if "landmark_mean" in s:
-        parts.append(f"landmarks mean {f('landmark_mean')} max {f('landmark_max')} "
-                     f"{units} (worst {s.get('landmark_worst')})")
-    if "correspondence_mean" in s:
-        parts.append(f"correspondence mean {f('correspondence_mean')} p95 "
-                     f"{f('correspondence_p95')} {units}")
-    tri = f"triangles: min angle {f('triangles_min_angle_min')} deg"
-    if "triangles_flipped" in s:
-        tri += (f", {s['triangles_flipped']} flipped, area ratio p5-p95 "
-                f"{f('triangles_area_ratio_p5')}-{f('triangles_area_ratio_p95')}, "
-                f"stretch p95 {f('triangles_stretch_p95')}")
-    parts.append(tri)
-    return "\n".join(parts)
+def _run_roles(path, n: int):
+    """Fitted vertices (n,) bool and the unit ``(unit, source)`` of a run's report."""
+    try:
+        run = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("no such file", path) from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"not a JSON report ({exc})", path) from None
+    if not isinstance(run, dict) or "vertex_roles" not in run:
+        raise InputError("not a wrap report with 'vertex_roles' (which vertices were "
+                         "fitted)", path)
+    try:
+        fitted = role_codes(run["vertex_roles"], n) == VERTEX_ROLE_NAMES.index("fitted")
+    except ValueError as exc:
+        raise InputError(f"{exc} (the result has {n} vertices)", path) from None
+    unit = run.get("units")
+    if unit not in UNIT_NAMES + (UNKNOWN,):
+        return fitted, None
+    return fitted, (unit, run.get("units_source", "given"))
+
+
+def _caption(key: str, s: dict, unit: str):
+    """The heatmap picture's caption line, distances with their unit."""
+    if key in ("fit", "fit_signed"):
+        return (f"mean {format_distance(s['fit_mean'], unit)} · p95 "
+                f"{format_distance(s['fit_p95'], unit)} · coverage "
+                f"{100 * s['fit_coverage']:.0f} % (grey: not covered by the scan)")
+    if key == "correspondence":
+        return (f"mean {format_distance(s['correspondence_mean'], unit)} · p95 "
+                f"{format_distance(s['correspondence_p95'], unit)} over "
+                f"{s['correspondence_count']} vertices")
+    return None
 
 
 def cmd_evaluate(args) -> int:
@@ -117,14 +164,14 @@ def cmd_evaluate(args) -> int:
     if args.heatmap_of in ("area_ratio", "stretch") and args.reference is None:
         raise InputError(f"--heatmap-of {args.heatmap_of} needs --reference")
     inputs = [args.result, args.scan, args.ground_truth, args.reference,
-              args.result_landmarks, args.scan_landmarks, args.mask]
+              args.result_landmarks, args.scan_landmarks, args.mask, args.run]
     check_output_paths(files=[p for p in (args.json, args.heatmap) if p],
                        inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
     gt = ref = None
     if args.ground_truth:
-        gt = _read_ground_truth(args.ground_truth, result)
+        gt = read_ground_truth(args.ground_truth, result)
     if args.reference:
         ref = read_mesh(args.reference)
         _same_topology(result, ref, args.reference, "the reference")
@@ -132,31 +179,33 @@ def cmd_evaluate(args) -> int:
     if args.result_landmarks:
         lm_r = read_landmarks(args.result_landmarks)
         lm_s = read_landmarks(args.scan_landmarks)
-    mask = _read_mask(args.mask, result.n_vertices) if args.mask else None
+    if args.mask and args.run:
+        raise InputError("give --mask or --run (its fitted vertices), not both")
+    mask, run_units = None, None
+    if args.mask:
+        mask = _read_mask(args.mask, result.n_vertices)
+    elif args.run:
+        mask, run_units = _run_roles(args.run, result.n_vertices)
 
     ev = evaluate(result, scan, ground_truth=gt, result_landmarks=lm_r,
                   scan_landmarks=lm_s, reference=ref, mask=mask,
                   exclude_border=not args.keep_border)
-    summary = {"result": str(args.result), "scan": str(args.scan), "units": args.units,
-               **ev.summary()}
+    if args.units == "auto" and run_units is not None:
+        unit, source = run_units
+    else:
+        unit, source = resolve_units(args.units, result.vertices)
+    summary = {"result": str(args.result), "scan": str(args.scan), "units": unit,
+               "units_source": source, **ev.summary(),
+               "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible))}
 
     image = None
     if args.heatmap:
         key, label, title = _HEATMAPS[args.heatmap_of]
         values = ev.vertex_values()[key]
-        s = summary
-        caption = None
-        if key in ("fit", "fit_signed"):
-            caption = (f"mean {_num(s['fit_mean'])} {args.units} · p95 "
-                       f"{_num(s['fit_p95'])} {args.units} · coverage "
-                       f"{100 * s['fit_coverage']:.0f} % (grey: not covered by the scan)")
-        elif key == "correspondence":
-            caption = (f"mean {_num(s['correspondence_mean'])} {args.units} · p95 "
-                       f"{_num(s['correspondence_p95'])} {args.units} over "
-                       f"{s['correspondence_count']} vertices")
-        units = args.units if key in ("fit", "fit_signed", "correspondence") else ""
+        units = unit if key in ("fit", "fit_signed", "correspondence") else ""
         image = heatmap_figure(result, values, units=units, label=label, title=title,
-                               caption=caption, frame=_frame(args, result, ref))
+                               caption=_caption(key, summary, unit),
+                               frame=_frame(args, result, ref))
 
     with staged_outputs() as stage:
         if args.json:
@@ -165,7 +214,7 @@ def cmd_evaluate(args) -> int:
         if image is not None:
             save_png(stage.file(args.heatmap), image)
     if not args.quiet:
-        print(_format_line(summary, args.units))
+        print(_format_line(summary, unit))
         for p in (args.json, args.heatmap):
             if p:
                 print(f"wrote {p}")
@@ -194,13 +243,17 @@ def register(subparsers, summary: str) -> None:
                         "triangles, area change, stretch")
     p.add_argument("--mask", metavar="FILE",
                    help="result vertex ids to evaluate (text, one per line)")
+    p.add_argument("--run", metavar="RUN.json",
+                   help="the wrap's JSON report: evaluate its fitted vertices only "
+                        "(not the parts and cavities that follow, nor the excluded "
+                        "or pinned ones) in its units")
     p.add_argument("--keep-border", action="store_true",
                    help="count points whose closest point is on the other mesh's border")
     p.add_argument("--json", metavar="OUT", help="write every number as JSON")
     p.add_argument("--heatmap", metavar="OUT.png", help="write a heatmap picture")
     p.add_argument("--heatmap-of", default="fit", choices=list(_HEATMAPS),
                    help="what the heatmap shows (default %(default)s)")
-    p.add_argument("--units", default="mm", help="units of the meshes (default mm)")
+    add_units_argument(p)
     p.add_argument("--up", type=float, nargs=3, default=(0.0, 1.0, 0.0),
                    metavar=("X", "Y", "Z"),
                    help="up axis of the template for pictures (default 0 1 0)")

@@ -65,7 +65,8 @@ def add_fit_options(p) -> None:
     p.add_argument("--smoothing", type=float, default=_DEFAULTS["smoothing"],
                    help="RBF smoothing for noisy landmarks (default 0)")
     p.add_argument("--max-distance", type=float, default=_DEFAULTS["max_distance"],
-                   help="longest projection move (default 5%% of template size)")
+                   help="longest projection move, in scan units (default 5%% of the "
+                        "template's size)")
     p.add_argument("--no-project", action="store_true", help="skip the projection")
     p.add_argument("--rigid-refine", action="store_true",
                    help="refine the alignment with rigid ICP")

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from facewrap.cli.evaluate import read_ground_truth
 from facewrap.io.paths import check_output_paths
+from facewrap.units import add_units_argument
 
 __all__ = ["register", "cmd_report"]
 
@@ -16,11 +18,18 @@ __all__ = ["register", "cmd_report"]
 def cmd_report(args) -> int:
     """Build the HTML page of a wrap run and print its path."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
-    from facewrap.report.page import build_report_page
+    from facewrap.report.page import build_report_page, load_run_report, run_meshes
+    inputs = [args.run_report, *(args.image or ()), args.ground_truth]
     check_output_paths(files=[Path(args.out) / "index.html"], folders=[args.out],
-                       inputs=[args.run_report, *(args.image or ())])
+                       inputs=[p for p in inputs if p])
+    truth = None
+    if args.ground_truth:
+        run = load_run_report(args.run_report)
+        result = run_meshes(run["job"], Path(args.run_report))[2]
+        truth = read_ground_truth(args.ground_truth, result)
     page = build_report_page(args.run_report, args.out, images=args.image or (),
-                             units=args.units, template_up=args.template_up,
+                             units=args.units, ground_truth=truth,
+                             template_up=args.template_up,
                              template_front=args.template_front, title=args.title)
     print(page)
     return 0
@@ -40,8 +49,11 @@ def register(subparsers, summary: str) -> None:
                    help="output folder (index.html is written there)")
     p.add_argument("--image", action="append", metavar="PNG",
                    help="extra picture to include (repeatable)")
-    p.add_argument("--units", default="mm",
-                   help="label of the distance units (default %(default)s)")
+    add_units_argument(p)
+    p.add_argument("--ground-truth", metavar="MESH|NPY",
+                   help="true positions of the result's vertices (a mesh in its "
+                        "topology, or an (n, 3) .npy with NaN rows to skip): adds a "
+                        "heatmap of the distance to them")
     p.add_argument("--template-up", type=float, nargs=3, default=(0.0, 1.0, 0.0),
                    metavar=("X", "Y", "Z"), help="template's up axis (default 0 1 0)")
     p.add_argument("--template-front", type=float, nargs=3, default=(0.0, 0.0, 1.0),

@@ -19,6 +19,7 @@ from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.jobs import read_mesh_landmarks
 from facewrap.progress import progress
+from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
 from facewrap.wrapping import track, write_track_outputs
 from facewrap.wrapping.track import track_output_files
 
@@ -79,11 +80,17 @@ def cmd_track(args) -> int:
         exclude = read_vertex_indices(args.exclude, n_vertices=template.n_vertices).vertex
     log = logging.getLogger("facewrap.wrapping.track")
 
+    units: list = []  # (unit, source), settled on the first frame's result
+
     with progress(len(meshes), "tracking") as bar:
         def say(i, result):
-            m = result.metrics
-            log.info("frame %d: fit mean %.4g, landmarks mean %.4g (scan units), %.2f s", i,
-                     m["fit_mean"], m["landmark_mean"], result.timings["total"])
+            if not units:
+                units.append(resolve_units(args.units, result.mesh.vertices))
+            m, unit = result.metrics, units[0][0]
+            log.info("frame %d: fit mean %s, landmarks mean %s, %.2f s", i,
+                     format_distance(m["fit_mean"], unit),
+                     format_distance(m.get("landmark_mean"), unit),
+                     result.timings["total"])
             bar.advance()
 
         result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
@@ -91,12 +98,16 @@ def cmd_track(args) -> int:
     notes = frame_warnings(result, scans)
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
+    unit, source = units[0] if units else resolve_units(args.units, template.vertices)
     paths = write_track_outputs(
         args.out, result, output_frame=args.output_frame,
         extra_report={"template": str(args.template), "scans": [str(p) for p in scans],
-                      "shape_names": result.shape_names, "warnings": notes})
+                      "shape_names": result.shape_names, "warnings": notes,
+                      "units": unit, "units_source": source})
     if not args.quiet:
         print(f"wrote {len(paths['meshes'])} frames to {args.out}")
+        if source == "inferred":
+            print(units_note(unit, source))
     return 0
 
 
@@ -111,5 +122,6 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--scan-landmarks", required=True, nargs="+", metavar="F",
                    help="landmarks of the first frame, or one file per frame")
     add_fit_options(p)
+    add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_track)

@@ -12,8 +12,9 @@ import warnings
 
 from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
 from facewrap.jobs import InputWarning, WrapJob, run_wrap_job
+from facewrap.units import UNKNOWN, add_units_argument, format_distance, units_note
 
-__all__ = ["register", "cmd_wrap", "run_wrap_job_verbosely"]
+__all__ = ["register", "cmd_wrap", "run_wrap_job_verbosely", "wrap_summary_line"]
 
 
 def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
@@ -26,15 +27,22 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
         if issubclass(w.category, InputWarning):
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
     if not quiet:
-        m, t = report["metrics"], report["timings"]
-        # a run with warnings is never summed up as if it were fine
-        flag = (f"; {len(report['warnings'])} warning(s) above: check the inputs"
-                if report.get("warnings") else "")
-        print(f"wrote {job.output}: {report['vertices']} vertices, model "
-              f"{report['settings']['model']}, fit mean {m['fit_mean']:.4g} p95 "
-              f"{m['fit_p95']:.4g}, landmarks mean {m['landmark_mean']:.4g} (scan units), "
-              f"{t['total']:.2f} s{flag}")
+        print(wrap_summary_line(job, report))
+        if report.get("units_source") == "inferred":
+            print(units_note(report["units"], "inferred"))
     return report
+
+
+def wrap_summary_line(job, report: dict) -> str:
+    """The one-line summary of a finished wrap job; every distance with its unit."""
+    m, t, unit = report["metrics"], report["timings"], report.get("units", UNKNOWN)
+    # a run with warnings is never summed up as if it were fine
+    flag = (f"; {len(report['warnings'])} warning(s) above: check the inputs"
+            if report.get("warnings") else "")
+    return (f"wrote {job.output}: {report['vertices']} vertices, model "
+            f"{report['settings']['model']}, fit mean {format_distance(m['fit_mean'], unit)}"
+            f" p95 {format_distance(m['fit_p95'], unit)}, landmarks mean "
+            f"{format_distance(m.get('landmark_mean'), unit)}, {t['total']:.2f} s{flag}")
 
 
 def cmd_wrap(args) -> int:
@@ -46,7 +54,8 @@ def cmd_wrap(args) -> int:
                   scan_landmarks=args.scan_landmarks, output=args.output,
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
-                  report=args.report, output_frame=args.output_frame)
+                  report=args.report, output_frame=args.output_frame,
+                  units=args.units)
     run_wrap_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
     return 0
 
@@ -75,5 +84,6 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--texture", help="scan texture image to bake into the template UVs")
     p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
     p.add_argument("--report", help="write metrics and timings as JSON")
+    add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_wrap)

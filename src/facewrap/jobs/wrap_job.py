@@ -24,7 +24,7 @@ import json
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +41,7 @@ from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture import bake_texture, load_image, save_png
+from facewrap.units import check_units_choice, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
@@ -102,6 +103,9 @@ class WrapJob:
         the inverse of the template → scan landmark similarity, so it overlays the
         template (a texture is baked before, on the scan).  The report's
         ``"output_frame"`` records it.
+    units : str
+        Unit of the scan's coordinates (and so of every distance): auto (inferred
+        from the head's size), mm, cm, m or in.
     """
     template: str = input_field()
     scan: str = input_field()
@@ -117,6 +121,8 @@ class WrapJob:
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
     output_frame: str = output_field(path=False, default="scan")
+    # a property of the input data, not a path: the [inputs] table, never resolved
+    units: str = field(default="auto", metadata={"table": "inputs", "path": False})
 
 
 def _path_fields(table: str) -> list[str]:
@@ -185,6 +191,10 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if job.output_frame not in OUTPUT_FRAMES:
         raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
                          f" got {job.output_frame!r}", source or job.output)
+    try:
+        check_units_choice(job.units)
+    except ValueError as exc:
+        raise InputError(str(exc), source or job.output) from None
 
 
 # -- checks of legal but odd inputs -------------------------------------------------
@@ -497,6 +507,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     if inputs["profile"] is not None:
         report["template_profile"] = {"path": inputs["profile"].path,
                                       "gives": inputs["profile"].summary()}
+    report["units"], report["units_source"] = resolve_units(job.units,
+                                                            result.mesh.vertices)
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))

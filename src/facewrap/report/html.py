@@ -13,8 +13,10 @@ archived as one file:
   classic scripts, so no module loading and no network.
 
 The viewer orbits and zooms (OrbitControls), toggles each mesh and its opacity,
-colours a mesh by one of the ``scalars`` with a viridis colour bar (editable range,
-value under the pointer), and deforms a mesh with one slider per blendshape.
+colours a mesh by one of the ``scalars`` with a viridis colour bar (a robust
+initial range, editable; the statistics of the values given and their unit; the
+value under the pointer), draws point sets such as landmarks with labels, and
+deforms a mesh with one slider per blendshape.  The run's warnings open the page.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ import base64
 import datetime as _dt
 import html
 import json
-import math
 import os
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -31,15 +32,27 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from facewrap.io.atomic import atomic_write
+from facewrap.report.tables import summary_html
+from facewrap.units import resolution_decimals
 from facewrap.version import __version__
 
-__all__ = ["write_html_report", "STATIC", "THREE_VERSION", "VIEW_NAMES"]
+__all__ = ["write_html_report", "STATIC", "THREE_VERSION", "VIEW_NAMES",
+           "COLOR_RANGE_PERCENTILE"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 """Folder of the vendored three.js bundle, the viewer script and the page style."""
 
-_PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0"}
+_PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0",
+            # the parts that follow the skin, apart from the fitted result
+            "part": "#9d8cc9", "cavity": "#c98c9b", "excluded": "#c9b86f",
+            "pinned": "#6f9ec9",
+            # landmarks: bright, to stand out on the meshes
+            "landmarks": "#ffffff"}
+_POINT_COLORS = {"template": "#2e9e5b", "scan": "#1f6fd1", "result": "#e8452c"}
 _CYCLE = ["#d9a98c", "#b9c3cf", "#8fb3a0", "#b7a3cf", "#cfc08f", "#8fb0cf"]
+#: Percentile of a heatmap's values at the top of its initial colour range.
+COLOR_RANGE_PERCENTILE = 98
+
 THREE_VERSION = "0.187.0"
 """Version of the vendored three.js (npm package ``three``)."""
 
@@ -98,7 +111,8 @@ def _image_uri(item, k: int) -> tuple[str, str]:
     raise ValueError(f"{where} is not a PNG or JPEG image")
 
 
-def _scalar_entry(name: str, spec, sizes: Mapping[str, int]) -> dict:
+def _scalar_entry(name: str, spec, sizes: Mapping[str, int],
+                  used: Mapping[str, np.ndarray]) -> dict:
     try:
         mesh_name, values, units = spec
     except (TypeError, ValueError):
@@ -114,19 +128,59 @@ def _scalar_entry(name: str, spec, sizes: Mapping[str, int]) -> dict:
     ok = v[~np.isnan(v)]
     if len(ok):
         stats = {"min": float(ok.min()), "mean": float(ok.mean()),
-                 "p95": float(np.percentile(ok, 95)), "max": float(ok.max())}
-        # non-negative values (distances) start at 0; the top is the 99th percentile
-        # so a few outliers do not wash out the map
-        lo = 0.0 if stats["min"] >= 0 else float(np.percentile(ok, 1))
-        hi = float(np.percentile(ok, 99))
-        if not hi > lo:
-            hi = lo + (abs(lo) or 1.0)
+                 "p95": float(np.percentile(ok, 95)), "max": float(ok.max()),
+                 "count": int(len(ok))}
+        # a robust range: non-negative values (distances) from 0, signed ones from
+        # the 2nd percentile, to the 98th, so a few outliers (a lip corner, a rim)
+        # do not wash out the map; the page lets the reader widen it
+        lo = 0.0 if stats["min"] >= 0 else float(np.percentile(ok, 2))
+        hi = float(np.percentile(ok, COLOR_RANGE_PERCENTILE))
+        # never narrower than ten steps of the unit's resolution: values that are
+        # all rounding noise (vertices projected onto the scan) show as one colour
+        hi = max(hi, lo + 10.0 ** (1 - resolution_decimals(str(units or ""))))
     else:
-        stats = {"min": None, "mean": None, "p95": None, "max": None}
+        stats = {"min": None, "mean": None, "p95": None, "max": None, "count": 0}
         lo, hi = 0.0, 1.0
-    stats["missing"] = int(np.isnan(v).sum())
-    return {"name": str(name), "mesh": mesh_name, "units": str(units or ""),
-            "values": _b64(v, np.float32), "range": [lo, hi], "stats": stats}
+    # drawn vertices without a value (grey); values off the drawn triangles are
+    # neither drawn nor missing
+    stats["missing"] = int(np.isnan(v[used[mesh_name]]).sum())
+    unit = str(units or "")
+    return {"name": str(name), "mesh": mesh_name, "units": unit,
+            "decimals": resolution_decimals(unit), "values": _b64(v, np.float32),
+            "range": [lo, hi], "stats": stats}
+
+
+def _points_entries(points: Mapping, k0: int) -> list[dict]:
+    """Point sets (landmarks) of the viewer, each a layer with its own toggle."""
+    out = []
+    for k, (name, P) in enumerate(points.items()):
+        P = np.asarray(P, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3 or not np.isfinite(P).all():
+            raise ValueError(f"points[{name!r}] must be (k, 3) finite positions, "
+                             f"got {P.shape}")
+        out.append({"name": str(name), "positions": _b64(P, np.float32),
+                    "count": int(len(P)), "color": _color(str(name), k0 + k),
+                    "visible": True})
+    return out
+
+
+def _label_entries(labels: Sequence, point_names: set) -> list[dict]:
+    """Text labels at 3D positions, each shown with its point set."""
+    out = []
+    for k, item in enumerate(labels):
+        try:
+            layer, xyz, text = item
+        except (TypeError, ValueError):
+            raise ValueError(f"labels[{k}] must be (points name, (3,) position, "
+                             "text)") from None
+        xyz = np.asarray(xyz, dtype=np.float64).reshape(-1)
+        if xyz.shape != (3,) or not np.isfinite(xyz).all():
+            raise ValueError(f"labels[{k}] position must be 3 finite numbers")
+        if str(layer) not in point_names:
+            raise ValueError(f"labels[{k}] names points {layer!r}, not one of "
+                             f"{sorted(point_names)}")
+        out.append({"layer": str(layer), "position": xyz.tolist(), "text": str(text)})
+    return out
 
 
 def _blendshape_entry(blendshapes, meshes_out: list, positions: dict) -> dict:
@@ -170,8 +224,11 @@ def _mesh_entry(name, V, T, k, visible) -> dict:
 
 
 def _color(name: str, k: int) -> str:
-    """Colour of a layer: by its first word (scan, result, template), else cycled."""
-    words = name.lower().replace("_", " ").split()
+    """Colour of a layer: by its first word (scan, result, template, part, ...),
+    landmarks by their last (``landmarks: scan``), else cycled."""
+    words = name.lower().replace("_", " ").replace(":", " ").split()
+    if words and words[0] == "landmarks":
+        return _POINT_COLORS.get(words[-1], _CYCLE[k % len(_CYCLE)])
     return _PALETTE.get(words[0] if words else "", _CYCLE[k % len(_CYCLE)])
 
 
@@ -180,123 +237,6 @@ def _unit(v, name) -> list:
     if a.shape != (3,) or not np.isfinite(a).all() or np.linalg.norm(a) == 0:
         raise ValueError(f"{name} must be a non-zero 3-vector, got {v!r}")
     return (a / np.linalg.norm(a)).tolist()
-
-
-# ---------------------------------------------------------------------------------
-# Tables
-# ---------------------------------------------------------------------------------
-def _label(key) -> str:
-    return str(key).replace("_", " ")
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-
-
-def _fmt(v) -> tuple[str, str]:
-    """``(text, css class)`` of one table value."""
-    if v is None:
-        return "–", "num"
-    if isinstance(v, (bool, np.bool_)):
-        return ("yes" if v else "no"), "num"
-    if isinstance(v, (int, np.integer)):
-        return f"{int(v):,}", "num"
-    if _is_number(v):
-        x = float(v)
-        if not math.isfinite(x):
-            return str(x), "num"
-        if x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e6):
-            return f"{x:.3e}", "num"
-        return f"{x:.4g}" if abs(x) < 1e4 else f"{x:,.1f}", "num"
-    if isinstance(v, (list, tuple)) and all(_is_number(x) for x in v) and len(v) <= 6:
-        return ", ".join(_fmt(x)[0] for x in v), "num"
-    return str(v), "txt"
-
-
-def _flatten(d: Mapping, prefix: str = "") -> list[tuple[str, object]]:
-    rows = []
-    for k, v in d.items():
-        key = f"{prefix}{_label(k)}"
-        if isinstance(v, Mapping):
-            rows += _flatten(v, key + " › ")
-        else:
-            rows.append((key, v))
-    return rows
-
-
-def _is_matrix(v) -> bool:
-    return (isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0
-            and all(isinstance(r, (list, tuple, np.ndarray)) and len(r) == len(v[0])
-                    and all(_is_number(x) for x in r) for r in v))
-
-
-def _is_records(v) -> bool:
-    return (isinstance(v, (list, tuple)) and len(v) > 0
-            and all(isinstance(r, Mapping) for r in v))
-
-
-def _key_value_table(rows) -> str:
-    body = []
-    for k, v in rows:
-        if _is_matrix(v):
-            cell = _matrix_table(v)
-            cls = ""
-        else:
-            text, cls = _fmt(v)
-            cell = html.escape(text)
-        body.append(f'<tr><td class="k">{html.escape(k)}</td>'
-                    f'<td class="{cls}">{cell}</td></tr>')
-    return '<table class="kv">' + "".join(body) + "</table>"
-
-
-def _matrix_table(m) -> str:
-    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(x)[0])}</td>" for x in r)
-                   + "</tr>" for r in m)
-    return f'<table class="matrix">{rows}</table>'
-
-
-def _records_table(records) -> str:
-    cols: list = []
-    flat = [dict(_flatten(r)) for r in records]
-    for r in flat:
-        cols += [c for c in r if c not in cols]
-    numeric = {c: all(_is_number(r.get(c)) or r.get(c) is None for r in flat) for c in cols}
-    head = "".join(f'<th class="{"num" if numeric[c] else ""}">{html.escape(c)}</th>'
-                   for c in cols)
-    body = []
-    for r in flat:
-        cells = []
-        for c in cols:
-            text, cls = _fmt(r.get(c))
-            cells.append(f'<td class="{cls}">{html.escape(text)}</td>')
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
-            f'<tbody>{"".join(body)}</tbody></table></div>')
-
-
-def _summary_html(summary: Mapping) -> str:
-    """Cards of tables: top-level values in one, each dict or record list in its own."""
-    loose, cards = [], []
-    for key, value in summary.items():
-        if isinstance(value, Mapping):
-            if value:
-                rows = _flatten(value)
-                long_text = any(isinstance(v, str) and len(v) > 40 for _, v in rows)
-                cards.append((" wide" if long_text else "", key, _key_value_table(rows)))
-        elif isinstance(value, (list, tuple)) and value and all(
-                isinstance(x, str) for x in value):
-            items = "".join(f"<li>{html.escape(x)}</li>" for x in value)
-            cards.append((" wide", key, f'<ul class="notes">{items}</ul>'))
-        elif _is_records(value):
-            cards.append((" wide", key, _records_table(value)))
-        elif _is_matrix(value):
-            cards.append(("", key, _matrix_table(value)))
-        else:
-            loose.append((_label(key), value))
-    if loose:
-        cards.insert(0, ("", "overview", _key_value_table(loose)))
-    return "".join(f'<section class="card{wide}"><h4>{html.escape(_label(t)).capitalize()}'
-                   f'</h4>{table}</section>' for wide, t, table in cards)
 
 
 # ---------------------------------------------------------------------------------
@@ -325,6 +265,12 @@ def _viewer_html(data: dict) -> str:
         f'<input type="range" min="0.1" max="1" step="0.05" value="1" '
         f'title="opacity" aria-label="{e(m["name"])} opacity" '
         f'data-fw-opacity="{e(m["name"])}"></div>' for m in data["meshes"])
+    layers += "".join(
+        f'<div class="layer"><label><input type="checkbox" data-fw-points="{k}"'
+        f'{" checked" if p["visible"] else ""}><span class="swatch dot" style="background:'
+        f'{e(p["color"])}"></span><span class="name" title="{e(p["name"])}">'
+        f'{e(p["name"])} ({p["count"]})</span></label></div>'
+        for k, p in enumerate(data["points"]))
     heat = ""
     if data["scalars"]:
         options = "".join(f'<option value="{k}"{" selected" if k == 0 else ""}>'
@@ -359,6 +305,7 @@ def _viewer_html(data: dict) -> str:
     return (
         '<section class="card viewer"><div class="stage"><div id="fw-canvas-host"></div>'
         f'<div class="views">{views}</div>'
+        '<div id="fw-labels"></div>'
         '<div id="fw-viewer-message" hidden></div><div id="fw-probe" hidden></div>'
         '<div class="hint">drag: orbit · right-drag: pan · wheel: zoom</div></div>'
         f'<aside class="panel"><h3>Layers</h3>{layers}{heat}{shapes}</aside></section>')
@@ -370,6 +317,9 @@ def write_html_report(folder, *, title: str = "facewrap report",
                       meshes: Mapping | None = None,
                       scalars: Mapping | None = None,
                       blendshapes=None,
+                      points: Mapping | None = None,
+                      labels: Sequence = (),
+                      warnings: Sequence[str] = (),
                       subtitle: str | None = None,
                       visible: Sequence[str] | None = None,
                       view_up=(0.0, 1.0, 0.0), view_front=(0.0, 0.0, 1.0),
@@ -399,13 +349,22 @@ def write_html_report(folder, *, title: str = "facewrap report",
     scalars : dict of str to (str, (n,) float, str), optional
         Heatmaps: ``name -> (mesh name, per-vertex values, units)``.  NaN or inf
         mark vertices without a value (drawn grey).  The first is shown at
-        start; the colour range is 0 (or the 1st percentile for signed values)
-        to the 99th percentile, editable on the page.
+        start; its statistics (mean, p95, max) are over the values given; the
+        colour range is 0 (or the 2nd percentile for signed values) to the 98th
+        percentile (:data:`COLOR_RANGE_PERCENTILE`), editable on the page.
     blendshapes : (neutral, dict of str to (n, 3) float), optional
         Sliders: ``neutral`` is the name of one of ``meshes`` or a Mesh / (V, T)
         pair (then shown as a layer named ``"blendshapes"``); each shape is the
         vertex positions at weight 1.  The viewer shows ``neutral + sum w (shape -
         neutral)``.
+    points : dict of str to (k, 3) float, optional
+        Point sets drawn over the meshes (landmarks), each with its own toggle;
+        a name ``"landmarks: scan"`` takes the scan's landmark colour.
+    labels : sequence of (str, (3,) float, str)
+        Text labels: ``(points name, position, text)``, shown with that set
+        (e.g. the worst landmarks with their error).
+    warnings : sequence of str
+        Shown in a box at the top of the page, before anything else.
     subtitle : str, optional
         Line under the title (default: the creation time).
     visible : sequence of str, optional
@@ -440,8 +399,11 @@ def write_html_report(folder, *, title: str = "facewrap report",
     up, front = _view_axes(view_up, view_front, initial_view)
     figures = [_image_uri(item, k) for k, item in enumerate(images)]
     data = _viewer_data(dict(meshes or {}), dict(scalars or {}), blendshapes, visible)
+    data["points"] = _points_entries(dict(points or {}), len(data["meshes"]))
+    data["labels"] = _label_entries(labels, {p["name"] for p in data["points"]})
     data["view"] = {"up": up, "front": front, "initial": initial_view}
-    page = _page_html(title, subtitle, summary, figures, data)
+    notes = [str(w) for w in warnings]
+    page = _page_html(title, subtitle, summary, figures, data, notes)
     out = Path(os.fspath(folder))
     out.mkdir(parents=True, exist_ok=True)
     path = out / filename
@@ -463,15 +425,19 @@ def _view_axes(view_up, view_front, initial_view: str) -> tuple[list, list]:
 
 def _viewer_data(meshes: dict, scalars: dict, blendshapes, visible) -> dict:
     """The viewer's JSON: mesh layers, heatmaps and blendshape sliders, checked."""
-    mesh_entries, positions = [], {}
+    mesh_entries, positions, used = [], {}, {}
     for k, (name, mesh) in enumerate(meshes.items()):
         V, T = _triangles_of(mesh, str(name))
         mesh_entries.append(_mesh_entry(name, V, T, k, True))
         positions[str(name)] = V
+        used[str(name)] = np.bincount(np.asarray(T, np.int64).ravel(),
+                                      minlength=len(V)) > 0
     bs_entry = (_blendshape_entry(blendshapes, mesh_entries, positions)
                 if blendshapes is not None else None)
+    if bs_entry is not None and bs_entry["mesh"] not in used:  # the neutral's layer
+        used[bs_entry["mesh"]] = np.ones(len(positions[bs_entry["mesh"]]), bool)
     sizes = {name: len(V) for name, V in positions.items()}
-    scalar_entries = [_scalar_entry(str(n), s, sizes) for n, s in scalars.items()]
+    scalar_entries = [_scalar_entry(str(n), s, sizes, used) for n, s in scalars.items()]
     if visible is None:
         shown = {scalar_entries[0]["mesh"]} if scalar_entries else set(sizes)
     else:
@@ -485,12 +451,24 @@ def _viewer_data(meshes: dict, scalars: dict, blendshapes, visible) -> dict:
     return {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry}
 
 
-def _body_parts(title, subtitle, summary, figures, data, created: str) -> list[str]:
-    """Header, 3D view, tables, pictures and footer of the page."""
+def _warnings_html(notes: list[str]) -> str:
+    """The box of the run's warnings, first on the page (issue 16)."""
+    if not notes:
+        return ""
+    items = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+    return (f'<section class="card warnings" id="fw-warnings" role="alert"><h2>'
+            f'{len(notes)} warning{"s" if len(notes) != 1 else ""}: check the inputs '
+            f'before trusting the numbers</h2><ul class="notes">{items}</ul></section>')
+
+
+def _body_parts(title, subtitle, summary, figures, data, created: str,
+                notes: list[str]) -> list[str]:
+    """Header, warnings, 3D view, tables, pictures and footer of the page."""
     e = html.escape
     parts = [f'<header class="top"><div><h1>{e(title)}</h1><div class="sub">'
              f'{e(subtitle if subtitle is not None else "created " + created)}</div></div>'
-             f'<div class="brand"><b>facewrap</b> {e(__version__)}</div></header>']
+             f'<div class="brand"><b>facewrap</b> {e(__version__)}</div></header>',
+             _warnings_html(notes)]
     if data["meshes"]:
         counts = " · ".join(f'{e(m["name"])} {m["n_vertices"]:,} vertices'
                             for m in data["meshes"])
@@ -498,7 +476,7 @@ def _body_parts(title, subtitle, summary, figures, data, created: str) -> list[s
                      f'color:var(--muted);font-size:12.5px">— {counts}</span></h2>')
         parts.append(_viewer_html(data))
     if summary:
-        parts.append(f'<h2>Numbers</h2><div class="tables">{_summary_html(summary)}</div>')
+        parts.append(f'<h2>Numbers</h2><div class="tables">{summary_html(summary)}</div>')
     if figures:
         figs = "".join(f'<figure class="card"><img src="{uri}" alt="{e(cap)}">'
                        f'<figcaption>{e(cap)}</figcaption></figure>'
@@ -510,11 +488,11 @@ def _body_parts(title, subtitle, summary, figures, data, created: str) -> list[s
     return parts
 
 
-def _page_html(title, subtitle, summary, figures, data) -> str:
+def _page_html(title, subtitle, summary, figures, data, notes) -> str:
     """The whole page: styles, body and (with meshes) the inlined viewer scripts."""
     e = html.escape
     created = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z").strip()
-    parts = _body_parts(title, subtitle, summary, figures, data, created)
+    parts = _body_parts(title, subtitle, summary, figures, data, created, notes)
     scripts = ""
     if data["meshes"]:
         scripts = (f'<script type="application/json" id="facewrap-data">'

@@ -1,22 +1,29 @@
 """The HTML page of a finished wrap run, built from its JSON report.
 
 Reads the JSON report that a wrap job writes (see
-:func:`facewrap.jobs.run_wrap_job`), the meshes it names (template, scan, output)
-and, when the run had them, its blendshape folder and baked texture, and writes
-``DIR/index.html`` with :func:`facewrap.report.html.write_html_report`:
+:func:`facewrap.jobs.run_wrap_job`), the meshes and landmark files it names
+(template, scan, output) and, when the run had them, its blendshape folder and
+baked texture, and writes ``DIR/index.html`` with
+:func:`facewrap.report.html.write_html_report`.  The viewer and the tables agree:
+both are over the same vertices (the *fitted* ones of the report's
+``vertex_roles``) and in the same unit (the report's ``units``):
 
 - layers: the template moved by the run's similarity ("template (aligned)"), the
-  scan and the result;
-- heatmaps: result → scan distance (grey where the closest scan point is on the
-  scan's border, i.e. the scan does not cover that vertex, as in the fit metrics)
-  and scan → result distance;
+  scan, the fitted result, and apart from it, in their own colours, the parts that
+  follow (roles part, cavity, excluded, pinned);
+- landmarks of the template (aligned), the scan and the result, the worst few
+  labelled with name and error;
+- heatmaps: result → scan distance over the fitted vertices (grey where the
+  closest scan point is on the scan's border, as in the fit metrics), scan →
+  result distance, and with ground truth the distance to it;
 - sliders: the template's blendshape offsets, turned by the run's similarity,
   added to the result (a preview, not a deformation transfer);
-- tables: warnings, metrics, timings, settings, blend weights, iterations, the
-  transform.
+- the run's warnings first; tables: metrics (distances with their unit),
+  timings, settings, blend weights, iterations, the transform.
 
-Relative paths in the report are taken from the current folder, else from the
-report's folder.
+Relative paths in the report are taken from the report's folder, else from the
+current folder.  A report without ``vertex_roles`` (older runs) counts the job's
+``exclude`` vertices as excluded and the others as fitted.
 """
 
 from __future__ import annotations
@@ -29,17 +36,27 @@ import numpy as np
 
 from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
+from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
+from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.landmarks import pair_landmarks
 from facewrap.report.html import write_html_report
+from facewrap.report.run_tables import run_summary
+from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
-__all__ = ["build_report_page", "load_run_report", "RUN_SECTIONS"]
+__all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
+           "WORST_LANDMARKS_LABELLED"]
 
 log = logging.getLogger(__name__)
 
-#: Order of the tables on the page; any other key of the report follows.
-RUN_SECTIONS = ("warnings", "metrics", "ground_truth_error_mm", "timings",
-                "blend_weights", "texture", "settings", "job", "iterations", "transform")
+#: How many of the worst landmarks the viewer labels with name and error.
+WORST_LANDMARKS_LABELLED = 5
+
+_FITTED = VERTEX_ROLE_NAMES.index("fitted")
+# layer names of the roles that follow (the first word picks the layer's colour)
+_ROLE_LAYERS = {"part": "part (follows)", "cavity": "cavity (follows)",
+                "excluded": "excluded (follows)", "pinned": "pinned (held)"}
 
 
 def _existing(path, report_path: Path, key: str) -> Path:
@@ -90,7 +107,7 @@ def _similarity(run: dict, report_path: Path) -> np.ndarray:
     return M
 
 
-def _run_meshes(job: dict, report_path: Path):
+def run_meshes(job: dict, report_path: Path):
     """Template, scan and result meshes of the run (the result in template topology)."""
     paths = {k: _existing(job[k], report_path, k) for k in ("template", "scan", "output")}
     log.info("reading %s", ", ".join(str(p) for p in paths.values()))
@@ -101,16 +118,100 @@ def _run_meshes(job: dict, report_path: Path):
     return template, scan, result
 
 
-def _distances(scan, result) -> tuple[np.ndarray, np.ndarray]:
-    """Result → scan distance (NaN where the closest point is on the scan's border)
-    and scan → result distance, per vertex."""
+def run_vertex_roles(run: dict, report_path, n: int) -> np.ndarray:
+    """(n,) int8 role codes (:data:`facewrap.evaluate.VERTEX_ROLE_NAMES`) of a run.
+
+    From the report's ``vertex_roles``; a report without them (older runs) gives
+    the job's ``exclude`` vertices "excluded" and the others "fitted".
+
+    Raises
+    ------
+    InputError
+        When ``vertex_roles`` is malformed or the exclude file unreadable.
+    """
+    report_path = Path(report_path)
+    if "vertex_roles" in run:
+        try:
+            return role_codes(run["vertex_roles"], n)
+        except ValueError as exc:
+            raise InputError(f"{exc} (the result has {n} vertices)", report_path) from None
+    codes = np.full(n, _FITTED, dtype=np.int8)
+    exclude = run["job"].get("exclude")
+    if exclude:
+        path = _existing(exclude, report_path, "exclude")
+        codes[read_vertex_indices(path, n_vertices=n).vertex] = \
+            VERTEX_ROLE_NAMES.index("excluded")
+    return codes
+
+
+def _fitted_triangles(T: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """(m,) bool: triangles whose three vertices are all fitted."""
+    return (codes[T] == _FITTED).all(axis=1)
+
+
+def _distances(scan, result, codes) -> tuple[np.ndarray, np.ndarray]:
+    """Result → scan distance of the fitted vertices (NaN for the others and where
+    the closest point is on the scan's border, as :func:`~facewrap.wrapping.stages.
+    fit_metrics` leaves them out) and scan → fitted-result distance, per vertex."""
     log.info("measuring distances")
     scan_tree = ClosestPointTree(scan.vertices, scan.triangles)
     cp = scan_tree.query(result.vertices)
-    to_scan = np.where(scan_tree.boundary_triangles[cp.triangles], np.nan, cp.distances)
-    to_result = ClosestPointTree(result.vertices, result.triangles).query(
+    off = scan_tree.boundary_triangles[cp.triangles] | (codes != _FITTED)
+    to_scan = np.where(off, np.nan, cp.distances)
+    T = result.triangles
+    fitted_T = T[_fitted_triangles(T, codes)]
+    to_result = ClosestPointTree(result.vertices, fitted_T if len(fitted_T) else T).query(
         scan.vertices).distances
     return to_scan, to_result
+
+
+def _result_layers(result, codes) -> dict:
+    """The fitted result (all vertices, its fitted triangles) and one compact layer
+    per role that follows, so the heatmap never paints them and each has a toggle."""
+    V, T = result.vertices, result.triangles
+    fitted = _fitted_triangles(T, codes)
+    layers = {"result": (V, T[fitted])}
+    # a triangle that touches a following vertex goes with the highest such role
+    tri_role = codes[T].max(axis=1)
+    for role, name in _ROLE_LAYERS.items():
+        sel = T[~fitted & (tri_role == VERTEX_ROLE_NAMES.index(role))]
+        if len(sel):
+            used, inverse = np.unique(sel, return_inverse=True)
+            layers[name] = (V[used], inverse.reshape(-1, 3))
+    return layers
+
+
+def _landmark_points(job: dict, report_path: Path, template, scan, result, M):
+    """Landmark sets for the viewer, labels of the worst, and the paired errors.
+
+    Returns ``(points, labels, errors)``: ``points`` maps "landmarks: template"
+    (aligned), "landmarks: scan" and "landmarks: result" to (k, 3) positions;
+    ``labels`` names the :data:`WORST_LANDMARKS_LABELLED` largest result → scan
+    errors; ``errors`` is (l,) float over the pairs.  Empty when the files are gone.
+    """
+    try:
+        tl = read_landmarks(_existing(job["template_landmarks"], report_path,
+                                      "template landmarks"), kind="auto")
+        sl = read_landmarks(_existing(job["scan_landmarks"], report_path,
+                                      "scan landmarks"), kind="points")
+        tl.check(template.n_vertices, len(template.triangles))
+        ia, ib = pair_landmarks(tl, sl, ("template", "scan"))
+    except (KeyError, InputError, ValueError) as exc:
+        log.warning("landmarks not shown: %s", exc)
+        return {}, [], np.zeros(0)
+    A, t = M[:3, :3], M[:3, 3]
+    on_result = tl.positions(result.vertices, result.triangles)[ia]
+    on_scan = sl.positions(scan.vertices, scan.triangles)[ib]
+    points = {"landmarks: template": (tl.positions(template.vertices, template.triangles)
+                                      @ A.T + t)[ia],
+              "landmarks: scan": on_scan, "landmarks: result": on_result}
+    errors = np.linalg.norm(on_result - on_scan, axis=1)
+    worst = np.argsort(-errors, kind="stable")[:WORST_LANDMARKS_LABELLED]
+    # names from the template's file, else the scan's (a menpo .ljson names them)
+    name = ((lambda j: tl.label(int(ia[j]))) if tl.names is not None or sl.names is None
+            else (lambda j: sl.label(int(ib[j]))))
+    labels = [(int(j), on_result[j], name(j)) for j in worst]
+    return points, labels, errors
 
 
 def _blendshape_preview(job: dict, report_path: Path, template, result, A):
@@ -140,22 +241,28 @@ def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
     return pictures
 
 
-def _summary(run: dict) -> dict:
-    """The page's tables: an overview, then :data:`RUN_SECTIONS`, then the rest."""
-    job, settings = run["job"], run.get("settings", {})
-    overview = {"scan": Path(job["scan"]).name, "template": Path(job["template"]).name,
-                "model": settings.get("model"), "vertices": run.get("vertices"),
-                "total seconds": run.get("timings", {}).get("total")}
-    summary = {k: v for k, v in overview.items() if v is not None}
-    for key in RUN_SECTIONS + tuple(k for k in run if k not in RUN_SECTIONS):
-        if key in run and key not in ("vertices",) and run[key] not in (None, {}, []):
-            summary[key] = run[key]
-    return summary
+def _run_units(run: dict, units: str, result) -> tuple[str, str]:
+    """``(unit, source)``: ``units`` when given, else the run's own, else inferred."""
+    if units == "auto" and run.get("units") in UNIT_NAMES + (UNKNOWN,):
+        return run["units"], run.get("units_source", "given")
+    return resolve_units(units, result.vertices)
 
 
-def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
-                      template_up=(0.0, 1.0, 0.0), template_front=(0.0, 0.0, 1.0),
-                      title: str | None = None) -> Path:
+def _ground_truth_values(ground_truth, result, codes) -> np.ndarray | None:
+    """(n,) distance of each fitted vertex to its true position (NaN elsewhere)."""
+    if ground_truth is None:
+        return None
+    G = np.asarray(ground_truth, dtype=np.float64)
+    if G.shape != result.vertices.shape:
+        raise ValueError(f"ground_truth must have shape {result.vertices.shape} (one "
+                         f"true position per result vertex), got {G.shape}")
+    err = np.linalg.norm(result.vertices - G, axis=1)  # NaN where the truth is NaN
+    return np.where(codes == _FITTED, err, np.nan)
+
+
+def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
+                      ground_truth=None, template_up=(0.0, 1.0, 0.0),
+                      template_front=(0.0, 0.0, 1.0), title: str | None = None) -> Path:
     """Write the HTML page of a wrap run's JSON report.
 
     Parameters
@@ -166,8 +273,12 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
         Folder for ``index.html`` (created).
     images : sequence of path
         Extra pictures (PNG/JPEG), captioned by file name.
-    units : str
-        Label of the distance units in the heatmaps.
+    units : {"auto", "mm", "cm", "m", "in"}
+        Unit of the run's distances; "auto": the report's ``units``, else
+        inferred from the result's size (:mod:`facewrap.units`).
+    ground_truth : (n, 3) float, optional
+        True positions of the result's vertices (NaN rows: unknown): adds a
+        heatmap of the distance to them over the fitted vertices.
     template_up, template_front : (3,) float
         Up and front directions of the template; the view turns them with the
         run's similarity.
@@ -183,22 +294,40 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "mm",
     ------
     InputError
         If the report or a file it names is missing or malformed.
+    ValueError
+        If ``ground_truth`` is not one row per result vertex.
     """
     report_path = Path(report_path)
     run = load_run_report(report_path)
     job = run["job"]
     M = _similarity(run, report_path)
     A, t = M[:3, :3], M[:3, 3]
-    template, scan, result = _run_meshes(job, report_path)
-    to_scan, to_result = _distances(scan, result)
+    template, scan, result = run_meshes(job, report_path)
+    codes = run_vertex_roles(run, report_path, result.n_vertices)
+    unit, source = _run_units(run, units, result)
+    truth = _ground_truth_values(ground_truth, result, codes)
+    to_scan, to_result = _distances(scan, result, codes)
+    points, worst, errors = _landmark_points(job, report_path, template, scan, result, M)
+    labelled = [(name, float(errors[j])) for j, _, name in worst]
+    scalars = {"distance to scan": ("result", to_scan, unit),
+               "distance to result": ("scan", to_result, unit)}
+    if truth is not None:  # the truest measure comes first, shown at start
+        scalars = {"distance to ground truth": ("result", truth, unit), **scalars}
+    counts = np.bincount(codes, minlength=len(VERTEX_ROLE_NAMES))
+    summary = run_summary(run, unit, source,
+                          roles=dict(zip(VERTEX_ROLE_NAMES, counts.tolist())),
+                          worst_landmarks=labelled, ground_truth=truth)
+    layers = _result_layers(result, codes)
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
-        subtitle=f"report {report_path}",
-        summary=_summary(run), images=_pictures(run, report_path, images),
+        subtitle=f"report {report_path}", summary=summary,
+        warnings=run["warnings"] if isinstance(run.get("warnings"), list) else (),
+        images=_pictures(run, report_path, images),
         meshes={"template (aligned)": (template.vertices @ A.T + t, template.triangles),
-                "scan": scan, "result": result},
-        scalars={"distance to scan": ("result", to_scan, units),
-                 "distance to result": ("scan", to_result, units)},
+                "scan": scan, **layers},
+        visible=list(layers), scalars=scalars, points=points,
+        labels=[("landmarks: result", at, f"{name}: {format_distance(errors[j], unit)}")
+                for j, at, name in worst],
         blendshapes=_blendshape_preview(job, report_path, template, result, A),
         view_up=A @ np.asarray(template_up, float),
         view_front=A @ np.asarray(template_front, float))

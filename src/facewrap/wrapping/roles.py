@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from facewrap.evaluate import VERTEX_ROLE_NAMES
 from facewrap.geometry import boundary_edges, connected_components, face_areas
 from facewrap.geometry.visibility import outside_views
 
@@ -36,8 +37,9 @@ __all__ = ["VERTEX_ROLES", "FITTED", "PART", "CAVITY", "EXCLUDED", "PINNED",
            "HiddenSurface", "find_hidden_surface", "vertex_roles", "role_ranges",
            "role_counts"]
 
-#: role names, indexed by the codes of :func:`vertex_roles`
-VERTEX_ROLES = ("fitted", "part", "cavity", "excluded", "pinned")
+#: role names, indexed by the codes of :func:`vertex_roles` (the one table, kept where
+#: the measures that read a run's roles can see it)
+VERTEX_ROLES = VERTEX_ROLE_NAMES
 FITTED, PART, CAVITY, EXCLUDED, PINNED = range(len(VERTEX_ROLES))
 
 #: a piece other than the largest is skin when it has at least this share of the

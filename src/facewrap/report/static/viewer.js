@@ -1,8 +1,12 @@
 /* facewrap report viewer (MIT). Reads the JSON in <script id="facewrap-data">,
  * draws its meshes with three.js (global FWTHREE, see three-viewer.min.js) and wires
  * the controls: layer toggles and opacity, heatmap choice and range with a colour
- * bar, blendshape sliders, view presets, and a value read-out under the pointer.
- * Sets window.facewrapViewer = {ready, webgl, meshes, error} once drawn (tests).
+ * bar, blendshape sliders, view presets, and a value read-out under the pointer;
+ * draws point sets (landmarks) as small balls, each set with a toggle, and text
+ * labels that follow the view. Distances print as facewrap.units.format_distance
+ * does (about four significant digits, never finer than the unit's resolution).
+ * Sets window.facewrapViewer = {ready, webgl, meshes, points, labels, error} once
+ * drawn (tests).
  */
 (function () {
   "use strict";
@@ -46,6 +50,46 @@
     const a = Math.abs(v);
     if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(2);
     return Number(v.toPrecision(3)).toString();
+  }
+
+  // the twin of facewrap.units.format_distance: `most` is the unit's resolution
+  function fmtDistance(v, most) {
+    if (!Number.isFinite(v)) return "–";
+    if (v === 0) return "0";
+    const a = Math.abs(v), step = Math.pow(10, -most);
+    if (a < 0.5 * step) return "< " + step.toFixed(most);
+    const d = Math.max(0, Math.min(most, 3 - Math.floor(Math.log10(a))));
+    if (a < 1e4) return v.toFixed(d);
+    return v.toLocaleString("en-US", { minimumFractionDigits: d, maximumFractionDigits: d });
+  }
+  state.formatDistance = fmtDistance;  // for tests: the twin of format_distance
+
+  // one ball for the landmarks: an icosahedron, scaled and moved per point
+  const ICO = (function () {
+    const t = (1 + Math.sqrt(5)) / 2;
+    const v = [-1, t, 0, 1, t, 0, -1, -t, 0, 1, -t, 0, 0, -1, t, 0, 1, t, 0, -1, -t,
+               0, 1, -t, t, 0, -1, t, 0, 1, -t, 0, -1, -t, 0, 1];
+    const f = [0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4,
+               11, 10, 2, 10, 7, 6, 7, 1, 8, 3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9,
+               4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1];
+    const n = Math.sqrt(1 + t * t);
+    return { v: v.map(function (x) { return x / n; }), f: f };
+  })();
+
+  function ballsGeometry(centres, radius) {
+    const k = centres.length / 3, nv = ICO.v.length / 3;
+    const pos = new Float32Array(k * ICO.v.length);
+    const idx = new Uint32Array(k * ICO.f.length);
+    for (let p = 0; p < k; p++) {
+      for (let j = 0; j < nv; j++) for (let c = 0; c < 3; c++)
+        pos[p * ICO.v.length + 3 * j + c] = centres[3 * p + c] + radius * ICO.v[3 * j + c];
+      for (let j = 0; j < ICO.f.length; j++) idx[p * ICO.f.length + j] = p * nv + ICO.f[j];
+    }
+    const g = new T.BufferGeometry();
+    g.setAttribute("position", new T.BufferAttribute(pos, 3));
+    g.setIndex(new T.BufferAttribute(idx, 1));
+    g.computeVertexNormals();
+    return g;
   }
 
   function fail(message) {
@@ -108,6 +152,66 @@
                          base: pos.slice(), scalar: null };
     });
     state.meshes = data.meshes.length;
+
+    // ---- point sets (landmarks) and labels -----------------------------------
+    const headSphere = new T.Box3();
+    Object.values(layers).forEach(function (l) { headSphere.expandByObject(l.obj); });
+    const ballRadius = 0.006 * Math.max(headSphere.getBoundingSphere(new T.Sphere()).radius,
+                                        1e-6);
+    const pointSets = (data.points || []).map(function (p) {
+      const mat = new T.MeshStandardMaterial({ color: new T.Color(p.color),
+        emissive: new T.Color(p.color), emissiveIntensity: 0.35, roughness: 0.4 });
+      const obj = new T.Mesh(ballsGeometry(decode(p.positions, Float32Array), ballRadius),
+                             mat);
+      obj.visible = p.visible;
+      obj.renderOrder = 100;
+      scene.add(obj);
+      return { spec: p, obj: obj };
+    });
+    state.points = pointSets.length;
+    const labelHost = $("fw-labels");
+    const labels = (data.labels || []).map(function (l) {
+      const div = document.createElement("div");
+      div.className = "fw-label";
+      div.textContent = l.text;
+      labelHost.appendChild(div);
+      const set = pointSets.find(function (p) { return p.spec.name === l.layer; });
+      return { div: div, at: new T.Vector3().fromArray(l.position), set: set };
+    });
+    state.labels = labels.length;
+    document.querySelectorAll("[data-fw-points]").forEach(function (box) {
+      const p = pointSets[parseInt(box.dataset.fwPoints, 10)];
+      box.addEventListener("change", function () {
+        p.obj.visible = box.checked;
+        requestRender();
+      });
+    });
+
+    function placeLabels() {
+      const w = host.clientWidth, h = host.clientHeight, q = new T.Vector3();
+      const placed = [];  // boxes already placed: a label that would overlap moves down
+      labels.forEach(function (l) {
+        q.copy(l.at).project(camera);
+        const shown = l.set.obj.visible && q.z < 1 && Math.abs(q.x) <= 1 &&
+                      Math.abs(q.y) <= 1;
+        l.div.hidden = !shown;
+        if (!shown) return;
+        const x = (q.x + 1) / 2 * w, lw = l.div.offsetWidth + 4, lh = l.div.offsetHeight + 2;
+        let y = (1 - q.y) / 2 * h;
+        for (let moved = true; moved;) {
+          moved = false;
+          placed.forEach(function (b) {
+            if (Math.abs(b.x - x) < Math.max(lw, b.w) && Math.abs(b.y - y) < lh) {
+              y = b.y + lh;
+              moved = true;
+            }
+          });
+        }
+        placed.push({ x: x, y: y, w: lw });
+        l.div.style.left = x + "px";
+        l.div.style.top = y + "px";
+      });
+    }
 
     // ---- camera -------------------------------------------------------------
     const up = new T.Vector3().fromArray(data.view.up).normalize();
@@ -235,11 +339,14 @@
       ticks.textContent = "";
       for (let k = 0; k <= 4; k++) {
         const span = document.createElement("span");
-        span.textContent = fmt(active.lo + (k / 4) * (active.hi - active.lo));
+        span.textContent = fmtDistance(active.lo + (k / 4) * (active.hi - active.lo),
+                                       active.decimals);
         ticks.appendChild(span);
       }
-      $("fw-colorbar-stats").textContent = "mean " + fmt(active.stats.mean) +
-        " · p95 " + fmt(active.stats.p95) + " · max " + fmt(active.stats.max) + units +
+      const d = function (v) { return fmtDistance(v, active.decimals) + units; };
+      $("fw-colorbar-stats").textContent = "mean " + d(active.stats.mean) +
+        " · p95 " + d(active.stats.p95) + " · max " + d(active.stats.max) +
+        " over " + active.stats.count + " vertices" +
         (active.stats.missing ? " · " + active.stats.missing + " without value (grey)" : "");
     }
 
@@ -330,7 +437,8 @@
               dz = p.getZ(i) - hit.point.z, d = dx * dx + dy * dy + dz * dz;
         if (d < bd) { bd = d; best = i; }
       });
-      probe.textContent = "vertex " + best + ": " + fmt(active.data[best]) +
+      probe.textContent = "vertex " + best + ": " +
+        fmtDistance(active.data[best], active.decimals) +
         (active.units ? " " + active.units : "");
       probe.style.left = (ev.clientX - rect.left + 14) + "px";
       probe.style.top = (ev.clientY - rect.top + 14) + "px";
@@ -343,6 +451,7 @@
     function render() {
       pending = false;
       renderer.render(scene, camera);
+      placeLabels();
       state.frames += 1;
     }
     function requestRender() {
