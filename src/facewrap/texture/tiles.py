@@ -22,13 +22,16 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
+from facewrap.io.files import read_file_head
+from facewrap.io.images import load_image
+from facewrap.io.mtl import read_libraries
 from facewrap.mesh import Mesh
 from facewrap.texture.bake import bake_texture, rasterize_uv, scan_visibility
 from facewrap.texture.udim import (FIRST_TILE, triangle_materials, triangle_tiles,
                                    used_tiles)
 
 __all__ = ["PROBE_SIZE", "BAKED_MATERIAL", "TextureSet", "texture_sets", "tile_image_paths",
-           "file_layout", "TiledBake", "bake_tiles", "material_images"]
+           "file_layout", "TiledBake", "bake_tiles", "material_images", "file_textures"]
 
 #: Resolution at which :func:`texture_sets` looks for overlapping materials (the
 #: split must not depend on the output size, so outputs can be named before baking).
@@ -312,3 +315,50 @@ def material_images(mesh: Mesh, paths: dict) -> tuple[np.ndarray | None, tuple, 
     if mesh.face_materials is None and not bare:
         return None, (), images
     return face_mat, tuple(materials), images
+
+
+_TEXTURE_FILE = re.compile(rb"^comment\s+TextureFile\s+(\S.*?)\s*$", re.M)
+
+
+def file_textures(path, mesh: Mesh) -> dict:
+    """The base-colour image of each UDIM tile of a mesh file, where it can be told.
+
+    An OBJ: per tile, the ``map_Kd`` image of the material that holds most of the
+    tile's triangles (of those with one).  A PLY: its one ``TextureFile`` for tile
+    1001; none when it names several, since which face shows which image is not
+    read.  Images that are missing or unreadable are left out.
+
+    Parameters
+    ----------
+    path : path
+        The file ``mesh`` was read from.
+    mesh : Mesh
+
+    Returns
+    -------
+    dict of int to (H, W, 3) uint8
+    """
+    if mesh.triangle_uvs is None:
+        return {}
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    files: dict[int, str] = {}
+    if os.fspath(path).lower().endswith(".ply"):
+        named = _TEXTURE_FILE.findall(read_file_head(path, 1 << 16))
+        if len(named) == 1:
+            files[FIRST_TILE] = os.path.join(folder, named[0].decode("utf-8", "replace"))
+    else:
+        maps = {name: [s.split()[-1] for s in lines if s.split()[0].lower() == "map_kd"]
+                for name, lines in read_libraries(path, mesh.mtllib).items()}
+        mat, tiles = triangle_materials(mesh), triangle_tiles(mesh)
+        for tile in used_tiles(mesh):
+            counts = [(int(np.sum((tiles == tile) & (mat == m))), m)
+                      for m, name in enumerate(mesh.materials) if maps.get(name)]
+            if counts and max(counts)[0] > 0:
+                files[tile] = maps[mesh.materials[max(counts)[1]]][0]
+    out = {}
+    for tile, file in files.items():
+        try:
+            out[tile] = load_image(file)
+        except InputError:
+            continue
+    return out
