@@ -135,7 +135,9 @@ def mtl_text(materials: dict, header: str | None = "written by facewrap") -> str
 
 
 def write_mtl(path, materials: dict, header: str | None = "written by facewrap") -> None:
-    """Write a material library (:func:`mtl_text`), atomically."""
+    """Write a material library (:func:`mtl_text`), atomically; its folder is created
+    when missing."""
+    os.makedirs(os.path.dirname(os.path.abspath(os.fspath(path))), exist_ok=True)
     with atomic_write(path, "w", encoding="utf-8", newline="\n") as fh:
         fh.write(mtl_text(materials, header))
 
