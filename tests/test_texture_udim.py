@@ -197,3 +197,11 @@ def test_ict_head_bakes_its_face_from_a_face_scan_and_leaves_the_teeth_unseen():
                        sets=[main[1001], main[1004]])
     cov = {s.tile: r.filled_fraction for s, r in baked.images.items()}
     assert cov[1001] > 0.95 and cov[1004] < 0.02       # face seen, teeth not
+
+
+def test_material_images_of_a_mesh_without_uvs_keep_its_materials():
+    m = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]], face_materials=[0],
+             materials=["a"])
+    fm, names, shown = material_images(m, {})
+    assert fm.tolist() == [0] and names == ("a",) and shown == {}
+    assert material_images(Mesh(m.vertices, [[0, 1, 2]]), {}) == (None, (), {})

@@ -291,7 +291,9 @@ def material_images(mesh: Mesh, paths: dict) -> tuple[np.ndarray | None, tuple, 
         several tiles, such as ICT's lacrimal fluid, shows one; OBJ materials have
         one ``map_Kd``).
     """
-    mat, tiles = triangle_materials(mesh), triangle_tiles(mesh)
+    mat = triangle_materials(mesh)
+    tiles = (triangle_tiles(mesh) if mesh.triangle_uvs is not None
+             else np.full(len(mat), -1, dtype=np.int64))
     materials = list(mesh.materials)
     face_mat = (np.full(mesh.n_faces, -1, dtype=np.int64) if mesh.face_materials is None
                 else np.array(mesh.face_materials, dtype=np.int64))
