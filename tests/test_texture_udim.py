@@ -205,3 +205,4 @@ def test_material_images_of_a_mesh_without_uvs_keep_its_materials():
     fm, names, shown = material_images(m, {})
     assert fm.tolist() == [0] and names == ("a",) and shown == {}
     assert material_images(Mesh(m.vertices, [[0, 1, 2]]), {}) == (None, (), {})
+

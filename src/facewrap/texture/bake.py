@@ -337,6 +337,21 @@ def scan_visibility(template: Mesh, tree) -> np.ndarray:
     return np.minimum((nearest + hair) / (own.distances + hair), 1.0)
 
 
+def _beyond_border(tree, points: np.ndarray, cp, hair: float) -> np.ndarray:
+    """Points whose closest scan point is where the scan stops, not under them.
+
+    Past a hole or the scan's edge the closest point sits on the border, off to
+    the side (the offset lies mostly in the surface's plane) rather than straight
+    under the point along the normal; the scan says nothing about such points.
+    Points within ``hair`` of the scan are on it, whatever rounding says.
+    """
+    offset = np.abs(np.einsum("kd,kd->k", points - cp.points, cp.normals))
+    return (tree.boundary_triangles[cp.triangles] & (cp.distances > hair)
+            & (offset < _COS_45 * cp.distances))
+
+
+_COS_45 = float(np.cos(np.pi / 4))
+
 #: Texels count as seen by the scanner where the interpolated
 #: :func:`scan_visibility` is at least this.
 SEEN = 0.5
@@ -351,7 +366,8 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     texel's barycentric coordinates on the template's 3-D triangle is mapped to the
     closest point on the scan, then to the scan's UV there (:func:`scan_uvs_at`), and
     the scan image is sampled bilinearly (:func:`sample_image`).  A texel is not
-    covered when its closest scan point is farther than ``max_distance``, or when
+    covered when its closest scan point is farther than ``max_distance``, or lies
+    on the scan's border off to the side (past the edge of a crop or a hole), or when
     the template's :func:`scan_visibility`, interpolated there, is below 0.5:
     another part of the template lies nearer to the scan there, and the scanner saw
     that part, not this one (teeth behind the lips, the back of an eyeball, the
@@ -421,9 +437,10 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     points = np.einsum("pc,pcd->pd", raster.barycentric[seen],
                        template.vertices[corner_ids[seen]])
     cp = tree.query(points)
+    hit = (cp.distances <= max_distance) & ~_beyond_border(tree, points, cp,
+                                                           1e-9 * template.scale())
     near = np.zeros(len(raster), dtype=bool)
-    near[seen] = cp.distances <= max_distance
-    hit = cp.distances <= max_distance
+    near[seen] = hit
     uv = trusted_scan_uvs(scan, cp.triangles[hit], cp.barycentric[hit])
     colours = _bilinear(rgb, uv)
 
