@@ -133,7 +133,7 @@ def job_outputs(job: WrapJob) -> list[str]:
     mtl = []
     if Path(job.output).suffix.lower() == ".obj":
         try:
-            materials = file_layout(job.template)[1]
+            materials = file_layout(job.template, sets=False)[1]
         except InputError:
             materials = ()
         if images or materials:

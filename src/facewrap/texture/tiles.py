@@ -22,6 +22,7 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
+from facewrap.io.dispatch import read_mesh
 from facewrap.io.files import read_file_head
 from facewrap.io.images import load_image
 from facewrap.io.mtl import read_libraries
@@ -145,17 +146,19 @@ def tile_image_paths(output, sets) -> dict[TextureSet, str]:
                 else f"{base}.{s.label}.{s.tile}.png") for s in sets}
 
 
+@functools.lru_cache(maxsize=2)
+def _mesh_of(path: str, stamp: tuple) -> Mesh:
+    return read_mesh(path)
+
+
 @functools.lru_cache(maxsize=8)
-def _layout_of(path: str, stamp: tuple):
-    from facewrap.io import read_mesh  # deferred: only jobs that bake ask for this
-    mesh = read_mesh(path)
-    used = np.unique(triangle_materials(mesh)).tolist()
-    names = tuple(mesh.materials[i] for i in used if i >= 0)
-    return (texture_sets(mesh) if mesh.triangle_uvs is not None else ()), names
+def _sets_of(path: str, stamp: tuple) -> tuple:
+    mesh = _mesh_of(path, stamp)
+    return texture_sets(mesh) if mesh.triangle_uvs is not None else ()
 
 
-def file_layout(path) -> tuple[tuple[TextureSet, ...], tuple[str, ...]]:
-    """Texture sets and used material names of a mesh file, read once per version.
+def file_layout(path, sets: bool = True) -> tuple[tuple[TextureSet, ...], tuple[str, ...]]:
+    """Texture sets and material names of a mesh file, read once per version.
 
     What a job needs to name its outputs before any work (one image per texture
     set, a material library when there are materials); cached on the file's path,
@@ -166,12 +169,14 @@ def file_layout(path) -> tuple[tuple[TextureSet, ...], tuple[str, ...]]:
     ----------
     path : path
         A mesh file :func:`facewrap.io.read_mesh` reads.
+    sets : bool
+        False: leave the texture sets out (empty), when only the materials matter.
 
     Returns
     -------
     (sets, materials)
-        :func:`texture_sets` of the mesh (empty without UVs), and the names of the
-        materials its faces use.
+        :func:`texture_sets` of the mesh (empty without UVs), and its material names
+        (``mesh.materials``).
 
     Raises
     ------
@@ -183,7 +188,8 @@ def file_layout(path) -> tuple[tuple[TextureSet, ...], tuple[str, ...]]:
         st = os.stat(real)
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", path) from None
-    return _layout_of(real, (st.st_size, st.st_mtime_ns))
+    stamp = (st.st_size, st.st_mtime_ns)
+    return (_sets_of(real, stamp) if sets else ()), _mesh_of(real, stamp).materials
 
 
 @dataclass(frozen=True, eq=False)
