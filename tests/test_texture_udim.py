@@ -206,3 +206,58 @@ def test_material_images_of_a_mesh_without_uvs_keep_its_materials():
     assert fm.tolist() == [0] and names == ("a",) and shown == {}
     assert material_images(Mesh(m.vertices, [[0, 1, 2]]), {}) == (None, (), {})
 
+
+
+def test_file_textures_reads_an_objs_maps_per_tile_and_a_plys_single_texture(tmp_path):
+    from facewrap.io.images import save_png
+    from facewrap.io.ply import write_ply
+    from facewrap.texture.tiles import file_textures
+    mesh = quads_in_tiles([(0, 0), (1, 0)], materials=[0, 1])
+    save_png(tmp_path / "a.png", np.full((2, 2, 3), 10, np.uint8))
+    save_png(tmp_path / "b.png", np.full((2, 2, 3), 20, np.uint8))
+    (tmp_path / "m.mtl").write_text("newmtl m0\nmap_Kd a.png\nnewmtl m1\nmap_Kd b.png\n")
+    faces = mesh.faces_array()
+    obj = Mesh(mesh.vertices, faces, uvs=mesh.uvs, face_uvs=faces,
+               face_materials=mesh.face_materials, materials=mesh.materials,
+               mtllib=["m.mtl"])
+    write_obj(tmp_path / "t.obj", obj)
+    found = file_textures(tmp_path / "t.obj", read_obj(tmp_path / "t.obj"))
+    assert {t: int(im[0, 0, 0]) for t, im in found.items()} == {1001: 10, 1002: 20}
+    (tmp_path / "m.mtl").write_text("newmtl m0\nmap_Kd gone.png\n")   # missing: left out
+    assert file_textures(tmp_path / "t.obj", read_obj(tmp_path / "t.obj")) == {}
+    ply = tmp_path / "t.ply"
+    one = uv_plane(2)
+    quads = one.faces_array()
+    write_ply(ply, Mesh(one.vertices, quads, uvs=one.uvs, face_uvs=quads, texture="a.png"))
+    assert list(file_textures(ply, read_mesh(ply))) == [1001]
+    text = ply.read_bytes().replace(b"comment TextureFile a.png\n",
+                                    b"comment TextureFile a.png\ncomment TextureFile b.png\n")
+    ply.write_bytes(text)            # which face shows which image is not read: none
+    assert file_textures(ply, read_mesh(ply)) == {}
+
+
+def test_a_transfer_onto_a_textured_target_embeds_its_texture_in_the_glb(tmp_path):
+    import struct
+    from facewrap.io.images import save_png
+    tpl = make_template(24)
+    paths = write_sample(tmp_path, tpl, make_scan(tpl, resolution=24, texture_size=16))
+    m = read_obj(paths["template"])
+    save_png(tmp_path / "skin.png", np.full((8, 8, 3), 77, np.uint8))
+    (tmp_path / "t.mtl").write_text("newmtl skin\nKd 1 1 1\nmap_Kd skin.png\n")
+    write_obj(tmp_path / "target.obj", Mesh(
+        m.vertices, (m.face_offsets, m.face_indices), uvs=m.uvs,
+        face_uvs=(m.face_offsets, m.face_uvs), face_materials=np.zeros(m.n_faces, int),
+        materials=["skin"], mtllib=["t.mtl"]))
+    ids = paths["template_landmarks"].read_text().split()[:12]
+    (tmp_path / "markers.txt").write_text("".join(f"{i} {i}\n" for i in ids))
+    assert facewrap("transfer", paths["template"], tmp_path / "target.obj", "--markers",
+                    tmp_path / "markers.txt", "--source-shapes", tmp_path / "blendshapes",
+                    "-o", tmp_path / "shapes", "--gltf", tmp_path / "s.glb", "-q") == 0
+    data = (tmp_path / "s.glb").read_bytes()
+    (length,) = struct.unpack("<I", data[12:16])
+    doc = json.loads(data[20:20 + length])
+    assert len(doc["images"]) == 1
+    prim = doc["meshes"][0]["primitives"][0]
+    assert "NORMAL" in prim["attributes"] and all("NORMAL" in t for t in prim["targets"])
+    material = doc["materials"][prim["material"]]
+    assert material["pbrMetallicRoughness"]["baseColorTexture"]["index"] == 0
