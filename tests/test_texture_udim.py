@@ -261,3 +261,15 @@ def test_a_transfer_onto_a_textured_target_embeds_its_texture_in_the_glb(tmp_pat
     assert "NORMAL" in prim["attributes"] and all("NORMAL" in t for t in prim["targets"])
     material = doc["materials"][prim["material"]]
     assert material["pbrMetallicRoughness"]["baseColorTexture"]["index"] == 0
+
+
+def test_a_triangle_straddling_two_tiles_is_baked_in_its_centroids_tile_clipped():
+    from facewrap.texture import rasterize_uv
+    # centroid u = 0.8 (tile 1001); its corner at u = 1.4 reaches into tile 1002
+    tri = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]],
+               uvs=[[0.5, 0.1], [1.4, 0.1], [0.5, 0.9]], face_uvs=[[0, 1, 2]])
+    assert triangle_tiles(tri).tolist() == [1001] and used_tiles(tri) == (1001,)
+    inside = rasterize_uv(tri, 20, 1001)
+    u = (inside.pixels[:, 1] + 0.5) / 20
+    assert len(inside) and u.min() > 0.5 and u.max() < 1.0     # clipped at the tile edge
+    assert len(rasterize_uv(tri, 20, 1002)) == 0                # not folded into 1002

@@ -38,10 +38,10 @@ from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.gltf import gltf_format, write_gltf_morphs
-from facewrap.texture.tiles import file_textures
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,

@@ -35,11 +35,11 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
+from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
-from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
 from facewrap.texture.udim import FIRST_TILE
