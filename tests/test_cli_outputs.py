@@ -210,7 +210,7 @@ def test_a_wrap_that_fails_while_writing_leaves_no_outputs(inputs, tmp_path, mon
     out = tmp_path / "out"
     assert facewrap(*argv(out)) == 0
     earlier = digest(out)
-    assert sorted(earlier) == ["r.json", "x.obj", "x.png"]
+    assert sorted(earlier) == ["r.json", "x.mtl", "x.obj", "x.png"]
 
     def disk_full(*_args, **_kw):
         raise OSError(28, "No space left on device")

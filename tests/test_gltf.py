@@ -226,3 +226,82 @@ def test_container_checks_come_before_reading(mixed_mesh, tmp_path):
     text.write_bytes(b'{"asset": {"version": "2.0"}}' + bytes(1 << 17))
     with pytest.raises(InputError, match="binary data, not a glTF"):
         read_gltf_morphs(text)
+
+
+def _glb_json(path):
+    import struct
+    data = path.read_bytes()
+    (length,) = struct.unpack("<I", data[12:16])
+    return json.loads(data[20:20 + length])
+
+
+def test_smooth_normals_are_unit_shared_across_seams_and_morph_with_the_shapes(
+        mixed_mesh, tmp_path):
+    import pygltflib
+    from facewrap.geometry.normals import vertex_normals
+    shapes = _shapes(mixed_mesh, ["a", "b"])
+    path = tmp_path / "n.glb"
+    write_gltf_morphs(path, mixed_mesh, shapes)
+    doc = pygltflib.GLTF2().load(str(path))
+    blob = doc.binary_blob()
+
+    def accessor(i):
+        acc = doc.accessors[i]
+        view = doc.bufferViews[acc.bufferView]
+        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}[acc.type]
+        return np.frombuffer(blob, np.float32, acc.count * width,
+                             view.byteOffset or 0).reshape(acc.count, -1)
+
+    prim = doc.meshes[0].primitives[0]
+    vid = accessor(prim.attributes._FACEWRAP_VERTEX)[:, 0].astype(int)
+    N = accessor(prim.attributes.NORMAL).astype(np.float64)
+    np.testing.assert_allclose(np.linalg.norm(N, axis=1), 1, atol=1e-6)
+    assert len(vid) > mixed_mesh.n_vertices                 # split at the UV seams...
+    oracle = vertex_normals(mixed_mesh.vertices, mixed_mesh.triangles)
+    used = np.linalg.norm(oracle[vid], axis=1) > 0.5
+    np.testing.assert_allclose(N[used], oracle[vid][used], atol=1e-6)  # ...one normal
+    for k, name in enumerate(shapes):
+        moved = N + accessor(prim.targets[k]["NORMAL"])
+        want = vertex_normals(shapes[name], mixed_mesh.triangles)[vid]
+        ok = used & (np.linalg.norm(want, axis=1) > 0.5)
+        np.testing.assert_allclose(moved[ok], want[ok], atol=1e-5)
+
+
+def test_textures_one_primitive_and_material_per_tile_round_trip_exactly(tmp_path):
+    # two quads in UV tiles 1001 and 1002, a texture for each
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0.]])
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [1, 0], [2, 0], [2, 1], [1, 1.]])
+    mesh = Mesh(V, [[0, 1, 2, 3], [1, 4, 5, 2]], uvs=uvs, face_uvs=[[0, 1, 2, 3],
+                                                                    [4, 5, 6, 7]])
+    images = {1001: np.full((4, 4, 3), 10, np.uint8), 1002: np.full((4, 4, 3), 99, np.uint8)}
+    shapes = {"up": V + [0, 0, 0.5]}
+    path = tmp_path / "t.glb"
+    write_gltf_morphs(path, mesh, shapes, textures=images)
+    doc = _glb_json(path)
+    prims = doc["meshes"][0]["primitives"]
+    assert len(prims) == 2 and len(doc["images"]) == 2 and len(doc["textures"]) == 2
+    mats = [doc["materials"][p["material"]] for p in prims]
+    assert [m["name"] for m in mats] == ["facewrap_1001", "facewrap_1002"]
+    assert all(m["pbrMetallicRoughness"]["metallicFactor"] == 0 for m in mats)
+    assert {m["pbrMetallicRoughness"]["baseColorTexture"]["index"] for m in mats} == {0, 1}
+    assert all(i["mimeType"] == "image/png" for i in doc["images"])
+    back = read_gltf_morphs(path)
+    np.testing.assert_array_equal(back.vertices, V.astype(np.float32))
+    np.testing.assert_array_equal(back.shapes["up"] - back.vertices,
+                                  (shapes["up"] - V).astype(np.float32))
+    assert sorted(map(tuple, back.triangles)) == sorted(map(tuple, mesh.triangles))
+    # an image alone is tile 1001's; the other tile gets the plain material
+    write_gltf_morphs(path, mesh, {}, textures=images[1001])
+    doc = _glb_json(path)
+    names = [doc["materials"][p["material"]]["name"]
+             for p in doc["meshes"][0]["primitives"]]
+    assert names == ["facewrap_1001", "facewrap"] and len(doc["images"]) == 1
+
+
+def test_a_mesh_without_uvs_gets_a_plain_material_and_no_texture(tmp_path):
+    mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]])
+    path = tmp_path / "p.glb"
+    write_gltf_morphs(path, mesh, {}, textures=np.zeros((2, 2, 3), np.uint8))
+    doc = _glb_json(path)
+    assert "images" not in doc and len(doc["materials"]) == 1
+    assert doc["meshes"][0]["primitives"][0]["material"] == 0

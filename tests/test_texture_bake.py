@@ -138,15 +138,25 @@ def test_padding_fills_exactly_the_texels_within_padding_pixels():
 
 def test_far_texels_are_not_covered():
     scan = uv_plane(4)
+    lifted = uv_plane(4)
+    lifted = lifted.with_vertices(lifted.vertices + [0, 0, 0.08])   # 0.08 above the scan
+    for max_distance, covered in ((0.1, True), (0.05, False)):
+        res = bake_texture(lifted, scan, gradient_image(32), size=16,
+                           max_distance=max_distance, padding=0)
+        assert res.coverage.all() if covered else not res.coverage.any()
+    # default: 5 % of the template's diagonal (sqrt(2) * 0.05 ~ 0.071 < 0.08)
+    assert not bake_texture(lifted, scan, gradient_image(32), size=16).coverage.any()
+
+
+def test_texels_past_the_scans_border_are_not_covered_however_near():
+    scan = uv_plane(4)
     template = uv_plane(8, scale=(2.0, 1.0))     # x in [0, 2]: right half is off the scan
-    res = bake_texture(template, scan, gradient_image(32), size=40, max_distance=0.1,
-                       padding=0)
     u = texel_centres(40, 40)[..., 0]
-    np.testing.assert_array_equal(res.coverage, 2 * u - 1 <= 0.1)
-    assert res.filled_fraction == pytest.approx(res.coverage.mean())
-    default = bake_texture(template, scan, gradient_image(32), size=40)
-    # default: 5 % of the template's diagonal (sqrt(5) * 0.05 ~ 0.112)
-    np.testing.assert_array_equal(default.coverage, 2 * u - 1 <= 0.05 * np.sqrt(5))
+    for max_distance in (0.1, None):
+        res = bake_texture(template, scan, gradient_image(32), size=40,
+                           max_distance=max_distance, padding=0)
+        np.testing.assert_array_equal(res.coverage, 2 * u - 1 <= 0)
+        assert res.filled_fraction == pytest.approx(res.coverage.mean())
 
 
 def test_bake_checks_its_arguments():

@@ -14,6 +14,13 @@ in the application attribute ``_FACEWRAP_VERTEX`` so :func:`read_gltf_morphs`
 gives back the original vertices and shapes exactly (to float32 precision).
 Polygons are written as their fan triangulation.
 
+What an engine expects is there too: smooth vertex normals computed from the mesh
+(the same normal on both sides of a UV seam, so seams do not show) with a normal
+delta per morph target, a PBR material (metallic 0), and, when the mesh has UVs and
+images are given, each image embedded as PNG as the base colour of its own
+primitive and material, one per UDIM tile (REPEAT wrapping, so a tile's UVs in
+``[k, k + 1)`` read its image as they are).
+
 :func:`read_gltf_morphs` reads both forms, buffers embedded as data URIs or in
 files beside the ``.gltf``, and checks every accessor against its buffer view and
 buffer before reading it.
@@ -31,9 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from facewrap.errors import InputError
+from facewrap.geometry.normals import vertex_normals
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import file_size, nul_at_ends, read_file_head
+from facewrap.io.images import as_image, png_bytes
 
 __all__ = ["write_gltf_morphs", "read_gltf_morphs", "gltf_format", "GltfMorphs"]
 
@@ -111,56 +120,136 @@ def _shape_deltas(neutral: Mesh, shapes: dict, vid, scale: float) -> list:
     return deltas
 
 
-def _document(neutral: Mesh, shapes: dict, scale: float, name: str):
+def _smooth_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """(n, 3) unit vertex normals; +z where a vertex has none (unused, degenerate),
+    since glTF requires every NORMAL to be a unit vector."""
+    N = vertex_normals(V, T)
+    N[np.linalg.norm(N, axis=1) < 0.5] = (0.0, 0.0, 1.0)
+    return N
+
+
+def _triangle_tiles(uv: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """UDIM tile (1001 + floor(u) + 10 floor(v)) of each triangle's UV centroid."""
+    cell = np.floor(uv[tris].mean(axis=1)).astype(np.int64)
+    return 1001 + cell[:, 0] + 10 * cell[:, 1]
+
+
+def _checked_textures(textures) -> dict:
+    """``textures`` as tile → PNG bytes (an image alone is tile 1001's)."""
+    if textures is None:
+        return {}
+    if not isinstance(textures, dict):
+        textures = {1001: textures}
+    return {int(t): png_bytes(as_image(im, f"texture of tile {t}"))
+            for t, im in sorted(textures.items())}
+
+
+class _Blob:
+    """The one binary buffer of a document, its buffer views and accessors."""
+
+    def __init__(self, gl):
+        self.gl, self.parts, self.views, self.accessors = gl, [], [], []
+
+    def view(self, data: bytes, target: int | None = None) -> int:
+        offset = sum(len(b) for b in self.parts)
+        self.parts.append(data + b"\0" * (-len(data) % 4))
+        self.views.append(self.gl.BufferView(buffer=0, byteOffset=offset,
+                                             byteLength=len(data), target=target))
+        return len(self.views) - 1
+
+    def add(self, array: np.ndarray, component: int, kind: str, target: int | None,
+            minmax: bool = False) -> int:
+        view = self.view(np.ascontiguousarray(array).tobytes(), target)
+        acc = self.gl.Accessor(bufferView=view, componentType=component,
+                               count=len(array), type=kind)
+        if minmax:
+            acc.min = np.asarray(array, np.float64).min(axis=0).tolist()
+            acc.max = np.asarray(array, np.float64).max(axis=0).tolist()
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def bytes(self) -> bytes:
+        return b"".join(self.parts)
+
+
+def _materials(gl, blob: _Blob, tiles_used, pngs: dict):
+    """PBR materials (one per textured tile, a plain one for the rest when there is
+    a rest), textures, images, samplers, and each tile's material."""
+    materials, images, textures, of_tile = [], [], [], {}
+    for tile in tiles_used:
+        if tile not in pngs:
+            continue
+        images.append(gl.Image(bufferView=blob.view(pngs[tile]), mimeType="image/png",
+                               name=f"tile_{tile}"))
+        textures.append(gl.Texture(source=len(images) - 1, sampler=0))
+        of_tile[tile] = len(materials)
+        materials.append(gl.Material(
+            name=f"facewrap_{tile}", pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                baseColorTexture=gl.TextureInfo(index=len(textures) - 1),
+                metallicFactor=0.0, roughnessFactor=0.7)))
+    plain = [t for t in tiles_used if t not in of_tile]
+    if plain:
+        of_tile.update({t: len(materials) for t in plain})
+        materials.append(gl.Material(name="facewrap", pbrMetallicRoughness=(
+            gl.PbrMetallicRoughness(baseColorFactor=[0.8, 0.8, 0.8, 1.0],
+                                    metallicFactor=0.0, roughnessFactor=0.7))))
+    # REPEAT wrapping: a tile's UVs (u in [k, k + 1)) read its own image unshifted
+    samplers = [gl.Sampler(magFilter=9729, minFilter=9987, wrapS=10497, wrapT=10497)
+                ] if textures else []
+    return materials, images, textures, samplers, of_tile
+
+
+def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=None):
     """The glTF document and its one binary buffer (bytes, 4-byte aligned parts)."""
     gl = _pygltflib()
     if neutral.n_vertices > _MAX_VERTEX_ID:
         raise ValueError(f"glTF output holds at most {_MAX_VERTEX_ID} vertices, the "
                          f"mesh has {neutral.n_vertices}")
+    pngs = _checked_textures(textures)
     vid, uv, tris = _split_vertices(neutral)
     base = (neutral.vertices[vid] * scale).astype(np.float32)
+    normals = _smooth_normals(neutral.vertices, neutral.triangles)
     names = list(shapes)
     deltas = _shape_deltas(neutral, shapes, vid, scale)
-    blobs, views, accessors = [], [], []
-
-    def add(array: np.ndarray, component: int, kind: str, target: int | None,
-            minmax: bool = False) -> int:
-        data = np.ascontiguousarray(array).tobytes()
-        offset = sum(len(b) for b in blobs)
-        blobs.append(data + b"\0" * (-len(data) % 4))
-        views.append(gl.BufferView(buffer=0, byteOffset=offset, byteLength=len(data),
-                                   target=target))
-        acc = gl.Accessor(bufferView=len(views) - 1, componentType=component,
-                          count=len(array), type=kind)
-        if minmax:
-            acc.min = np.asarray(array, np.float64).min(axis=0).tolist()
-            acc.max = np.asarray(array, np.float64).max(axis=0).tolist()
-        accessors.append(acc)
-        return len(accessors) - 1
-
-    attrs = gl.Attributes(POSITION=add(base, _FLOAT, "VEC3", _ARRAY_BUFFER, True))
+    blob = _Blob(gl)
+    attrs = gl.Attributes(POSITION=blob.add(base, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
+                          NORMAL=blob.add(normals[vid].astype(np.float32), _FLOAT, "VEC3",
+                                          _ARRAY_BUFFER))
+    tiles = np.full(len(tris), -1, dtype=np.int64)
     if uv is not None:
         flipped = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)
-        attrs.TEXCOORD_0 = add(flipped, _FLOAT, "VEC2", _ARRAY_BUFFER)
-    ids = add(vid.astype(np.float32), _FLOAT, "SCALAR", _ARRAY_BUFFER)
-    setattr(attrs, "_FACEWRAP_VERTEX", ids)
-    indices = add(tris.astype(np.uint32).reshape(-1), _UINT, "SCALAR",
-                  _ELEMENT_ARRAY_BUFFER)
-    targets = [{"POSITION": add(d, _FLOAT, "VEC3", _ARRAY_BUFFER, True)}
-               for d in deltas]
-    prim = gl.Primitive(attributes=attrs, indices=indices, targets=targets or None)
-    mesh = gl.Mesh(name=name, primitives=[prim], weights=[0.0] * len(names) or None,
+        attrs.TEXCOORD_0 = blob.add(flipped, _FLOAT, "VEC2", _ARRAY_BUFFER)
+        if pngs:
+            tiles = _triangle_tiles(uv, tris)
+    setattr(attrs, "_FACEWRAP_VERTEX",
+            blob.add(vid.astype(np.float32), _FLOAT, "SCALAR", _ARRAY_BUFFER))
+    targets = []
+    for k, d in enumerate(deltas):
+        moved = _smooth_normals(np.asarray(shapes[names[k]], np.float64), neutral.triangles)
+        targets.append({"POSITION": blob.add(d, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
+                        "NORMAL": blob.add((moved - normals)[vid].astype(np.float32),
+                                           _FLOAT, "VEC3", _ARRAY_BUFFER)})
+    used = [int(t) for t in np.unique(tiles)]
+    materials, images, gl_textures, samplers, of_tile = _materials(gl, blob, used, pngs)
+    prims = [gl.Primitive(attributes=attrs, targets=targets or None,
+                          material=of_tile[t],
+                          indices=blob.add(tris[tiles == t].astype(np.uint32).reshape(-1),
+                                           _UINT, "SCALAR", _ELEMENT_ARRAY_BUFFER))
+             for t in used]
+    mesh = gl.Mesh(name=name, primitives=prims, weights=[0.0] * len(names) or None,
                    extras={"targetNames": names})
-    blob = b"".join(blobs)
+    data = blob.bytes()
     doc = gl.GLTF2(asset=gl.Asset(generator="facewrap", version="2.0"), scene=0,
                    scenes=[gl.Scene(nodes=[0])], nodes=[gl.Node(mesh=0, name=name)],
-                   meshes=[mesh], accessors=accessors, bufferViews=views,
-                   buffers=[gl.Buffer(byteLength=len(blob))])
-    return doc, blob
+                   meshes=[mesh], accessors=blob.accessors, bufferViews=blob.views,
+                   buffers=[gl.Buffer(byteLength=len(data))], materials=materials,
+                   images=images or None, textures=gl_textures or None,
+                   samplers=samplers or None)
+    return doc, data
 
 
 def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
-                      name: str = "facewrap") -> None:
+                      name: str = "facewrap", textures=None) -> None:
     """Write the neutral mesh and shapes as named morph targets, by extension.
 
     Parameters
@@ -176,6 +265,11 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
         Multiplies all positions (glTF units are metres: 0.01 for a mesh in cm).
     name : str
         Name of the glTF mesh and node.
+    textures : (H, W, 3) uint8, or dict of int to (H, W, 3) uint8, optional
+        Base-colour images, embedded as PNG: per UDIM tile (1001 the unit square),
+        an image alone being tile 1001's.  Used when the mesh has UVs; each tile
+        with an image becomes a primitive with its own textured PBR material, the
+        other triangles share a plain one.
 
     Raises
     ------
@@ -186,7 +280,7 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
         vertices.
     """
     form = gltf_format(path)
-    doc, blob = _document(neutral, shapes, scale, name)
+    doc, blob = _document(neutral, shapes, scale, name, textures)
     if form == "glb":
         doc.set_binary_blob(blob)
         data = b"".join(doc.save_to_bytes())
@@ -330,7 +424,10 @@ def _check_container(path) -> None:
 
 
 def read_gltf_morphs(path) -> GltfMorphs:
-    """Read the first mesh primitive of a ``.glb``/``.gltf`` and its morph targets.
+    """Read the first mesh of a ``.glb``/``.gltf`` and its morph targets.
+
+    The first primitive and every other primitive over the same vertices (one per
+    material) are read as one mesh, their triangles one after the other.
 
     Raises
     ------
@@ -370,8 +467,12 @@ def _read_mesh(doc, path) -> GltfMorphs:
     pos = read(prim.attributes.POSITION).astype(np.float64)
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise InputError("POSITION must be VEC3", path)
-    flat = (np.arange(len(pos)) if prim.indices is None
-            else read(prim.indices).astype(np.int64))
+    # primitives over the same vertices (one per material: facewrap writes one per
+    # UDIM tile) are one mesh; others (a second mesh in one file) are not read
+    same = [p for p in mesh.primitives
+            if p.attributes.POSITION == prim.attributes.POSITION and p.mode in (None, 4)]
+    flat = (np.arange(len(pos)) if prim.indices is None else np.concatenate(
+        [read(p.indices).astype(np.int64) for p in same if p.indices is not None]))
     if flat.ndim != 1 or len(flat) % 3 or (len(flat) and not (
             0 <= flat.min() and flat.max() < len(pos))):
         raise InputError(f"triangle indices must be 3 per triangle and index the "

@@ -14,7 +14,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
 
-__all__ = ["as_image", "to_uint8", "save_png", "load_image"]
+__all__ = ["as_image", "to_uint8", "png_bytes", "save_png", "load_image"]
 
 
 def as_image(image, name: str) -> np.ndarray:
@@ -61,6 +61,28 @@ def to_uint8(values: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(values), 0, 255).astype(np.uint8)
 
 
+def png_bytes(image) -> bytes:
+    """An image encoded as PNG (for files, or to embed in a glTF).
+
+    Parameters
+    ----------
+    image : (H, W), (H, W, 3) or (H, W, 4) uint8
+
+    Examples
+    --------
+    >>> png_bytes(np.zeros((2, 2, 3), np.uint8))[:4]
+    b'\\x89PNG'
+    """
+    # deferred: only image files need Pillow (start-up of every other command)
+    from PIL import Image
+    image = as_image(image, "image")
+    if image.shape[2] == 1:
+        image = image[:, :, 0]
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
 def save_png(path, image) -> None:
     """Write an image as PNG, atomically (complete file or none).
 
@@ -79,16 +101,10 @@ def save_png(path, image) -> None:
     >>> load_image(p).shape
     (2, 3, 3)
     """
-    # deferred: only image files need Pillow (start-up of every other command)
-    from PIL import Image
-    image = as_image(image, "image")
-    if image.shape[2] == 1:
-        image = image[:, :, 0]
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
+    data = png_bytes(image)
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with atomic_write(path, "wb") as fh:
-        fh.write(buf.getvalue())
+        fh.write(data)
 
 
 def load_image(path) -> np.ndarray:

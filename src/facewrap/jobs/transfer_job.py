@@ -41,6 +41,7 @@ from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
@@ -252,8 +253,10 @@ def _write_shapes(job: TransferJob, stage, target, names, results) -> list[str]:
     for name, X in zip(names, results):
         write_obj(folder / f"{name}.obj", target.with_vertices(X))
     if job.gltf:
+        # the target's own base-colour images, when its file says which they are
         write_gltf_morphs(stage.file(job.gltf), target, dict(zip(names, results)),
-                          scale=job.settings.gltf_scale)
+                          scale=job.settings.gltf_scale,
+                          textures=file_textures(job.target_neutral, target))
     return [str(p) for p in _shape_files(job, names)]
 
 

@@ -35,12 +35,15 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
+from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
-from facewrap.texture import bake_texture, load_image, save_png
+from facewrap.texture import load_image, save_png
+from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
+from facewrap.texture.udim import FIRST_TILE
 from facewrap.units import check_units_choice, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
@@ -153,16 +156,39 @@ def job_inputs(job: WrapJob) -> list[str]:
     return out + ([profile] if profile else [])
 
 
-def textureoutput_field(job: WrapJob) -> str | None:
-    """Where the baked texture goes (beside ``output``, ``.png``), or None."""
-    return str(Path(job.output).with_suffix(".png")) if job.texture else None
+def textureoutput_field(job: WrapJob) -> dict:
+    """Where the baked images go: texture set → path beside ``output`` (empty when
+    nothing is baked).
+
+    One ``OUT.png`` for a 0–1 layout, else ``OUT.<tile>.png`` per used UDIM tile and
+    ``OUT.<material>.<tile>.png`` for materials whose UVs overlap inside a tile
+    (:mod:`facewrap.texture.tiles`).  The template is read for its layout (once per
+    file version); when it cannot be read, the error comes when the inputs are.
+    """
+    if not job.texture:
+        return {}
+    try:
+        sets = file_layout(job.template)[0]
+    except InputError:
+        sets = ()
+    return tile_image_paths(job.output, sets or (FIRST_TILE,))
 
 
 def job_outputs(job: WrapJob) -> list[str]:
-    """Files that :func:`run_wrap_job` writes for ``job``: mesh, texture, report."""
+    """Files that :func:`run_wrap_job` writes for ``job``: mesh, report, baked images
+    and, for an OBJ with materials or a baked texture, its material library
+    ``OUT.mtl``."""
     out = [getattr(job, n) for n in _path_fields("outputs") if getattr(job, n)]
-    png = textureoutput_field(job)
-    return out + ([png] if png else [])
+    images = list(textureoutput_field(job).values())
+    mtl = []
+    if Path(job.output).suffix.lower() == ".obj":
+        try:
+            materials = file_layout(job.template, sets=False)[1]
+        except InputError:
+            materials = ()
+        if images or materials:
+            mtl = [str(Path(job.output).with_suffix(".mtl"))]
+    return out + images + mtl
 
 
 def check_job_paths(job: WrapJob, source=None) -> None:
@@ -431,24 +457,57 @@ def _template_landmarks(job: WrapJob, template: Mesh, profile):
 
 
 def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
-    """Mesh, baked texture and report, staged and moved into place together.
+    """Mesh, baked images, material library and report, staged and moved into place
+    together.
 
     The texture is baked inside the stage, so a failure there leaves none of the
-    job's outputs behind (and an earlier run's outputs untouched).
+    job's outputs behind (and an earlier run's outputs untouched).  An OBJ output
+    names its own library ``OUT.mtl`` (written beside it: the template's materials
+    by name, ``map_Kd`` of each baked material at its image) or none at all.  The
+    report's ``timings`` gain ``read``, ``bake`` and ``write``; ``total`` is then
+    reading + fitting + baking + writing, and ``fit`` keeps the wrap's own total.
     """
+    t_write = time.perf_counter()
+    mesh, images, bake_seconds = result.mesh, {}, 0.0
     with staged_outputs() as stage:
-        mesh = result.mesh
-        if job.output_frame == "template":  # the bake below still reads the scan frame
-            mesh = mesh.with_vertices(result.transform.inverse().apply(mesh.vertices))
-        write_mesh(stage.file(job.output), mesh)
         if inputs["texture"] is not None:
             t = time.perf_counter()
-            baked = bake_texture(result.mesh, inputs["scan"], inputs["texture"],
-                                 size=job.texture_size)
-            png = textureoutput_field(job)
-            save_png(stage.file(png), baked.image)
-            report["texture"] = {"image": str(png), "coverage": baked.filled_fraction,
-                                 "seconds": time.perf_counter() - t}
+            paths = textureoutput_field(job)
+            baked = bake_tiles(mesh, inputs["scan"], inputs["texture"],
+                               size=job.texture_size, tree=inputs["scan_tree"],
+                               sets=list(paths))
+            for s, r in baked.images.items():
+                save_png(stage.file(paths[s]), r.image)
+            bake_seconds = time.perf_counter() - t
+            report["texture"] = {
+                "image": next(iter(paths.values())), "coverage": baked.filled_fraction,
+                "seconds": bake_seconds,
+                "images": [{"image": paths[s], "tile": s.tile,
+                            "materials": [mesh.materials[m] for m in s.materials if m >= 0],
+                            "coverage": r.filled_fraction,
+                            "laid_out_texels": int(r.layout.sum()),
+                            "seconds": baked.seconds[s]}
+                           for s, r in baked.images.items()]}
+            images = paths
+        if Path(job.output).suffix.lower() == ".obj":
+            face_materials, materials, shown = material_images(mesh, images)
+            mtl = Path(job.output).with_suffix(".mtl")
+            if materials:
+                write_mtl(stage.file(mtl), output_library(
+                    materials, job.template, mesh.mtllib, job.output, shown))
+                report["material_library"] = str(mtl)
+            mesh = with_library(mesh, mtl.name if materials else None, face_materials,
+                                materials)
+        if job.output_frame == "template":  # baked above in the scan's frame
+            mesh = mesh.with_vertices(result.transform.inverse().apply(mesh.vertices))
+        write_mesh(stage.file(job.output), mesh)
+        timings = dict(report["timings"])
+        timings.update(fit=timings.get("total", 0.0), read=report["read_seconds"],
+                       bake=bake_seconds,
+                       write=time.perf_counter() - t_write - bake_seconds)
+        timings["total"] = timings["read"] + timings["fit"] + timings["bake"] + \
+            timings["write"]
+        report["timings"] = timings
         if job.report:
             with atomic_write(stage.file(job.report), "w") as fh:
                 json.dump(report, fh, indent=1)

@@ -22,10 +22,11 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.arrays import blocks_by_budget
 from facewrap.io.images import as_image, to_uint8
 from facewrap.mesh import Mesh
+from facewrap.texture.udim import FIRST_TILE, tile_origin, triangle_tiles
 from facewrap.texture.uvs import checked_uv_mesh, trusted_scan_uvs
 
-__all__ = ["BLOCK_TEXELS", "UVRaster", "rasterize_uv", "sample_image", "BakeResult",
-           "bake_texture", "interpolate_images"]
+__all__ = ["BLOCK_TEXELS", "SEEN", "UVRaster", "rasterize_uv", "sample_image", "BakeResult",
+           "scan_visibility", "bake_texture", "interpolate_images"]
 
 # A texel centre counts as inside a UV triangle when its barycentric coordinates are
 # all >= -_INSIDE_TOL: texel centres exactly on a shared edge then belong to both
@@ -87,15 +88,17 @@ class UVRaster:
         return self.pixels.shape[0]
 
 
-def rasterize_uv(mesh: Mesh, size) -> UVRaster:
-    """Rasterise a mesh's UV layout: the triangle under every texel centre.
+def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaster:
+    """Rasterise one UV tile of a mesh's layout: the triangle under every texel centre.
 
     A texel belongs to a triangle when its centre lies inside the triangle's UV
     triangle (with a tolerance of 1e-7 in barycentric coordinates, so centres on a
     shared edge are never lost).  Where triangles overlap in UV space (shared edges,
     overlapping islands) the triangle with the centre deepest inside (largest
-    smallest barycentric coordinate) owns the texel, the lower index on a tie.  UVs
-    outside [0, 1] are clipped away, not wrapped.
+    smallest barycentric coordinate) owns the texel, the lower index on a tie.  Only
+    the triangles of ``tile`` (by their UV centroid, :func:`~.udim.triangle_tiles`)
+    are rasterised, in the tile's own [0, 1] square; what of them lies outside it
+    is clipped away, not wrapped.
 
     Vectorised: the texels of every triangle's bounding box are enumerated at once
     (``np.repeat`` / ``cumsum``), in chunks of a few million.
@@ -107,6 +110,10 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
         per-corner UVs.
     size : int or (H, W) int
         Image size; an int means square.
+    tile : int
+        UDIM tile (1001 is the unit square, see :mod:`facewrap.texture.udim`).
+    only : (t,) bool, optional
+        Rasterise these triangles of ``mesh.triangles`` only (of those in ``tile``).
 
     Returns
     -------
@@ -125,10 +132,18 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     """
     mesh = checked_uv_mesh(mesh, "mesh")
     H, W = _size(size)
+    u0, v0 = tile_origin(tile)
+    skip = triangle_tiles(mesh) != tile
+    if only is not None:
+        only = np.asarray(only)
+        if only.dtype != bool or only.shape != (len(mesh.triangles),):
+            raise ValueError(f"only must be a bool array of shape "
+                             f"({len(mesh.triangles)},), got {only.dtype} {only.shape}")
+        skip |= ~only
     # corners in pixel coordinates: x = column, y = row, texel centres at integers
     uv = mesh.uvs[mesh.triangle_uvs]                        # (t, 3, 2)
-    x = uv[:, :, 0] * W - 0.5
-    y = (1.0 - uv[:, :, 1]) * H - 0.5
+    x = (uv[:, :, 0] - u0) * W - 0.5
+    y = (1.0 - (uv[:, :, 1] - v0)) * H - 0.5
     e1x, e1y = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0]
     e2x, e2y = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
     det = e1x * e2y - e1y * e2x
@@ -139,7 +154,7 @@ def rasterize_uv(mesh: Mesh, size) -> UVRaster:
     r1 = np.clip(np.floor(y.max(axis=1) + margin), -1, H - 1).astype(np.int64)
     width = np.maximum(c1 - c0 + 1, 0)
     counts = width * np.maximum(r1 - r0 + 1, 0)
-    counts[det == 0] = 0                                   # no area in UV space
+    counts[(det == 0) | skip] = 0                   # no area in UV space, not asked for
     keys, tris, barys, scores = [], [], [], []
     for sel in blocks_by_budget(counts, BLOCK_TEXELS):
         cnt = counts[sel]
@@ -230,24 +245,27 @@ def _bilinear(image: np.ndarray, uvs: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class BakeResult:
-    """A texture baked into a template's UV layout.
+    """A texture baked into one tile of a template's UV layout.
 
     Attributes
     ----------
     image : (H, W, 3) uint8
-        RGB texture in the template's layout.
+        RGB texture of the tile.
     coverage : (H, W) bool
-        Texels whose colour comes from the scan (inside the layout, closest scan
-        point within ``max_distance``).
+        Texels whose colour comes from the scan: inside the layout, the closest
+        scan point within ``max_distance`` and no other part of the template nearer
+        to that scan point (see :func:`bake_texture`).
     padded : (H, W) bool
         Uncovered texels within ``padding`` pixels of a covered one; they hold the
         colour of the nearest covered texel.  All other uncovered texels hold the
         mean colour of the covered ones.
     layout : (H, W) bool
-        Texels inside the template's UV triangles (:attr:`UVRaster.mask`).
+        Texels inside the tile's UV triangles (:attr:`UVRaster.mask`).
     filled_fraction : float
-        ``coverage.sum() / layout.sum()``: the share of the template's layout that
-        the scan textured (0.0 for an empty layout).
+        ``coverage.sum() / layout.sum()``: the share of the tile's laid-out texels
+        that the scan textured (0.0 for an empty layout).
+    tile : int
+        The UDIM tile (1001: the unit square).
     """
 
     image: np.ndarray
@@ -255,17 +273,106 @@ class BakeResult:
     padded: np.ndarray
     layout: np.ndarray
     filled_fraction: float
+    tile: int = FIRST_TILE
+
+
+def _checked_bake_args(template, scan, scan_image, size, padding, tree, max_distance):
+    """The arguments of a bake checked once: (template, scan, rgb, (H, W), padding,
+    tree, max_distance)."""
+    template = checked_uv_mesh(template, "template")
+    scan = checked_uv_mesh(scan, "scan")
+    rgb = _rgb(as_image(scan_image, "scan_image"))
+    hw = _size(size)
+    if (isinstance(padding, (bool, np.bool_)) or not isinstance(padding, (int, np.integer))
+            or padding < 0):
+        raise ValueError(f"padding must be a non-negative int, got {padding!r}")
+    max_distance = (0.05 * template.scale() if max_distance is None
+                    else _non_negative(max_distance, "max_distance"))
+    if tree is None:
+        tree = ClosestPointTree(scan.vertices, scan.triangles)
+    elif (tree.triangles.shape != scan.triangles.shape
+          or tree.vertices.shape != scan.vertices.shape):
+        raise ValueError("tree was not built on scan (vertex or triangle counts differ)")
+    return template, scan, rgb, hw, int(padding), tree, max_distance
+
+
+def scan_visibility(template: Mesh, tree) -> np.ndarray:
+    """How much each template vertex is the template's own closest surface to the scan.
+
+    For a vertex at distance ``d`` from its closest scan point ``q``, the ratio
+    ``(e + h) / (d + h)``, where ``e`` is the distance from ``q`` to the nearest
+    point of the whole template and ``h`` a hair (1e-9 of the template's size).  It
+    is 1 where the vertex itself is what lies nearest to ``q`` (the skin the scanner
+    saw) and near 0 where another part of the template lies much nearer (teeth
+    behind the lips, the back of an eyeball, the inside of the mouth: the scanner
+    saw that other part, not this one).
+
+    Parameters
+    ----------
+    template : Mesh
+        The fitted template.
+    tree : facewrap.geometry.ClosestPointTree
+        Built on the scan.
+
+    Returns
+    -------
+    (n,) float64
+        In [0, 1] (up to rounding).
+
+    Examples
+    --------
+    >>> from facewrap.geometry import ClosestPointTree
+    >>> quad = Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]], [[0, 1, 2, 3]])
+    >>> behind = Mesh(quad.vertices - [0, 0, 0.5], [[0, 1, 2, 3]])
+    >>> both = Mesh(np.vstack([quad.vertices + [0, 0, 0.1], behind.vertices]),
+    ...             [[0, 1, 2, 3], [4, 5, 6, 7]])
+    >>> vis = scan_visibility(both, ClosestPointTree(quad.vertices, quad.triangles))
+    >>> np.round(vis, 2).tolist()
+    [1.0, 1.0, 1.0, 1.0, 0.2, 0.2, 0.2, 0.2]
+    """
+    hair = 1e-9 * template.scale()
+    own = tree.query(template.vertices)
+    mine = ClosestPointTree(template.vertices, template.triangles)
+    nearest = mine.query(own.points).distances
+    return np.minimum((nearest + hair) / (own.distances + hair), 1.0)
+
+
+def _beyond_border(tree, points: np.ndarray, cp, hair: float) -> np.ndarray:
+    """Points whose closest scan point is where the scan stops, not under them.
+
+    Past a hole or the scan's edge the closest point sits on the border, off to
+    the side (the offset lies mostly in the surface's plane) rather than straight
+    under the point along the normal; the scan says nothing about such points.
+    Points within ``hair`` of the scan are on it, whatever rounding says.
+    """
+    offset = np.abs(np.einsum("kd,kd->k", points - cp.points, cp.normals))
+    return (tree.boundary_triangles[cp.triangles] & (cp.distances > hair)
+            & (offset < _COS_45 * cp.distances))
+
+
+_COS_45 = float(np.cos(np.pi / 4))
+
+#: Texels count as seen by the scanner where the interpolated
+#: :func:`scan_visibility` is at least this.
+SEEN = 0.5
 
 
 def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int = 8,
-                 tree=None, max_distance: float | None = None) -> BakeResult:
-    """Re-bake a scan's texture into a (fitted) template's own UV layout.
+                 tree=None, max_distance: float | None = None, *,
+                 tile: int = FIRST_TILE, only=None, visibility=None) -> BakeResult:
+    """Re-bake a scan's texture into one tile of a (fitted) template's UV layout.
 
-    For each texel of the template's layout (:func:`rasterize_uv`) the point with the
+    For each texel of the tile's layout (:func:`rasterize_uv`) the point with the
     texel's barycentric coordinates on the template's 3-D triangle is mapped to the
     closest point on the scan, then to the scan's UV there (:func:`scan_uvs_at`), and
-    the scan image is sampled bilinearly (:func:`sample_image`).  Texels whose
-    closest scan point is farther than ``max_distance`` are not covered.
+    the scan image is sampled bilinearly (:func:`sample_image`).  A texel is not
+    covered when its closest scan point is farther than ``max_distance``, or lies
+    on the scan's border off to the side (past the edge of a crop or a hole), or when
+    the template's :func:`scan_visibility`, interpolated there, is below 0.5:
+    another part of the template lies nearer to the scan there, and the scanner saw
+    that part, not this one (teeth behind the lips, the back of an eyeball, the
+    inside of the mouth).  The texels of triangles unseen at all three corners are
+    not looked up on the scan at all.
 
     Padding across seams: uncovered texels within ``padding`` pixels (Euclidean) of a
     covered texel take the colour of the nearest covered texel
@@ -291,6 +398,14 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     max_distance : float, optional
         Largest template-to-scan distance that still counts as covered; default 5 %
         of the template's bounding-box diagonal.
+    tile : int
+        The UDIM tile to bake (:mod:`facewrap.texture.udim`);
+        :func:`facewrap.texture.tiles.bake_tiles` bakes every used tile.
+    only : (t,) bool, optional
+        Bake these triangles of ``template.triangles`` only (those of one texture
+        set, :func:`facewrap.texture.tiles.texture_sets`); the others are not laid out.
+    visibility : (n,) float, optional
+        :func:`scan_visibility` of ``template`` on ``tree``; computed here otherwise.
 
     Returns
     -------
@@ -306,28 +421,28 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     >>> bool((res.image == img).all()), res.filled_fraction
     (True, 1.0)
     """
-    template = checked_uv_mesh(template, "template")
-    scan = checked_uv_mesh(scan, "scan")
-    scan_image = as_image(scan_image, "scan_image")
-    H, W = _size(size)
-    if (isinstance(padding, (bool, np.bool_)) or not isinstance(padding, (int, np.integer))
-            or padding < 0):
-        raise ValueError(f"padding must be a non-negative int, got {padding!r}")
-    max_distance = (0.05 * template.scale() if max_distance is None
-                    else _non_negative(max_distance, "max_distance"))
-    if tree is None:
-        tree = ClosestPointTree(scan.vertices, scan.triangles)
-    elif (tree.triangles.shape != scan.triangles.shape
-          or tree.vertices.shape != scan.vertices.shape):
-        raise ValueError("tree was not built on scan (vertex or triangle counts differ)")
-
-    raster = rasterize_uv(template, (H, W))
-    corners = template.vertices[template.triangles[raster.triangles]]   # (p, 3, 3)
-    points = np.einsum("pc,pcd->pd", raster.barycentric, corners)
+    tile_origin(tile)   # a tile that does not exist is refused before any work
+    template, scan, rgb, (H, W), padding, tree, max_distance = _checked_bake_args(
+        template, scan, scan_image, size, padding, tree, max_distance)
+    if visibility is None:
+        visibility = scan_visibility(template, tree)
+    else:
+        visibility = np.asarray(visibility, dtype=np.float64)
+        if visibility.shape != (template.n_vertices,):
+            raise ValueError(f"visibility must have shape ({template.n_vertices},), got "
+                             f"{visibility.shape}")
+    raster = rasterize_uv(template, (H, W), tile, only)
+    corner_ids = template.triangles[raster.triangles]                    # (p, 3)
+    seen = np.einsum("pc,pc->p", raster.barycentric, visibility[corner_ids]) >= SEEN
+    points = np.einsum("pc,pcd->pd", raster.barycentric[seen],
+                       template.vertices[corner_ids[seen]])
     cp = tree.query(points)
-    near = cp.distances <= max_distance
-    uv = trusted_scan_uvs(scan, cp.triangles[near], cp.barycentric[near])
-    colours = _bilinear(_rgb(scan_image), uv)
+    hit = (cp.distances <= max_distance) & ~_beyond_border(tree, points, cp,
+                                                           1e-9 * template.scale())
+    near = np.zeros(len(raster), dtype=bool)
+    near[seen] = hit
+    uv = trusted_scan_uvs(scan, cp.triangles[hit], cp.barycentric[hit])
+    colours = _bilinear(rgb, uv)
 
     image = np.zeros((H, W, 3), dtype=np.uint8)
     coverage = np.zeros((H, W), dtype=bool)
@@ -335,10 +450,11 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     image[rows, cols] = to_uint8(colours)
     coverage[rows, cols] = True
     image, padded = _pad(image, coverage, padding)
-    n_layout = int(raster.mask.sum())
+    n_layout = len(raster)
     return BakeResult(image=image, coverage=coverage, padded=padded,
                       layout=raster.mask,
-                      filled_fraction=float(near.sum() / n_layout) if n_layout else 0.0)
+                      filled_fraction=float(near.sum() / n_layout) if n_layout else 0.0,
+                      tile=int(tile))
 
 
 def _pad(image: np.ndarray, coverage: np.ndarray, padding: int):
