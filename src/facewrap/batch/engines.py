@@ -192,7 +192,9 @@ def _quiet_task(func, bj) -> dict:
 def _stop_local_workers() -> None:
     """Ctrl-C: end the LocalCluster's worker processes now (their jobs' outputs are
     staged, so nothing partial is left), before Dask's orderly close."""
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)  # no shutdown noise
+    # no shutdown noise: Dask's own, and tornado's callbacks cancelled mid-close
+    for name in ("distributed", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
     for worker in multiprocessing.active_children():
         worker.kill()
 
