@@ -161,7 +161,7 @@ def fits_like_base(ctx, V, scale=1.0):
     """Quality comparable to the untouched job (fit distances from the report), to
     1e-4 of the head's size: the untouched job fits its own surface to ~1e-15."""
     fit = json.loads(ctx.report_path.read_text())["metrics"]["fit_mean"]
-    slack = 1e-4 * ctx.base.template_mesh.scale()
+    slack = 1e-4 * ctx.base.template_mesh.mesh.scale()
     assert fit <= scale * (1.5 * ctx.base.report["metrics"]["fit_mean"] + slack)
 
 

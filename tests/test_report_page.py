@@ -44,7 +44,9 @@ def test_page_of_a_wrap_run(run, tmp_path):
                              images=[run["paths"]["scan_texture"]], title="a run")
     assert page == tmp_path / "html" / "index.html"
     data = page_data(page)
-    assert [m["name"] for m in data["meshes"]] == ["template (aligned)", "scan", "result"]
+    # the sample's eyeballs are parts: they follow, and are shown apart
+    assert [m["name"] for m in data["meshes"]] == ["template (aligned)", "scan", "result",
+                                                   "part (follows)"]
     assert [s["name"] for s in data["scalars"]] == ["distance to scan", "distance to result"]
     assert data["blendshapes"]["mesh"] == "result"
     assert len(data["blendshapes"]["shapes"]) == run["shapes"]

@@ -151,7 +151,7 @@ def test_prepare_wrap_resolves_the_model_and_pairs_landmarks(sample, problem):
                              template.parts["eyeball_right"]])] = True
     assert np.array_equal(problem.excluded, eyeballs)
     everything = prepare_wrap(template.mesh, scan.mesh, template.landmarks,
-                              scan.landmarks, WrapSettings(follow_hidden=False))
+                              scan.landmarks, WrapSettings(fit_hidden=True))
     assert not everything.excluded.any()
     auto = prepare_wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
                         blendshapes=template.blendshapes)

@@ -117,4 +117,4 @@ def wrap_settings_from_args(args) -> WrapSettings:
                         landmark_pull=not args.no_landmark_pull,
                         landmark_tolerance=args.landmark_tolerance,
                         allow_mirrored=args.allow_mirrored,
-                        follow_hidden=not args.fit_hidden)
+                        fit_hidden=args.fit_hidden)

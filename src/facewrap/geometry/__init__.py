@@ -25,6 +25,8 @@ Triangle quality (:mod:`.quality`)
     :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`, :func:`turned_from`
     (the one flip test), :func:`triangle_normals`, :func:`triangle_quality`,
     :class:`TriangleQuality`, :func:`triangle_to_vertex`
+What an outside camera sees (:mod:`.visibility`)
+    :func:`outside_views`, :func:`sphere_directions`
 Sampling (:mod:`.sampling`)
     :func:`sample_surface`, :func:`farthest_point_sampling`,
     :func:`poisson_disk_vertices`
@@ -50,6 +52,7 @@ from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, trian
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.geometry.sampling import (farthest_point_sampling, poisson_disk_vertices,
                                         sample_surface)
+from facewrap.geometry.visibility import outside_views, sphere_directions
 
 __all__ = [
     # closest points and rays
@@ -69,6 +72,8 @@ __all__ = [
     "turned", "turned_triangles", "turned_from", "triangle_normals", "flipped_triangles",
     "TriangleQuality", "triangle_quality",
     "triangle_to_vertex",
+    # what an outside camera sees
+    "outside_views", "sphere_directions",
     # sampling
     "sample_surface", "farthest_point_sampling", "poisson_disk_vertices",
 ]

@@ -127,7 +127,7 @@ def read_template_profile(path) -> TemplateProfile:
     ...     "landmarks": [{"name": "nose_tip", "vertex": 3}], "fitting_vertices": [0, 3]}))
     >>> prof = read_template_profile(p)
     >>> prof.landmarks.names, prof.fitting.tolist(), prof.rigid is None
-    (['nose_tip'], [0, 3], True)
+    (('nose_tip',), [0, 3], True)
     """
     data = read_json(path)
     if not isinstance(data, dict):

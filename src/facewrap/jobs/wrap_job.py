@@ -90,7 +90,7 @@ class WrapJob:
         Template vertex ids that follow but are not pulled to the scan.
     fit_mask : path, optional
         The only template vertex ids pulled onto the scan: replaces the
-        automatic choice of what a scanner can see (``follow_hidden``) and the
+        automatic choice of what a scanner can see (``fit_hidden``) and the
         profile's fitting vertices.
     pin : path, optional
         Template vertex ids kept exactly where the landmark similarity puts them.

@@ -30,7 +30,7 @@ import numpy as np
 from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
                                vertex_normals)
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.landmarks import Landmarks
+from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
 
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT",
@@ -255,8 +255,23 @@ def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=Non
             "swap? The fit follows them: check the landmark files"]
 
 
+#: iBUG-68 landmarks that meet when the mouth or an eye is shut (upper and lower
+#: inner lip, upper and lower lid): at the same point they are no duplicate
+MAY_MEET = frozenset(frozenset((IBUG68_NAMES[a], IBUG68_NAMES[b])) for a, b in (
+    (61, 67), (62, 66), (63, 65), (37, 41), (38, 40), (43, 47), (44, 46)))
+
+
+def _may_meet(landmarks: Landmarks, a: int, b: int) -> bool:
+    """Whether landmarks ``a`` and ``b`` are a shut mouth's or eye's pair."""
+    names = landmarks.names
+    if names is None:
+        names = IBUG68_NAMES if len(landmarks) == len(IBUG68_NAMES) else None
+    return names is not None and frozenset((names[a], names[b])) in MAY_MEET
+
+
 def duplicated_landmarks(positions, landmarks: Landmarks, what: str) -> list[str]:
-    """Warn about landmarks at the same point (or the same vertex).
+    """Warn about landmarks at the same point (or the same vertex), but for the
+    pairs a shut mouth or eye brings together (:data:`MAY_MEET`).
 
     Parameters
     ----------
@@ -277,6 +292,8 @@ def duplicated_landmarks(positions, landmarks: Landmarks, what: str) -> list[str
     tolerance = SAME_POINT * max(landmark_spread(P), 1e-300)
     d = np.linalg.norm(P[:, None] - P[None], axis=2)
     i, j = np.nonzero(np.triu(d <= tolerance, k=1))
+    keep = [k for k in range(len(i)) if not _may_meet(landmarks, int(i[k]), int(j[k]))]
+    i, j = i[keep], j[keep]
     if not len(i):
         return []
     pairs = ", ".join(f"{landmarks.label(a)} and {landmarks.label(b)}"

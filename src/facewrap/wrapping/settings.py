@@ -100,12 +100,12 @@ class WrapSettings:
         Fit landmarks that only a mirror image of the template matches (a mirrored
         scan or landmark file) with a warning instead of refusing them
         (:func:`~facewrap.wrapping.plausibility.check_reflection`).
-    follow_hidden : bool
-        Only what a scanner can see is pulled onto the scan: the template's pieces
-        that are not skin (eyeballs, teeth, tongue, lashes) and its cavities
-        (nostrils, mouth and eye sockets) follow the skin instead
-        (:func:`~facewrap.wrapping.roles.find_hidden_surface`).  Off: every vertex
-        not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` replaces it.
+    fit_hidden : bool
+        Off (the default), only what a scanner can see is pulled onto the scan: the
+        template's pieces that are not skin (eyeballs, teeth, tongue, lashes) and
+        its cavities (nostrils, mouth and eye sockets) follow the skin instead
+        (:func:`~facewrap.wrapping.roles.find_hidden_surface`).  On: every vertex
+        not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` replaces both.
     unfold : bool
         Unfold triangles the fit turned over (facing away from the aligned
         template) by smoothing them and a ring around them
@@ -131,7 +131,7 @@ class WrapSettings:
     landmark_pull: bool = True
     landmark_tolerance: float = 0.002
     allow_mirrored: bool = False
-    follow_hidden: bool = True
+    fit_hidden: bool = False
     unfold: bool = True
 
     #: allowed values of every field, checked at construction (:mod:`facewrap.params`);
@@ -157,7 +157,7 @@ class WrapSettings:
         "landmark_pull": Flag(),
         "landmark_tolerance": Interval(float, 0, None),
         "allow_mirrored": Flag(),
-        "follow_hidden": Flag(),
+        "fit_hidden": Flag(),
         "unfold": Flag(),
     }
 

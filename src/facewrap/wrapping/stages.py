@@ -217,7 +217,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
     hidden = (cached_hidden_surface(template.vertices, template.triangles)
-              if s.follow_hidden and fit_mask is None else None)
+              if not s.fit_hidden and fit_mask is None else None)
     roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
                          pinned=pinned)
     excluded = roles != FITTED
@@ -398,10 +398,10 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     exclude : (n,) bool or int array, optional
         Template vertices that must not be pulled onto the scan: they follow
         smoothly.  The template's parts and cavities follow anyway
-        (``settings.follow_hidden``).
+        (unless ``settings.fit_hidden``).
     fit_mask : (n,) bool or int array, optional
         The only vertices pulled onto the scan (replaces the automatic choice of
-        ``follow_hidden``; ``exclude`` still applies).
+        ``fit_hidden``; ``exclude`` still applies).
     pinned : (n,) bool or int array, optional
         Vertices kept exactly where the landmark similarity puts the template
         (a neck seam that must meet a body, say); the fit blends into them.

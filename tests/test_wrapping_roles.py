@@ -1,0 +1,199 @@
+"""What a scanner sees of a template, the roles of its vertices, and how parts follow."""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import DATA, needs_data
+from facewrap.geometry import flipped_triangles, sphere_directions
+from facewrap.geometry.visibility import outside_views
+from facewrap.mesh import Mesh
+from facewrap.sample import make_scan, make_template
+from facewrap.wrapping import WrapSettings, wrap
+from facewrap.wrapping.follow import follow_skin, side_changes
+from facewrap.wrapping.projection import folded_in, relax_flips
+from facewrap.wrapping.roles import (CAVITY, EXCLUDED, FITTED, PART, PINNED, VERTEX_ROLES,
+                                     find_hidden_surface, role_counts, role_ranges,
+                                     vertex_roles)
+
+ICT = DATA / "ict-facekit" / "FaceXModel"
+
+
+def _ball(radius: float = 1.0, center=(0.0, 0.0, 0.0), subdivisions: int = 3):
+    """A closed, outward-facing icosphere (vertices, triangles)."""
+    import trimesh
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return np.asarray(m.vertices) + np.asarray(center), np.asarray(m.faces, np.int64)
+
+
+def _with(*pieces):
+    """Pieces (V, T) as one mesh."""
+    V = np.vstack([p[0] for p in pieces])
+    offsets = np.cumsum([0] + [len(p[0]) for p in pieces[:-1]])
+    return V, np.vstack([p[1] + o for p, o in zip(pieces, offsets)])
+
+
+def test_sphere_directions_cover_the_sphere_evenly():
+    D = sphere_directions(256)
+    # every direction of a finer set has a close neighbour: no side is left out
+    fine = sphere_directions(4000)
+    assert np.degrees(np.arccos(np.clip((fine @ D.T).max(axis=1), -1, 1))).max() < 12
+
+
+def test_outside_views_a_ball_is_seen_a_ball_inside_it_is_not():
+    V1, T1 = _ball()
+    V2, T2 = _ball(0.3, subdivisions=2)
+    V, T = _with((V1, T1), (V2, T2))
+    seen = outside_views(V, T)
+    assert seen[:len(V1)].all() and not seen[len(V1):].any()
+    # without the outer box in the way the inner one is seen
+    assert outside_views(V, T, occluders=np.r_[np.zeros(len(T1), bool),
+                                              np.ones(len(T2), bool)])[len(V1):].all()
+
+
+def test_hidden_surface_of_a_head_with_a_part_inside_and_a_pit():
+    """A ball head with a ball inside (an eyeball) and a deep pit (a nostril)."""
+    V1, T1 = _ball(subdivisions=4)
+    top = np.flatnonzero(V1[:, 2] > 0.995)         # the vertices around the pole
+    V1[top, 2] = 0.2                               # pushed deep: a narrow pit
+    V2, T2 = _ball(0.2, subdivisions=2)
+    V, T = _with((V1, T1), (V2, T2))
+    h = find_hidden_surface(V, T)
+    assert h.part[len(V1):].all() and not h.part[:len(V1)].any()
+    assert h.skin_pieces == 1
+    assert h.cavity[top].all() and h.cavity.sum() == len(top)
+    # the same head turned inside out is read the other way round
+    flipped = find_hidden_surface(V, T[:, ::-1])
+    assert np.array_equal(flipped.part, h.part)
+    assert np.array_equal(flipped.cavity, h.cavity)
+
+
+def test_hidden_surface_of_the_sample_eyeballs_are_parts():
+    t = make_template(resolution=40)
+    h = find_hidden_surface(t.mesh.vertices, t.mesh.triangles)
+    eyes = np.concatenate([t.parts["eyeball_left"], t.parts["eyeball_right"]])
+    assert h.part[eyes].all() and h.part.sum() == len(eyes)
+    assert h.cavity.mean() < 0.05
+
+
+def test_vertex_roles_priorities_and_ranges():
+    n = 8
+    h = type("H", (), {})()
+    from facewrap.wrapping.roles import HiddenSurface
+    h = HiddenSurface(part=np.r_[np.zeros(6, bool), [True, True]],
+                      cavity=np.r_[[False, True], np.zeros(6, bool)], skin_pieces=1)
+    roles = vertex_roles(n, h, exclude=[2, 6], pinned=[3])
+    assert roles.tolist() == [FITTED, CAVITY, EXCLUDED, PINNED, FITTED, FITTED, PART, PART]
+    ranges = role_ranges(roles)
+    assert set(ranges) == set(VERTEX_ROLES)
+    back = np.empty(n, np.int8)
+    for name, rs in ranges.items():
+        for a, b in rs:
+            back[a:b] = VERTEX_ROLES.index(name)
+    assert np.array_equal(back, roles)
+    assert sum(role_counts(roles).values()) == n
+    # a fit mask decides alone
+    assert vertex_roles(n, h, fit_mask=[0, 1]).tolist() == [FITTED] * 2 + [EXCLUDED] * 6
+    with pytest.raises(ValueError, match="exclude"):
+        vertex_roles(n, h, exclude=[8])
+    with pytest.raises(ValueError, match="fit_mask"):
+        vertex_roles(n, h, fit_mask=np.ones(3, bool))
+
+
+@pytest.fixture(scope="module")
+def sample():
+    template = make_template(resolution=40)
+    return template, make_scan(template, resolution=60)
+
+
+def test_wrap_sample_eyeballs_follow_and_are_left_out_of_the_metrics(sample):
+    template, scan = sample
+    r = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
+             WrapSettings(model="graph"))
+    eyes = np.concatenate([template.parts["eyeball_left"], template.parts["eyeball_right"]])
+    assert (r.roles[eyes] == PART).all()
+    aligned = r.transform.apply(template.mesh.vertices)
+    assert not side_changes(template.mesh.triangles, aligned, r.vertices, r.roles).any()
+    assert r.metrics["finish"]["pinned"] == 0
+    # fit_hidden pulls them too: every vertex is fitted
+    everything = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
+                      WrapSettings(model="rbf", fit_hidden=True))
+    assert (everything.roles == FITTED).all()
+
+
+def test_pinned_vertices_stay_where_the_similarity_puts_them(sample):
+    template, scan = sample
+    face = template.parts["face"]
+    pins = face[:200]
+    r = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
+             WrapSettings(model="graph"), pinned=pins)
+    aligned = r.transform.apply(template.mesh.vertices)
+    assert np.allclose(r.vertices[pins], aligned[pins], atol=1e-9 * template.mesh.scale()
+                       * r.transform.scale)
+    assert (r.roles[pins] == PINNED).all() and r.metrics["finish"]["pinned"] == 200
+    free = np.setdiff1d(face, pins)
+    assert np.abs(r.vertices[free] - aligned[free]).max() > 1e-3
+
+
+def test_relax_flips_unfolds_a_pushed_vertex_and_keeps_fixed_ones():
+    g = np.stack(np.meshgrid(np.arange(6.0), np.arange(6.0)), -1).reshape(-1, 2)
+    V = np.c_[g, np.zeros(36)]
+    quads = [i for i in range(29) if i % 6 < 5]
+    T = np.array([[i, i + 1, i + 7] for i in quads] + [[i, i + 7, i + 6] for i in quads])
+    fit = V.copy()
+    fit[14] = [3.7, 3.7, 0.0]                      # over its neighbours: folds
+    assert flipped_triangles(fit, V, T).any()
+    out, moved = relax_flips(Mesh(V, T), V, fit, fixed=np.isin(np.arange(36), [0, 35]))
+    assert not flipped_triangles(out, V, T).any()
+    assert moved[14] and not moved[[0, 35]].any()
+    assert np.array_equal(out[~moved], fit[~moved])
+
+
+def test_folded_in_finds_a_triangle_inside_out():
+    g = np.stack(np.meshgrid(np.arange(3.0), np.arange(3.0)), -1).reshape(-1, 2)
+    V = np.c_[g, np.zeros(9)]
+    T = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [3, 4, 7], [3, 7, 6],
+                  [4, 5, 8], [4, 8, 7]])
+    T[3] = T[3][::-1]                              # inside out among its neighbours
+    from facewrap.geometry import face_normals
+    assert np.flatnonzero(folded_in(face_normals(V, T), T)).tolist() == [3]
+
+
+def test_follow_skin_keeps_a_part_behind_skin_that_came_towards_it():
+    V1, T1 = _ball(subdivisions=4)
+    V2, T2 = _ball(0.15, center=(0.0, 0.0, 0.75), subdivisions=2)   # behind the +z cap
+    V, T = _with((V1, T1), (V2, T2))
+    roles = np.r_[np.zeros(len(V1), np.int8), np.full(len(V2), PART, np.int8)]
+    fit = V.copy()
+    cap = V1[:, 2] > 0.6
+    fit[:len(V1)][cap, 2] = 0.6 + 0.5 * (V1[cap, 2] - 0.6)    # the cap flattens inwards
+    assert side_changes(T, V, fit, roles).any()               # left as it was: through
+    out = follow_skin(T, V, fit, roles)
+    assert not side_changes(T, V, out, roles).any()
+    assert np.array_equal(out[:len(V1)], fit[:len(V1)])       # the skin is not touched
+    assert not flipped_triangles(out, V, T)[len(T1):].any()   # nor the part dented
+
+
+@needs_data
+@pytest.mark.slow
+def test_ict_full_head_onto_james_parts_stay_behind_the_skin(tmp_path):
+    """Issue 17: ICT's full head onto the james scan with landmarks only."""
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_ljson
+    from facewrap.io.profile import read_template_profile
+    head = read_mesh(ICT / "generic_neutral_mesh.obj")
+    prof = read_template_profile(ICT / "vertex_indices.json")
+    scan = read_mesh(DATA / "scans" / "james" / "james.obj")
+    lm = read_ljson(DATA / "scans" / "james" / "james.ljson")
+    r = wrap(head, scan, prof.landmarks, lm, WrapSettings(model="graph"))
+    counts = {name: int((r.roles == i).sum()) for i, name in enumerate(VERTEX_ROLES)}
+    # ICT's parts table: 14,062 skin vertices (with the sockets), the rest parts
+    assert counts["part"] == 26719 - 14062
+    assert 2800 <= counts["cavity"] <= 4500          # the mouth and eye sockets at least
+    aligned = r.transform.apply(head.vertices)
+    assert not side_changes(head.triangles, aligned, r.vertices, r.roles).any()
+    fitting = np.zeros(head.n_vertices, bool)
+    fitting[prof.fitting] = True
+    inside = fitting[head.triangles].all(axis=1)
+    assert flipped_triangles(r.vertices, aligned, head.triangles)[inside].sum() <= 1
