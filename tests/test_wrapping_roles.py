@@ -186,14 +186,16 @@ def test_ict_full_head_onto_james_parts_stay_behind_the_skin(tmp_path):
     prof = read_template_profile(ICT / "vertex_indices.json")
     scan = read_mesh(DATA / "scans" / "james" / "james.obj")
     lm = read_ljson(DATA / "scans" / "james" / "james.ljson")
-    r = wrap(head, scan, prof.landmarks, lm, WrapSettings(model="graph"))
+    fitting = np.zeros(head.n_vertices, bool)
+    fitting[prof.fitting] = True
+    # as `facewrap wrap` does with the profile found beside the template
+    r = wrap(head, scan, prof.landmarks, lm, WrapSettings(model="graph"), exclude=~fitting)
     counts = {name: int((r.roles == i).sum()) for i, name in enumerate(VERTEX_ROLES)}
     # ICT's parts table: 14,062 skin vertices (with the sockets), the rest parts
     assert counts["part"] == 26719 - 14062
     assert 2800 <= counts["cavity"] <= 4500          # the mouth and eye sockets at least
+    assert counts["fitted"] + counts["cavity"] + counts["excluded"] == 14062
     aligned = r.transform.apply(head.vertices)
     assert not side_changes(head.triangles, aligned, r.vertices, r.roles).any()
-    fitting = np.zeros(head.n_vertices, bool)
-    fitting[prof.fitting] = True
     inside = fitting[head.triangles].all(axis=1)
     assert flipped_triangles(r.vertices, aligned, head.triangles)[inside].sum() <= 1

@@ -9,9 +9,9 @@ the fit carried it: the biharmonic RBF warp of SPEC §1.2
 lids, a tooth with the mouth socket and inner lips, whatever the deformation
 model did between them, and being smooth the warp folds no triangle.  A closed
 piece (no border: an eyeball, a tooth) is a solid body: it moves by the rigid
-motion nearest to the warp unless that leaves more of its vertices on the wrong
-side of the skin than the warp does (an eyeball squeezed between lids and a
-socket the scan moved apart bends with them instead).  A part
+motion nearest to the warp when that leaves none of its vertices on the wrong
+side of the skin (an eyeball squeezed between lids and a socket the scan moved
+apart bends with them instead).  A part
 vertex that still ends up on the other side of the skin than on the template
 (signed distance by libigl's pseudonormal test; the skin is every triangle that is
 not part) is put back at its template offset from the closest skin point, along
@@ -146,7 +146,9 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
     if solid[pieces].any():
         bent = np.bincount(pieces, wrong_side(X[part])[0], minlength=len(solid))
         kept = np.bincount(pieces, wrong_side(rigid)[0], minlength=len(solid))
-        whole = (solid & (kept <= bent))[pieces]
+        # rigid only where that keeps the whole piece behind the skin: putting single
+        # vertices of a rigid piece back would dent it
+        whole = (solid & (kept == 0))[pieces]
         X[part[whole]] = rigid[whole]
     for _ in range(rounds):
         wrong, C, N = wrong_side(X[part])

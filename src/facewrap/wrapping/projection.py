@@ -249,19 +249,23 @@ def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distan
 
 
 def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle: float,
-                         fold_rounds: int):
+                         fold_rounds: int, upright=None):
     """Projected vertices at ``P``, the others blended; the fold guard.
 
     On a coarse or faceted scan, neighbouring vertices can land on either side of a
     scan edge and turn a template triangle over.  Their vertices are not projected
     but follow the blend instead, until no triangle turns past ``fold_angle`` from
-    where the fit left it (at most ``fold_rounds`` rounds).  Returns the positions
-    (n, 3) and the final projected mask (n,).
+    where the fit left it (at most ``fold_rounds`` rounds).  A triangle the blend
+    itself turns (no corner projected) lets go of the projected vertices nearest
+    to it (up to ``_FOLD_REACH`` rings away).  ``upright`` (t, 3), when given, are
+    normals no triangle may turn past 90 degrees from either.  Returns the
+    positions (n, 3) and the final projected mask (n,).
     """
     T = template.triangles
     n0 = face_normals(Vt, T)
     ok = ok.copy()
     operator = extension_operator(template, blend_order)   # one mesh, every round
+    adjacency = None
     for _ in range(fold_rounds + 1):
         out = Vt + smooth_extension(template, P - Vt, ok, operator=operator)
         out[ok] = P[ok]  # exact landing points (no round-off from the blend)
@@ -272,13 +276,27 @@ def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle
         # lost its orientation: it is a fold too, though the turn test skips it
         collapsed = ~n1.any(axis=1) & n0.any(axis=1)
         bad = np.zeros(len(Vt), dtype=bool)
-        bad[T[turned(n0, n1, fold_angle) | collapsed]] = True
+        folds = turned(n0, n1, fold_angle) | collapsed
+        if upright is not None:
+            folds |= turned(upright, n1, 90.0)
+        bad[T[folds]] = True
+        # a fold among blended vertices only: the offsets that drive the blend change
+        # too fast there, so the projected vertices nearest to it are let go
+        for _ in range(_FOLD_REACH):
+            if (bad & ok).any() or not bad.any():
+                break
+            if adjacency is None:
+                adjacency = vertex_adjacency(T, len(Vt))
+            bad |= (adjacency @ bad.astype(np.float64)) > 0
         bad &= ok
         if not bad.any():
             break
         ok &= ~bad
     return out, ok
 
+
+#: rings around a fold among blended vertices searched for projected ones to let go
+_FOLD_REACH = 6
 
 #: relax_flips stops after this many rounds that unfold nothing, or once it has
 #: relaxed this fraction of the vertices
@@ -383,7 +401,8 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
                        normals=None, mask=None, max_distance: float | None = None,
                        max_normal_angle: float = 60.0, methods=("prism", "ray", "closest"),
                        reject_boundary: bool = True, blend_order: int = 1,
-                       fold_angle: float = 60.0, fold_rounds: int = 4) -> Projection:
+                       fold_angle: float = 60.0, fold_rounds: int = 8,
+                       upright=None) -> Projection:
     """Move template vertices onto the scan along normals, blending the rest.
 
     Parameters
@@ -413,6 +432,10 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
         Degrees: a template triangle whose normal turns further than this from
         its normal before projection un-projects its vertices (they follow the
         blend), up to ``fold_rounds`` times; 0 rounds: no guard.
+    upright : (n, 3) float, optional
+        Positions whose triangle orientation the result must keep: a triangle turned
+        past 90 degrees from them un-projects its vertices too (a second projection
+        from an unfolded pose keeps that pose's orientation).
 
     Returns
     -------
@@ -440,8 +463,10 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     ok = np.zeros(n, dtype=bool)
     ok[has] = _landing_compatible(tree, Vt[has], Nt[has], P[has], tri[has], bary[has],
                                   max_distance, max_normal_angle, reject_boundary)
-    out, ok = _blend_without_folds(template, Vt, P, ok, blend_order, fold_angle,
-                                   fold_rounds)
+    out, ok = _blend_without_folds(
+        template, Vt, P, ok, blend_order, fold_angle, fold_rounds,
+        upright=None if upright is None else face_normals(
+            np.asarray(upright, dtype=np.float64), template.triangles))
     method[~ok] = METHOD_NONE
     tri[~ok] = -1
     bary[~ok] = 0.0

@@ -309,15 +309,17 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
                    "mean": float(pulls.mean()), "max": float(pulls.max())}
 
 
-def project(problem: WrapProblem, vertices) -> Projection | None:
-    """Projection onto the scan (None when ``settings.project`` is off)."""
+def project(problem: WrapProblem, vertices, upright=None) -> Projection | None:
+    """Projection onto the scan (None when ``settings.project`` is off); ``upright``:
+    positions whose triangle orientation it must keep (see
+    :func:`~facewrap.wrapping.projection.project_to_surface`)."""
     s = problem.settings
     if not s.project:
         return None
     return project_to_surface(problem.template, problem.tree, vertices=vertices,
                               mask=~problem.excluded, max_distance=s.max_distance,
                               max_normal_angle=s.max_normal_angle,
-                              blend_order=s.blend_order)
+                              blend_order=s.blend_order, upright=upright)
 
 
 def pin(problem: WrapProblem, vertices, similarity: Similarity,
@@ -349,9 +351,9 @@ def pin(problem: WrapProblem, vertices, similarity: Similarity,
 
 def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
                projection: Projection | None, rest=None) -> tuple[np.ndarray, dict]:
-    """The last stage: pinned vertices put back (:func:`pin`), triangles the fit
-    turned over unfolded (``settings.unfold``,
-    :func:`~facewrap.wrapping.projection.relax_flips`), the template's parts
+    """The last stage: triangles the fit turned over unfolded (``settings.unfold``,
+    :func:`~facewrap.wrapping.projection.relax_flips`) and the result projected
+    again from there, pinned vertices put back (:func:`pin`), the template's parts
     moved with the skin nearest to them and kept on their side of it
     (:mod:`facewrap.wrapping.follow`).
 
@@ -366,14 +368,20 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
         ``pinned`` and ``unfolded`` (vertices).
     """
     template, roles = problem.template, problem.roles
-    out = pin(problem, vertices, similarity, projection)
     aligned = similarity.apply(template.vertices)
     summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
+    out = vertices
     if problem.settings.unfold:
-        out, relaxed = relax_flips(template, aligned if rest is None else rest, out,
-                                   fixed=roles == PINNED,
+        upright = aligned if rest is None else rest
+        out, relaxed = relax_flips(template, upright, out, fixed=roles == PINNED,
                                    order=problem.settings.blend_order)
         summary["unfolded"] = int(relaxed.sum())
+        if relaxed.any() and projection is not None:
+            # onto the scan again from the unfolded pose, keeping its orientation: the
+            # fit is as tight as before where that folds nothing
+            projection = project(problem, out, upright=upright)
+            out = projection.vertices
+    out = pin(problem, out, similarity, projection)
     out = follow_skin(template.triangles, aligned, out, roles)
     return out, summary
 
