@@ -27,13 +27,13 @@ def _library_path(output) -> str:
 def cmd_convert(args) -> int:
     """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
     ext = os.path.splitext(os.fspath(args.output))[1].lower()
-    if ext not in MESH_WRITE_EXTENSIONS:  # before staging, so the error names OUT
-        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; use "
-                         + ", ".join(MESH_WRITE_EXTENSIONS), args.output)
     is_obj = ext == ".obj"
     # OUT.mtl is checked whether or not the input turns out to have materials
     check_output_paths(files=[args.output] + ([_library_path(args.output)] if is_obj
                                               else []), inputs=[args.input])
+    if ext not in MESH_WRITE_EXTENSIONS:  # before staging, so the error names OUT
+        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; use "
+                         + ", ".join(MESH_WRITE_EXTENSIONS), args.output)
     mesh = read_mesh(args.input)
     with staged_outputs() as stage:
         if is_obj:
