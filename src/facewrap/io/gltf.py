@@ -214,14 +214,17 @@ class _Blob:
         return b"".join(self.parts)
 
 
-def _key_name(key) -> str:
-    """``1001``, or ``1001_m0_m3`` for the materials 0 and 3 of tile 1001."""
-    if isinstance(key, tuple):
-        return "_".join([str(key[0])] + [f"m{m}" if m >= 0 else "none" for m in key[1]])
-    return str(key)
+def _key_name(key, material_names) -> str:
+    """``facewrap_1001`` for a tile, ``skin+eye_1001`` for the materials of a tile
+    (``facewrap`` standing for faces without one)."""
+    if not isinstance(key, tuple):
+        return f"facewrap_{key}"
+    names = [material_names[m] if 0 <= m < len(material_names) else "facewrap"
+             for m in key[1]]
+    return f"{'+'.join(names) or 'facewrap'}_{key[0]}"
 
 
-def _materials(gl, blob: _Blob, used, pngs: dict):
+def _materials(gl, blob: _Blob, used, pngs: dict, material_names=()):
     """PBR materials (one per image shown, a plain one for the rest when there is
     a rest), textures, images, samplers, and the material of each index into
     ``list(pngs)`` in ``used`` (-1: no image)."""
@@ -230,13 +233,13 @@ def _materials(gl, blob: _Blob, used, pngs: dict):
     for k in used:
         if k < 0:
             continue
-        name = _key_name(keys[k])
+        name = _key_name(keys[k], material_names)
         images.append(gl.Image(bufferView=blob.view(pngs[keys[k]]), mimeType="image/png",
-                               name=f"tile_{name}"))
+                               name=name.replace("facewrap_", "tile_", 1)))
         textures.append(gl.Texture(source=len(images) - 1, sampler=0))
         of_tile[k] = len(materials)
         materials.append(gl.Material(
-            name=f"facewrap_{name}", pbrMetallicRoughness=gl.PbrMetallicRoughness(
+            name=name, pbrMetallicRoughness=gl.PbrMetallicRoughness(
                 baseColorTexture=gl.TextureInfo(index=len(textures) - 1),
                 metallicFactor=0.0, roughnessFactor=0.7)))
     plain = [t for t in used if t not in of_tile]
@@ -283,7 +286,8 @@ def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=Non
                                            _FLOAT, "VEC3", _ARRAY_BUFFER)})
     # primitives in the order of the images, the plain one last
     used = sorted((int(t) for t in np.unique(image_of)), key=lambda t: (t < 0, t))
-    materials, images, gl_textures, samplers, of_tile = _materials(gl, blob, used, pngs)
+    materials, images, gl_textures, samplers, of_tile = _materials(gl, blob, used, pngs,
+                                                                  neutral.materials)
     prims = [gl.Primitive(attributes=attrs, targets=targets or None,
                           material=of_tile[t],
                           indices=blob.add(tris[image_of == t].astype(np.uint32).reshape(-1),
