@@ -305,3 +305,38 @@ def test_a_mesh_without_uvs_gets_a_plain_material_and_no_texture(tmp_path):
     doc = _glb_json(path)
     assert "images" not in doc and len(doc["materials"]) == 1
     assert doc["meshes"][0]["primitives"][0]["material"] == 0
+
+
+def test_textures_by_tile_and_materials_split_overlapping_materials(tmp_path):
+    # quads 0 and 1 overlap in tile 1001 with materials 0 and 1; quad 2 in tile 1002
+    V = np.array([[x, y, 0] for x in range(4) for y in (0, 1)], float)
+    unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1.]])
+    uvs = np.concatenate([unit, unit, unit + [1, 0]])
+    faces = [[0, 2, 3, 1], [2, 4, 5, 3], [4, 6, 7, 5]]
+    mesh = Mesh(V, faces, uvs=uvs, face_uvs=np.arange(12).reshape(3, 4),
+                face_materials=[0, 1, 0], materials=["skin", "eye"])
+    images = {(1001, (0,)): np.full((2, 2, 3), 10, np.uint8),
+              (1001, (1,)): np.full((2, 2, 3), 20, np.uint8),
+              (1002, (0, 1)): np.full((2, 2, 3), 30, np.uint8)}
+    path = tmp_path / "m.glb"
+    write_gltf_morphs(path, mesh, {}, textures=images)
+    doc = _glb_json(path)
+    prims = doc["meshes"][0]["primitives"]
+    names = [doc["materials"][p["material"]]["name"] for p in prims]
+    assert names == ["skin_1001", "eye_1001", "skin+eye_1002"]   # the mesh's names
+    assert [doc["accessors"][p["indices"]]["count"] for p in prims] == [6, 6, 6]
+    back = read_gltf_morphs(path)
+    # primitive k holds quad k's two triangles (in original vertex ids)
+    for k, tris in enumerate(back.triangles.reshape(3, 2, 3)):
+        assert sorted(set(tris.ravel().tolist())) == sorted(faces[k])
+    # only the images a triangle shows are embedded; a tile with none is plain
+    write_gltf_morphs(path, mesh, {}, textures={(1001, (1,)): images[(1001, (1,))]})
+    doc = _glb_json(path)
+    assert [doc["materials"][p["material"]]["name"]
+            for p in doc["meshes"][0]["primitives"]] == ["eye_1001", "facewrap"]
+    assert len(doc["images"]) == 1
+    with pytest.raises(ValueError, match="not both"):
+        write_gltf_morphs(path, mesh, {}, textures={1001: images[(1001, (0,))],
+                                                   (1001, (1,)): images[(1001, (1,))]})
+    with pytest.raises(ValueError, match="neither a tile"):
+        write_gltf_morphs(path, mesh, {}, textures={"face": images[(1001, (0,))]})

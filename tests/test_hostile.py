@@ -959,6 +959,54 @@ def transfer_gltf_extension(ctx):
     return Run(bad, transfer_argv(ctx, p, shapes, "-o", ctx.dir / "out", "--gltf", bad))
 
 
+@case("outputs", "wrap --gltf with neither .glb nor .gltf", "error", r"\.glb \(binary\)")
+def wrap_gltf_extension(ctx):
+    p = sample_copy(ctx)
+    bad = ctx.dir / "out" / "fitted.fbx"
+    return Run(bad, wrap_argv(p, "-o", ctx.out, "--gltf", bad))
+
+
+@case("outputs", "wrap --gltf onto its own GLB scan", "error", "also an input")
+def wrap_gltf_onto_scan(ctx):
+    p = sample_copy(ctx)
+    scan = ctx.write("scan.glb", trimesh_scan(ctx, "scan.glb"))
+    return Run(scan, ["wrap", p["template"], scan, "--template-landmarks",
+                      p["template_landmarks"], "--scan-landmarks", p["scan_landmarks"],
+                      "--model", "rbf", "-q", "-o", ctx.out, "--gltf", scan])
+
+
+@case("outputs", "wrap --gltf an existing folder", "error", "is a folder")
+def wrap_gltf_is_folder(ctx):
+    p = sample_copy(ctx)
+    folder = ctx.dir / "fitted.glb"
+    folder.mkdir()
+    (folder / "keep.txt").write_text("a file of the user's\n")
+    return Run(folder, wrap_argv(p, "-o", ctx.out, "--gltf", folder))
+
+
+@case("outputs", "wrap --gltf and --report the same file", "error", "same file")
+def wrap_gltf_is_report(ctx):
+    p = sample_copy(ctx)
+    both = ctx.dir / "out" / "fitted.gltf"
+    return Run(both, wrap_argv(p, "-o", ctx.out, "--report", both, "--gltf", both))
+
+
+@case("outputs", "run: a job file's gltf key with an unknown extension", "error",
+      r"\.glb \(binary\)")
+def run_gltf_extension(ctx):
+    p = ctx.job()
+    p.write_text(p.read_text().replace('[wrap]', 'gltf = "out/fitted.usdz"\n[wrap]'))
+    return Run(ctx.dir / "out" / "fitted.usdz", ["run", p])
+
+
+@case("outputs", "convert: OUT.mtl would overwrite the input's library", "error",
+      "also an input")
+def convert_library_onto_input(ctx):
+    p = sample_copy(ctx)
+    # scan.OBJ is another file than scan.obj, but its library would be scan.mtl
+    return Run(p["scan_mtl"], ["convert", p["scan"], p["scan"].with_name("scan.OBJ")])
+
+
 @case("outputs", "transfer: a source shape file inside -o", "error", "also an input")
 def transfer_shape_file_in_out(ctx):
     p = sample_copy(ctx)
@@ -1013,6 +1061,9 @@ CANNOT_CREATE = {
                                    lambda ctx, p, f: (f / "x.glb", transfer_argv(
                                        ctx, p, p["blendshapes/blink"].parent, "-o",
                                        ctx.dir / "shapes", "--gltf", f / "x.glb"))),
+    "wrap_gltf_through_file": ("wrap --gltf under a path through a file",
+                               lambda ctx, p, f: (f / "x.glb", wrap_argv(
+                                   p, "-o", ctx.out, "--gltf", f / "x.glb"))),
     "track_out_is_file": ("track -o a file", lambda ctx, p, f: (
         f, track_argv(ctx, p, "-o", f))),
     "evaluate_heatmap_through_file": ("evaluate --heatmap under a path through a file",

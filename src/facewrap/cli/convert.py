@@ -1,17 +1,46 @@
-"""``facewrap convert IN OUT``: convert a mesh between OBJ and PLY."""
+"""``facewrap convert IN OUT``: convert a mesh between OBJ and PLY.
+
+An OBJ output names a material library only when one is written beside it:
+``OUT.mtl`` with the input's materials (texture paths rebased onto the output's
+folder) or, for a PLY with one ``TextureFile``, a material showing that image
+(:func:`facewrap.io.mtl.library_beside`).  Mesh and library are staged and moved
+into place together.
+"""
 
 from __future__ import annotations
 
+import os
+
+from facewrap.errors import InputError
 from facewrap.io import read_mesh, write_mesh
-from facewrap.io.paths import check_output_paths
+from facewrap.io.dispatch import MESH_WRITE_EXTENSIONS
+from facewrap.io.mtl import library_beside, write_mtl
+from facewrap.io.paths import check_output_paths, staged_outputs
 
 __all__ = ["register", "cmd_convert"]
 
 
+def _library_path(output) -> str:
+    return os.path.splitext(os.fspath(output))[0] + ".mtl"
+
+
 def cmd_convert(args) -> int:
     """Convert between OBJ and PLY, keeping vertex order, polygons and UVs."""
-    check_output_paths(files=[args.output], inputs=[args.input])
-    write_mesh(args.output, read_mesh(args.input))
+    ext = os.path.splitext(os.fspath(args.output))[1].lower()
+    is_obj = ext == ".obj"
+    # OUT.mtl is checked whether or not the input turns out to have materials
+    check_output_paths(files=[args.output] + ([_library_path(args.output)] if is_obj
+                                              else []), inputs=[args.input])
+    if ext not in MESH_WRITE_EXTENSIONS:  # before staging, so the error names OUT
+        raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; use "
+                         + ", ".join(MESH_WRITE_EXTENSIONS), args.output)
+    mesh = read_mesh(args.input)
+    with staged_outputs() as stage:
+        if is_obj:
+            mesh, library = library_beside(mesh, args.input, args.output)
+            if library is not None:
+                write_mtl(stage.file(_library_path(args.output)), library)
+        write_mesh(stage.file(args.output), mesh)
     print(args.output)
     return 0
 

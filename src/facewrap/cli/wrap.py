@@ -54,7 +54,7 @@ def cmd_wrap(args) -> int:
                   scan_landmarks=args.scan_landmarks, output=args.output,
                   blendshapes=args.blendshapes, exclude=args.exclude,
                   texture=args.texture, texture_size=args.texture_size,
-                  report=args.report, output_frame=args.output_frame,
+                  report=args.report, gltf=args.gltf, output_frame=args.output_frame,
                   units=args.units)
     run_wrap_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
     return 0
@@ -84,6 +84,11 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--texture", help="scan texture image to bake into the template UVs")
     p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
     p.add_argument("--report", help="write metrics and timings as JSON")
+    p.add_argument("--gltf", metavar="OUT.glb|OUT.gltf",
+                   help="also write the fitted mesh as glTF (binary .glb or JSON .gltf, "
+                        "by extension): smooth normals, a PBR material, the baked "
+                        "texture; positions in metres (as they are when the unit is "
+                        "unknown)")
     add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_wrap)

@@ -18,8 +18,8 @@ What an engine expects is there too: smooth vertex normals computed from the mes
 (the same normal on both sides of a UV seam, so seams do not show) with a normal
 delta per morph target, a PBR material (metallic 0), and, when the mesh has UVs and
 images are given, each image embedded as PNG as the base colour of its own
-primitive and material, one per UDIM tile (REPEAT wrapping, so a tile's UVs in
-``[k, k + 1)`` read its image as they are).
+primitive and material, one per UDIM tile or per material group of a tile (REPEAT
+wrapping, so a tile's UVs in ``[k, k + 1)`` read its image as they are).
 
 :func:`read_gltf_morphs` reads both forms, buffers embedded as data URIs or in
 files beside the ``.gltf``, and checks every accessor against its buffer view and
@@ -129,19 +129,61 @@ def _smooth_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
 
 
 def _triangle_tiles(uv: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """UDIM tile (1001 + floor(u) + 10 floor(v)) of each triangle's UV centroid."""
+    """UDIM tile (1001 + floor(u) + 10 floor(v)) of each triangle's UV centroid; -1
+    outside the UDIM range (u in [0, 10), v in [0, 100)), which no tile holds."""
     cell = np.floor(uv[tris].mean(axis=1)).astype(np.int64)
-    return 1001 + cell[:, 0] + 10 * cell[:, 1]
+    inside = (cell[:, 0] >= 0) & (cell[:, 0] < 10) & (cell[:, 1] >= 0) & (cell[:, 1] < 100)
+    return np.where(inside, 1001 + cell[:, 0] + 10 * cell[:, 1], -1)
+
+
+def _texture_key(key):
+    """A key of ``textures``: a tile, or ``(tile, material ids)``, as ints."""
+    if isinstance(key, tuple):
+        tile, materials = key
+        return int(tile), tuple(sorted(int(m) for m in materials))
+    return int(key)
 
 
 def _checked_textures(textures) -> dict:
-    """``textures`` as tile → PNG bytes (an image alone is tile 1001's)."""
+    """``textures`` as key → PNG bytes (an image alone is tile 1001's), keys in order."""
     if textures is None:
         return {}
     if not isinstance(textures, dict):
         textures = {1001: textures}
-    return {int(t): png_bytes(as_image(im, f"texture of tile {t}"))
-            for t, im in sorted(textures.items())}
+    pngs = {}
+    for key, im in textures.items():
+        try:
+            key = _texture_key(key)
+        except (TypeError, ValueError):
+            raise ValueError(f"textures: key {key!r} is neither a tile nor a (tile, "
+                             "material ids) pair") from None
+        pngs[key] = png_bytes(as_image(im, f"texture {key}"))
+    if len({isinstance(k, tuple) for k in pngs}) > 1:
+        raise ValueError("textures: keys are tiles or (tile, material ids) pairs, "
+                         "not both")
+    return dict(sorted(pngs.items()))
+
+
+def _triangle_textures(neutral: Mesh, uv: np.ndarray, tris: np.ndarray,
+                       pngs: dict) -> np.ndarray:
+    """(t,) index into ``list(pngs)`` of the image each triangle shows, -1 for none.
+
+    A tile key holds the tile's triangles; a ``(tile, materials)`` key those of the
+    tile whose face has one of the materials (-1: no material), as a bake of one
+    texture set holds them.
+    """
+    tiles = _triangle_tiles(uv, tris)
+    out = np.full(len(tris), -1, dtype=np.int64)
+    if neutral.face_materials is None:
+        materials = np.full(len(tris), -1, dtype=np.int64)
+    else:
+        materials = np.asarray(neutral.face_materials, np.int64)[neutral.triangle_faces]
+    for k, key in enumerate(pngs):
+        if isinstance(key, tuple):
+            out[(tiles == key[0]) & np.isin(materials, key[1]) & (out < 0)] = k
+        else:
+            out[(tiles == key) & (out < 0)] = k
+    return out
 
 
 class _Blob:
@@ -172,22 +214,35 @@ class _Blob:
         return b"".join(self.parts)
 
 
-def _materials(gl, blob: _Blob, tiles_used, pngs: dict):
-    """PBR materials (one per textured tile, a plain one for the rest when there is
-    a rest), textures, images, samplers, and each tile's material."""
+def _key_name(key, material_names) -> str:
+    """``facewrap_1001`` for a tile, ``skin+eye_1001`` for the materials of a tile
+    (``facewrap`` standing for faces without one)."""
+    if not isinstance(key, tuple):
+        return f"facewrap_{key}"
+    names = [material_names[m] if 0 <= m < len(material_names) else "facewrap"
+             for m in key[1]]
+    return f"{'+'.join(names) or 'facewrap'}_{key[0]}"
+
+
+def _materials(gl, blob: _Blob, used, pngs: dict, material_names=()):
+    """PBR materials (one per image shown, a plain one for the rest when there is
+    a rest), textures, images, samplers, and the material of each index into
+    ``list(pngs)`` in ``used`` (-1: no image)."""
+    keys = list(pngs)
     materials, images, textures, of_tile = [], [], [], {}
-    for tile in tiles_used:
-        if tile not in pngs:
+    for k in used:
+        if k < 0:
             continue
-        images.append(gl.Image(bufferView=blob.view(pngs[tile]), mimeType="image/png",
-                               name=f"tile_{tile}"))
+        name = _key_name(keys[k], material_names)
+        images.append(gl.Image(bufferView=blob.view(pngs[keys[k]]), mimeType="image/png",
+                               name=name.replace("facewrap_", "tile_", 1)))
         textures.append(gl.Texture(source=len(images) - 1, sampler=0))
-        of_tile[tile] = len(materials)
+        of_tile[k] = len(materials)
         materials.append(gl.Material(
-            name=f"facewrap_{tile}", pbrMetallicRoughness=gl.PbrMetallicRoughness(
+            name=name, pbrMetallicRoughness=gl.PbrMetallicRoughness(
                 baseColorTexture=gl.TextureInfo(index=len(textures) - 1),
                 metallicFactor=0.0, roughnessFactor=0.7)))
-    plain = [t for t in tiles_used if t not in of_tile]
+    plain = [t for t in used if t not in of_tile]
     if plain:
         of_tile.update({t: len(materials) for t in plain})
         materials.append(gl.Material(name="facewrap", pbrMetallicRoughness=(
@@ -215,12 +270,12 @@ def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=Non
     attrs = gl.Attributes(POSITION=blob.add(base, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
                           NORMAL=blob.add(normals[vid].astype(np.float32), _FLOAT, "VEC3",
                                           _ARRAY_BUFFER))
-    tiles = np.full(len(tris), -1, dtype=np.int64)
+    image_of = np.full(len(tris), -1, dtype=np.int64)   # index into pngs, -1: none
     if uv is not None:
         flipped = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)
         attrs.TEXCOORD_0 = blob.add(flipped, _FLOAT, "VEC2", _ARRAY_BUFFER)
         if pngs:
-            tiles = _triangle_tiles(uv, tris)
+            image_of = _triangle_textures(neutral, uv, tris, pngs)
     setattr(attrs, "_FACEWRAP_VERTEX",
             blob.add(vid.astype(np.float32), _FLOAT, "SCALAR", _ARRAY_BUFFER))
     targets = []
@@ -229,11 +284,13 @@ def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=Non
         targets.append({"POSITION": blob.add(d, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
                         "NORMAL": blob.add((moved - normals)[vid].astype(np.float32),
                                            _FLOAT, "VEC3", _ARRAY_BUFFER)})
-    used = [int(t) for t in np.unique(tiles)]
-    materials, images, gl_textures, samplers, of_tile = _materials(gl, blob, used, pngs)
+    # primitives in the order of the images, the plain one last
+    used = sorted((int(t) for t in np.unique(image_of)), key=lambda t: (t < 0, t))
+    materials, images, gl_textures, samplers, of_tile = _materials(gl, blob, used, pngs,
+                                                                  neutral.materials)
     prims = [gl.Primitive(attributes=attrs, targets=targets or None,
                           material=of_tile[t],
-                          indices=blob.add(tris[tiles == t].astype(np.uint32).reshape(-1),
+                          indices=blob.add(tris[image_of == t].astype(np.uint32).reshape(-1),
                                            _UINT, "SCALAR", _ELEMENT_ARRAY_BUFFER))
              for t in used]
     mesh = gl.Mesh(name=name, primitives=prims, weights=[0.0] * len(names) or None,
@@ -269,7 +326,11 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
         Base-colour images, embedded as PNG: per UDIM tile (1001 the unit square),
         an image alone being tile 1001's.  Used when the mesh has UVs; each tile
         with an image becomes a primitive with its own textured PBR material, the
-        other triangles share a plain one.
+        other triangles share a plain one.  Keys may instead be ``(tile, material
+        ids)`` pairs: the image of the triangles of that tile whose face has one of
+        those materials (-1: no material), for materials whose UVs overlap inside
+        one tile and so each have an image of their own (the texture sets of
+        :func:`facewrap.texture.tiles.texture_sets`).
 
     Raises
     ------

@@ -7,7 +7,8 @@ blocks as they are written; :func:`output_library` builds the library of an outp
 OBJ: the template's materials kept by name, their texture paths rewritten to be
 relative to the output's folder, and ``map_Kd`` of each baked material pointing at
 its baked image.  :func:`with_library` gives the mesh to write with it, so an OBJ
-never names a library that is not written beside it.
+never names a library that is not written beside it; :func:`library_beside` does
+both for an OBJ written from a mesh read elsewhere (``convert``, ``transfer``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from facewrap.io.files import read_file_bytes
 from facewrap.mesh import Mesh
 
 __all__ = ["DEFAULT_MATERIAL", "read_mtl", "read_libraries", "mtl_text", "write_mtl",
-           "output_library", "with_library"]
+           "output_library", "with_library", "TEXTURE_MATERIAL", "library_beside"]
 
 #: Statements of a material the template's library does not describe.
 DEFAULT_MATERIAL = ("Ka 1 1 1", "Kd 0.8 0.8 0.8", "Ks 0 0 0", "d 1", "illum 1")
@@ -218,3 +219,59 @@ def with_library(mesh: Mesh, library: str | None, face_materials=None,
                 materials=tuple(materials or ()), face_groups=mesh.face_groups,
                 groups=mesh.groups, mtllib=(library,) if library else (),
                 vertex_colors=mesh.vertex_colors, texture=mesh.texture, **kw)
+
+
+#: Material given to a mesh read with one texture image and no materials (a PLY's
+#: ``TextureFile``), so the OBJ written from it shows the image.
+TEXTURE_MATERIAL = "texture"
+
+
+def library_beside(mesh: Mesh, source_path, output_path, library: str | None = None):
+    """The mesh to write as the OBJ ``output_path`` and the library to write beside it.
+
+    The materials of ``mesh`` (read from ``source_path``) are kept by name with their
+    libraries' statements, texture paths rebased onto the output's folder
+    (:func:`output_library`); a mesh with texture coordinates, no materials and one
+    texture image (:attr:`Mesh.texture`, relative to ``source_path``) gets one
+    material :data:`TEXTURE_MATERIAL` showing it.  Otherwise there is no library
+    and the OBJ names none.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    source_path : path
+        The file ``mesh`` was read from (its ``mtllib`` names are relative to it).
+    output_path : path
+        The OBJ to be written.
+    library : str, optional
+        The library's file name, in the output's folder; default the output's stem
+        with ``.mtl``.
+
+    Returns
+    -------
+    mesh : Mesh
+        Naming ``library`` when there is one, else no library.
+    materials : dict of str to list of str, or None
+        The library's materials, for :func:`write_mtl` at
+        ``os.path.join(os.path.dirname(output_path), library)``; None when none is
+        written.
+
+    Examples
+    --------
+    >>> tri = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.]], [[0, 1, 2]], mtllib=["gone.mtl"])
+    >>> written, lib = library_beside(tri, "in/a.obj", "out/b.obj")
+    >>> written.mtllib, lib
+    ((), None)
+    """
+    name = library or os.path.splitext(os.path.basename(os.fspath(output_path)))[0] + ".mtl"
+    if mesh.materials:
+        return with_library(mesh, name), output_library(
+            mesh.materials, source_path, mesh.mtllib, output_path, {})
+    if mesh.texture and mesh.face_uvs is not None:
+        folder = os.path.dirname(os.path.abspath(os.fspath(source_path)))
+        image = os.path.join(folder, mesh.texture)
+        return (with_library(mesh, name, np.zeros(mesh.n_faces, np.int64),
+                             (TEXTURE_MATERIAL,)),
+                output_library([TEXTURE_MATERIAL], source_path, (), output_path,
+                               {TEXTURE_MATERIAL: image}))
+    return with_library(mesh, None), None

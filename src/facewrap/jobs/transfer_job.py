@@ -6,6 +6,9 @@ deformation transfer (Sumner & Popović 2004, SPEC §3) or, with
 :func:`run_transfer_job` reads and checks the inputs, fits the model, transfers
 every source shape and writes one OBJ per shape in the target's topology, an
 optional GLB with morph targets and an optional JSON report, each atomically.
+The shape OBJs name one material library, :data:`SHAPE_LIBRARY` written beside
+them (the target's materials, texture paths rebased), or none when the target has
+no materials.
 Every input problem is an :class:`~facewrap.errors.InputError` naming the file.
 
 The report has the shape of a wrap job's (``"job"``, ``"settings"``,
@@ -39,6 +42,7 @@ from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.landmarks import read_markers
+from facewrap.io.mtl import library_beside, write_mtl
 from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
@@ -49,7 +53,10 @@ from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_su
 
 __all__ = ["TransferJobSettings", "TransferJob", "run_transfer_job",
            "transfer_job_inputs", "transfer_job_outputs", "check_transfer_job_paths",
-           "read_source_shapes"]
+           "read_source_shapes", "SHAPE_LIBRARY"]
+
+#: The material library the shape OBJs of ``out`` share (written inside ``out``).
+SHAPE_LIBRARY = "materials.mtl"
 
 
 @dataclass
@@ -243,21 +250,29 @@ def _fit(job: TransferJob, inputs: dict):
 
 
 def _shape_files(job: TransferJob, names) -> list[Path]:
-    """The OBJ that each shape is written to, inside ``job.out``."""
-    return [Path(job.out) / f"{name}.obj" for name in names]
+    """The OBJ that each shape is written to, inside ``job.out``, and the material
+    library they share (checked whether or not the target has materials)."""
+    return [Path(job.out) / f"{name}.obj" for name in names] + [
+        Path(job.out) / SHAPE_LIBRARY]
 
 
 def _write_shapes(job: TransferJob, stage, target, names, results) -> list[str]:
-    """One OBJ per shape in ``job.out`` (and the GLB), staged; returns the OBJ paths."""
+    """One OBJ per shape in ``job.out``, their material library (when the target
+    has materials) and the GLB, staged; returns the OBJ paths."""
     folder = stage.folder(job.out)
+    # the library's texture paths are rebased onto job.out, where it will lie
+    shaped, library = library_beside(target, job.target_neutral,
+                                     Path(job.out) / SHAPE_LIBRARY, SHAPE_LIBRARY)
+    if library is not None:
+        write_mtl(folder / SHAPE_LIBRARY, library)
     for name, X in zip(names, results):
-        write_obj(folder / f"{name}.obj", target.with_vertices(X))
+        write_obj(folder / f"{name}.obj", shaped.with_vertices(X))
     if job.gltf:
         # the target's own base-colour images, when its file says which they are
         write_gltf_morphs(stage.file(job.gltf), target, dict(zip(names, results)),
                           scale=job.settings.gltf_scale,
                           textures=file_textures(job.target_neutral, target))
-    return [str(p) for p in _shape_files(job, names)]
+    return [str(p) for p in _shape_files(job, names)[:len(names)]]
 
 
 def _repairs(repairs, names) -> dict:

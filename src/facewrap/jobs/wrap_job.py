@@ -35,6 +35,7 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
+from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
@@ -44,7 +45,7 @@ from facewrap.mesh import Mesh
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
 from facewrap.texture.udim import FIRST_TILE
-from facewrap.units import check_units_choice, resolve_units
+from facewrap.units import check_units_choice, metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
@@ -101,6 +102,9 @@ class WrapJob:
         Baked image size in pixels.
     report : path, optional
         JSON report (timings, iterations, fit distances, landmark errors).
+    gltf : path, optional
+        The fitted mesh as glTF (``.glb`` binary, ``.gltf`` JSON, by extension):
+        smooth normals, a PBR material, the baked images embedded; in metres.
     output_frame : {"scan", "template"}
         Where the written mesh lies: on the scan (default), or mapped back through
         the inverse of the template → scan landmark similarity, so it overlays the
@@ -123,6 +127,7 @@ class WrapJob:
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     report: str | None = output_field(default=None)
+    gltf: str | None = output_field(default=None)
     output_frame: str = output_field(path=False, default="scan")
     # a property of the input data, not a path: the [inputs] table, never resolved
     units: str = field(default="auto", metadata={"table": "inputs", "path": False})
@@ -177,7 +182,9 @@ def textureoutput_field(job: WrapJob) -> dict:
 def job_outputs(job: WrapJob) -> list[str]:
     """Files that :func:`run_wrap_job` writes for ``job``: mesh, report, baked images
     and, for an OBJ with materials or a baked texture, its material library
-    ``OUT.mtl``."""
+    ``OUT.mtl``.  An unknown glTF extension is an InputError, before any work."""
+    if job.gltf:
+        gltf_format(job.gltf)
     out = [getattr(job, n) for n in _path_fields("outputs") if getattr(job, n)]
     images = list(textureoutput_field(job).values())
     mtl = []
@@ -457,8 +464,8 @@ def _template_landmarks(job: WrapJob, template: Mesh, profile):
 
 
 def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
-    """Mesh, baked images, material library and report, staged and moved into place
-    together.
+    """Mesh, baked images, material library, glTF and report, staged and moved into
+    place together.
 
     The texture is baked inside the stage, so a failure there leaves none of the
     job's outputs behind (and an earlier run's outputs untouched).  An OBJ output
@@ -468,7 +475,7 @@ def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> Non
     reading + fitting + baking + writing, and ``fit`` keeps the wrap's own total.
     """
     t_write = time.perf_counter()
-    mesh, images, bake_seconds = result.mesh, {}, 0.0
+    mesh, images, bake_seconds, baked_images = result.mesh, {}, 0.0, {}
     with staged_outputs() as stage:
         if inputs["texture"] is not None:
             t = time.perf_counter()
@@ -489,6 +496,7 @@ def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> Non
                             "seconds": baked.seconds[s]}
                            for s, r in baked.images.items()]}
             images = paths
+            baked_images = {(s.tile, s.materials): r.image for s, r in baked.images.items()}
         if Path(job.output).suffix.lower() == ".obj":
             face_materials, materials, shown = material_images(mesh, images)
             mtl = Path(job.output).with_suffix(".mtl")
@@ -501,6 +509,12 @@ def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> Non
         if job.output_frame == "template":  # baked above in the scan's frame
             mesh = mesh.with_vertices(result.transform.inverse().apply(mesh.vertices))
         write_mesh(stage.file(job.output), mesh)
+        if job.gltf:  # in metres, glTF's unit (as it is when unknown); by texture set
+            metres = metres_per_unit(report["units"])
+            write_gltf_morphs(stage.file(job.gltf), result.mesh.with_vertices(
+                mesh.vertices), {}, scale=metres or 1.0, textures=baked_images)
+            report["gltf"] = {"path": job.gltf, "scale": metres or 1.0,
+                              "units": "m" if metres else report["units"]}
         timings = dict(report["timings"])
         timings.update(fit=timings.get("total", 0.0), read=report["read_seconds"],
                        bake=bake_seconds,

@@ -27,6 +27,7 @@ import numpy as np
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.mtl import with_library
 from facewrap.io.paths import staged_outputs
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
@@ -196,7 +197,8 @@ def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
     ``output_frame="template"`` writes every frame mapped back through the inverse
     of the first frame's landmark similarity (one map for the whole sequence, so
     the performer's head motion relative to frame 0 is kept); ``"scan"`` (the
-    default) writes them where the scans are.  ``track.json`` records it.
+    default) writes them where the scans are.  ``track.json`` records it.  The
+    frames name no material library (the template's is not written beside them).
     Returns the paths written.
     """
     if output_frame not in ("scan", "template"):
@@ -209,7 +211,8 @@ def write_track_outputs(folder, result: TrackResult, *, prefix: str = "frame",
         staged = stage.folder(folder)
         for path, r in zip(final, result.frames):
             mesh = r.mesh if back is None else r.mesh.with_vertices(back.apply(r.vertices))
-            write_mesh(staged / path.name, mesh)
+            # the template's mtllib is not beside the frames: name none (materials kept)
+            write_mesh(staged / path.name, with_library(mesh, None))
         if has_weights:
             buf = _io.StringIO()
             w = csv.writer(buf, lineterminator="\n")
