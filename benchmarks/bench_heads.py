@@ -1,0 +1,171 @@
+"""Benchmark: a full production head onto real scans, with landmarks only (issue 17).
+
+ICT-FaceKit's whole neutral head (26,719 v: skin, mouth and eye sockets, gums,
+tongue, teeth, eyeballs, tear films, lashes; cm) onto menpo's ``james`` scan (68
+landmarks, mm) and onto MeshMonk's demo face (5 landmarks, mm, with neck and
+shoulders), and ICT's face region alone (9,409 v) onto james.  Rows:
+
+* **facewrap, landmarks only** — what a user gets with no id lists: the template's
+  parts and cavities are found from the template alone and follow the skin;
+* **facewrap + ICT's profile** — ICT's ``vertex_indices.json`` beside the template,
+  as published: its landmarks and its fitting vertices;
+* **by hand** — vertices 11,248–26,718 (ICT's parts table) excluded, everything
+  else pulled: what the README used to tell users to do;
+* **pull everything** — nothing excluded, every vertex pulled (the old default).
+
+Measures, over ICT's own ``idx_to_fitting_verts`` (the face a scanner sees):
+fit mean / p95 (mm, vertices whose closest scan point is off the scan's border),
+flipped triangles (normal turned past 90° from the aligned template), and for the
+parts: vertices on the other side of the skin than on the template (signed
+distance to every non-part triangle; vertices touching the skin on the template,
+within 2e-4 of its size, have no side) and flipped part triangles.  Pictures of
+the landmarks-only results go to ``docs/images/head_*.png``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from facewrap.evaluate import surface_distances  # noqa: E402
+from facewrap.geometry import flipped_triangles  # noqa: E402
+from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
+from facewrap.wrapping.follow import side_changes  # noqa: E402
+from facewrap.wrapping.roles import CAVITY, PART  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+ICT = DATA / "ict-facekit" / "FaceXModel"
+IMAGES = ROOT / "docs" / "images"
+PARTS_START = 11248            # ICT's parts table: mouth socket onwards
+SKIN_END = 14062               # skin with its sockets; parts from here
+#: iBUG-68 indices of MeshMonk's five demo landmarks (inner eye corners, nose tip,
+#: mouth corners), in the order of its CSV files
+MESHMONK_IBUG = (39, 42, 30, 48, 54)
+
+
+def _inputs():
+    from facewrap.io import read_mesh
+    from facewrap.io.landmarks import read_landmarks, read_ljson
+    from facewrap.io.profile import read_template_profile
+    head = read_mesh(ICT / "generic_neutral_mesh.obj")
+    profile = read_template_profile(ICT / "vertex_indices.json")
+    james = (read_mesh(DATA / "scans/james/james.obj"),
+             read_ljson(DATA / "scans/james/james.ljson"))
+    mm = DATA / "scans/meshmonk"
+    demo = (read_mesh(mm / "DemoFace_10K.obj"), read_landmarks(mm / "DemoFaceLandmarks.csv"))
+    return head, profile, james, demo
+
+
+def _measures(result, template, scan, fitting) -> dict:
+    T = template.triangles
+    n = template.n_vertices
+    aligned = result.transform.apply(template.vertices)
+    fit = surface_distances(result.vertices, scan, mask=fitting[:n]).summary("")
+    inside = fitting[:n][T].all(axis=1)
+    flips = flipped_triangles(result.vertices, aligned, T)
+    out = {"fit_mean": fit["mean"], "fit_p95": fit["p95"],
+           "flipped": int((flips & inside).sum())}
+    if n > SKIN_END:
+        roles = np.zeros(n, np.int8)
+        roles[SKIN_END:] = PART       # ICT's parts table, whatever the run used
+        out["through"] = int(side_changes(T, aligned, result.vertices, roles).sum())
+        out["part_flips"] = int(flips[(T >= SKIN_END).all(axis=1)].sum())
+    return out
+
+
+def _run(template, scan, landmarks, scan_landmarks, fitting, **kw):
+    t = time.perf_counter()
+    settings = WrapSettings(model="graph", fit_hidden=kw.pop("fit_hidden", False))
+    r = wrap(template, scan, landmarks, scan_landmarks, settings, **kw)
+    out = _measures(r, template, scan, fitting)
+    out.update(time=time.perf_counter() - t, result=r)
+    return out
+
+
+def _pictures(name, template, result) -> str:
+    from facewrap.io.images import save_png
+    from facewrap.report.figures import render_views, side_by_side
+    V = result.transform.inverse().apply(result.vertices)    # in the template's frame
+    colors = np.tile([0.86, 0.80, 0.74], (template.n_vertices, 1))
+    colors[result.roles == CAVITY] = [0.95, 0.55, 0.25]
+    colors[result.roles == PART] = [0.35, 0.55, 0.90]
+    views = ["front", "left", (0, -35)]
+    images = render_views((V, template.triangles), views, size=(420, 480),
+                          colors=colors)
+    path = IMAGES / f"head_{name}.png"
+    save_png(path, side_by_side(images, ["front", "side", "below the nose"]))
+    return str(path.relative_to(ROOT))
+
+
+def run() -> dict:
+    if not (ICT / "generic_neutral_mesh.obj").is_file() or not (DATA / "scans").is_dir():
+        return {"cases": [], "notes": ["skipped: ../shared/data is absent"]}
+    head, profile, (james, james_lm), (demo, demo_lm) = _inputs()
+    n = head.n_vertices
+    fitting = np.zeros(n, bool)
+    fitting[profile.fitting] = True
+    by_hand = np.arange(PARTS_START, n)
+    ibug = profile.landmarks.vertex
+    five = type(profile.landmarks).from_vertices(ibug[list(MESHMONK_IBUG)])
+    plain = type(profile.landmarks).from_vertices(ibug)     # no names, as a text file
+    face, _ = head.submesh(np.arange(9230))          # ICT's parts table: face polygons
+    cases = [("ICT full head → james", "james", head, james, plain, james_lm, True),
+             ("ICT full head → MeshMonk demo face", "meshmonk", head, demo, five, demo_lm,
+              False),
+             ("ICT face region → james", None, face, james, plain, james_lm, True)]
+    out = {"cases": [], "notes": []}
+    for title, picture, template, scan, lm, scan_lm, with_profile in cases:
+        rows = {"facewrap, landmarks only": _run(template, scan, lm, scan_lm, fitting)}
+        if with_profile and template is head:
+            rows["facewrap + ICT's profile"] = _run(template, scan, profile.landmarks,
+                                                    scan_lm, fitting, exclude=~fitting)
+        if template is head:
+            rows["by hand (parts excluded)"] = _run(template, scan, lm, scan_lm, fitting,
+                                                    exclude=by_hand, fit_hidden=True)
+        rows["pull everything (old default)"] = _run(template, scan, lm, scan_lm, fitting,
+                                                     fit_hidden=True)
+        image = None
+        if picture:
+            image = _pictures(picture, template, rows["facewrap, landmarks only"]["result"])
+        for r in rows.values():
+            r.pop("result")
+        out["cases"].append({"name": title, "template": template.n_vertices,
+                             "scan": len(scan.triangles), "landmarks": len(lm),
+                             "rows": rows, "image": image})
+    return out
+
+
+def markdown(r: dict) -> str:
+    L = ["### A production head onto real scans, landmarks only", "",
+         "ICT-FaceKit's full head (skin, sockets, gums, tongue, teeth, eyeballs, lashes) "
+         "with only landmarks given: its parts and cavities are found from the template "
+         "and follow the skin (`wrapping/roles.py`, `wrapping/follow.py`). Fit over ICT's "
+         "own fitting vertices (mm, off the scan's border); flipped = their triangles "
+         "turned past 90° from the aligned template; through = part vertices on the "
+         "other side of the skin than on the template; part flips = flipped triangles "
+         "of the parts. Model `graph` (no blendshapes), one run each.", ""]
+    for note in r.get("notes", []):
+        L += [note, ""]
+    for c in r["cases"]:
+        L += [f"**{c['name']}** — template {c['template']:,} v, scan {c['scan']:,} "
+              f"triangles, {c['landmarks']} landmarks.", "",
+              "| run | fit mean / p95 (mm) | flipped | through | part flips | time (s) |",
+              "|---|---:|---:|---:|---:|---:|"]
+        for name, x in c["rows"].items():
+            L.append(f"| {name} | {x['fit_mean']:.3f} / {x['fit_p95']:.3f} | "
+                     f"{x['flipped']} | {x.get('through', '–')} | "
+                     f"{x.get('part_flips', '–')} | {x['time']:.1f} |")
+        if c["image"]:
+            L += ["", f"![{c['name']}]({Path(c['image']).relative_to('docs')}) "
+                  "(landmarks only; orange: cavities, blue: parts)"]
+        L.append("")
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    print(markdown(run()))
