@@ -27,6 +27,7 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
+from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.follow import follow_skin
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
@@ -386,6 +387,15 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     return out, summary
 
 
+def _timed(timings: dict, key: str, bar, stage, *args, **kw):
+    """``stage(*args, **kw)``, its seconds in ``timings[key]``, one step of ``bar``."""
+    t = time.perf_counter()
+    out = stage(*args, **kw)
+    timings[key] = time.perf_counter() - t
+    bar.advance()
+    return out
+
+
 def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
          scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
          exclude=None, fit_mask=None, pinned=None, blendshapes=None,
@@ -432,39 +442,38 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     """
     timings = {}
     t0 = time.perf_counter()
-    problem = prepare_wrap(template, scan, template_landmarks, scan_landmarks, settings,
-                           exclude=exclude, fit_mask=fit_mask, pinned=pinned,
-                           blendshapes=blendshapes, scan_tree=scan_tree,
-                           graph_cache=graph_cache)
-    timings["setup"] = time.perf_counter() - t0
+    # on a terminal, one line that says which stage runs (the ICP draws its own bars)
+    with progress(6, "wrap: checking the inputs") as bar:
+        problem = _timed(timings, "setup", bar, prepare_wrap, template, scan,
+                         template_landmarks, scan_landmarks, settings, exclude=exclude,
+                         fit_mask=fit_mask, pinned=pinned, blendshapes=blendshapes,
+                         scan_tree=scan_tree, graph_cache=graph_cache)
+        similarity = _timed(timings, "align", bar, align, problem, initial)
+        V = similarity.apply(template.vertices)
 
-    t = time.perf_counter()
-    similarity = align(problem, initial)
-    V = similarity.apply(template.vertices)
-    timings["align"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    fitted = fit_model(problem, V, similarity, initial)
-    V = fitted.vertices
-    if fitted.setup_seconds:
-        timings["model_setup"] = fitted.setup_seconds
-    # "model_setup" (graph, coarse pre-fit) and "icp" are disjoint parts of the run
-    timings["icp" if problem.spec.fitted_by_icp else "warp"] = (
-        time.perf_counter() - t - fitted.setup_seconds)
-
-    pull = None
-    if problem.spec.fitted_by_icp and problem.settings.landmark_pull:
+        bar.update(description=f"wrap: fitting the {problem.spec.name} model")
         t = time.perf_counter()
-        V, pull = pull_landmarks(problem, V)
-        timings["landmark_pull"] = time.perf_counter() - t
+        fitted = fit_model(problem, V, similarity, initial)
+        V = fitted.vertices
+        if fitted.setup_seconds:
+            timings["model_setup"] = fitted.setup_seconds
+        # "model_setup" (graph, coarse pre-fit) and "icp" are disjoint parts of the run
+        timings["icp" if problem.spec.fitted_by_icp else "warp"] = (
+            time.perf_counter() - t - fitted.setup_seconds)
+        bar.advance()
 
-    t = time.perf_counter()
-    projection = project(problem, V)
-    timings["project"] = time.perf_counter() - t
-    t = time.perf_counter()
-    out, finish = finish_fit(problem, V if projection is None else projection.vertices,
+        pull = None
+        if problem.spec.fitted_by_icp and problem.settings.landmark_pull:
+            bar.update(description="wrap: pulling landmarks")
+            V, pull = _timed(timings, "landmark_pull", bar, pull_landmarks, problem, V)
+        else:
+            bar.advance()
+        bar.update(description="wrap: projecting onto the scan")
+        projection = _timed(timings, "project", bar, project, problem, V)
+        bar.update(description="wrap: unfolding, parts following")
+        out, finish = _timed(timings, "finish", bar, finish_fit, problem,
+                             V if projection is None else projection.vertices,
                              similarity, projection, rest=fitted.rest)
-    timings["finish"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
 
     metrics = fit_metrics(out, problem.tree,
