@@ -42,10 +42,14 @@ def _cases() -> list[tuple[Case, tuple]]:
     out = []
     james = DATA / "scans/james/james.obj"
     if james.is_file() and nicp.cases.ict_available():
+        from facewrap.io.profile import read_template_profile
         face, landmarks, shapes = nicp.cases.ict_template()
         scan = read_mesh(james)
+        fitting = np.zeros(face.n_vertices, bool)
+        ids = read_template_profile(nicp.cases.ict_kit().folder / "vertex_indices.json").fitting
+        fitting[ids[ids < face.n_vertices]] = True
         out.append((Case("ICT face → james", face, landmarks, shapes, scan,
-                         read_ljson(DATA / "scans/james/james.ljson"), None, None),
+                         read_ljson(DATA / "scans/james/james.ljson"), None, fitting),
                     ("hybrid", "graph")))
     mm = DATA / "scans/meshmonk"
     if (mm / "DemoFace_10K.obj").is_file():
@@ -75,7 +79,9 @@ def _folds(V, ref, T) -> int:
 def measures(V, case: Case) -> dict:
     """Fit (away from the scan's borders), landmark error and folds of ``V``."""
     T = case.template.triangles
-    d = surface_distances(V, case.scan, exclude_border=True)
+    # case.mask: the vertices a template means to fit (ICT's own fitting vertices),
+    # the same for every method; None: all
+    d = surface_distances(V, case.scan, exclude_border=True, mask=case.mask)
     ia, ib = pair_landmarks(case.landmarks, case.scan_landmarks)
     e = np.linalg.norm(case.landmarks.positions(V, T)[ia]
                        - case.scan_landmarks.positions(case.scan.vertices,
@@ -137,7 +143,9 @@ def markdown(r: dict) -> str:
     L = ["### Real scans without ground truth: fit, landmarks, folds", "",
          "Fit = distance from each result vertex to the scan, over the vertices whose "
          "closest scan point is not on the scan's border (holes, outline) — the part "
-         "of the template the scan sees; mm. Landmarks = distance between the "
+         "of the template the scan sees — and, for ICT, among ICT's own fitting "
+         "vertices (`idx_to_fitting_verts`: not the nostril interiors, eye rims and "
+         "inner lips that facewrap leaves to follow); mm. Landmarks = distance between the "
          "template's landmarks on the result and the scan's. Flipped = triangles on "
          "the seen part whose normal turned past 90° from the (similarity-aligned) "
          "template's; folds = edge-adjacent triangle pairs facing apart that did not "
