@@ -92,11 +92,13 @@ def read_file_bytes(path, text: bool = False) -> bytes:
 def read_json(path):
     """A JSON file's content; :class:`InputError` naming the file (and line) when
     it is missing, empty or not valid JSON."""
-    text = read_file_bytes(path, text=True).decode("utf-8", errors="replace")
+    text = read_file_bytes(path, text=True).decode("utf-8-sig", errors="replace")
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+    except RecursionError:   # the C decoder recurses once per nesting level
+        raise InputError("invalid JSON: nested too deeply", path) from None
 
 
 def read_format_items(path, format_name: str, key: str, what: str) -> list:

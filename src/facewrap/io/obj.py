@@ -229,6 +229,9 @@ def _parse_corners(rows: _Rows, path):
             except ValueError:
                 raise InputError(f"face index is not an integer: {tok!r}", path,
                                  rows.line(face_of_corner[c])) from None
+            except OverflowError:   # beyond int64: no mesh has that many vertices
+                raise InputError(f"face index out of range: {tok!r}", path,
+                                 rows.line(face_of_corner[c])) from None
     return sizes, out
 
 
