@@ -6,14 +6,48 @@ import json
 import os
 
 from facewrap.errors import InputError
+from facewrap.io.paths import special_kind
 
 __all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
-           "read_format_items"]
+           "read_format_items", "memory_budget", "not_a_file"]
 
 # How much of each end of a file is looked at before the whole is read: enough to
 # catch a binary or sparse (zero-filled) file handed to a text reader, small enough
 # to cost nothing.
 _SAMPLE_BYTES = 1 << 16
+
+
+def not_a_file(path) -> InputError:
+    """The error for an input ``path`` that is not a regular file, saying what it is.
+
+    Examples
+    --------
+    >>> str(not_a_file("/")), str(not_a_file("/dev/null"))
+    ('/: is a folder, not a file', '/dev/null: is a character device, not a regular file')
+    >>> str(not_a_file("/no/such"))
+    '/no/such: no such file'
+    """
+    if os.path.isdir(path):
+        return InputError("is a folder, not a file", path)
+    kind = special_kind(path)
+    if kind:
+        return InputError(f"is {kind}, not a regular file", path)
+    if os.path.islink(path):
+        return InputError("is a symlink to a missing file", path)
+    return InputError("no such file", path)
+
+
+def memory_budget() -> int:
+    """Bytes one command may plan to hold: half the machine's memory.
+
+    Work whose memory need is known up front (a texture bake, an animation's
+    frames) is refused before it starts when it needs more, instead of failing
+    after minutes with an allocation error.
+    """
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (AttributeError, ValueError, OSError):   # not a POSIX system
+        return 4 << 30
 
 
 def file_size(path) -> int:
@@ -27,6 +61,8 @@ def file_size(path) -> int:
     -------
     int
     """
+    if not os.path.isfile(path):
+        raise not_a_file(path)
     try:
         return os.stat(path).st_size
     except OSError as exc:

@@ -44,7 +44,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import read_file_bytes, read_format_items, read_json
+from facewrap.io.files import not_a_file, read_file_bytes, read_format_items, read_json
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_pts", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
@@ -394,7 +394,7 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
     """
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if not os.path.isfile(path):
-        raise InputError("no such file", path)
+        raise not_a_file(path)
     if ext == ".ljson":
         return read_ljson(path)
     if ext == ".pts":
@@ -419,13 +419,47 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
 
     Accepts Sumner's ``.cons`` (optional count line, then ``src, tgt`` or ``src tgt``
     per line), YAML with ``markers: ["src:tgt", ...]`` (``.yml``/``.yaml``), and the
-    facewrap marker JSON.
+    facewrap marker JSON.  A pair given twice is kept; a vertex paired with two
+    different partners is refused (the two pairs contradict each other).
 
     Returns
     -------
     source : (k,) int64
     target : (k,) int64
+
+    Raises
+    ------
+    InputError
+        Naming the file: malformed, or the first pair that contradicts another.
     """
+    source, target = _read_marker_pairs(path)
+    _check_one_partner(source, target, path)
+    return source, target
+
+
+def _check_one_partner(source: np.ndarray, target: np.ndarray, path) -> None:
+    """Refuse a vertex on either side that two markers give different partners."""
+    pairs = np.stack([source, target], axis=1)
+    _, first = np.unique(pairs, axis=0, return_index=True)
+    first = np.sort(first)   # one marker per distinct pair, in file order
+    for side, other, what, whose in ((0, 1, "source", "target"),
+                                     (1, 0, "target", "source")):
+        ids = pairs[first, side]
+        _, seen, counts = np.unique(ids, return_index=True, return_counts=True)
+        if not np.any(counts > 1):
+            continue
+        vertex = ids[seen[counts > 1]]
+        rows = first[np.isin(ids, vertex)]
+        a = rows[0]                                   # the first pair in conflict
+        b = rows[(pairs[rows, side] == pairs[a, side])][1]
+        raise InputError(f"markers {a} and {b} pair {what} vertex {pairs[a, side]} with "
+                         f"two {whose} vertices ({pairs[a, other]} and "
+                         f"{pairs[b, other]}): each vertex can have one partner only",
+                         path)
+
+
+def _read_marker_pairs(path) -> tuple[np.ndarray, np.ndarray]:
+    """Marker pairs as the file gives them (see :func:`read_markers`)."""
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if ext in (".yml", ".yaml"):
         return _read_markers_yaml(path)

@@ -20,16 +20,18 @@ earlier run's outputs intact when a re-run fails.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import secrets
 import shutil
+import stat
 from pathlib import Path
 
 from facewrap.errors import InputError
 
 __all__ = ["real_path", "side_files", "find_overlap", "check_outputs_apart", "check_writable",
-           "check_output_paths", "StagedOutputs", "staged_outputs"]
+           "check_output_paths", "special_kind", "StagedOutputs", "staged_outputs"]
 
 #: Prefix of staged files and folders (hidden, so a listing does not show them).
 STAGE_PREFIX = ".facewrap-staged-"
@@ -175,6 +177,31 @@ def _nearest_existing(path: str) -> str:
     return path
 
 
+def special_kind(path) -> str | None:
+    """What ``path`` is when it exists but is neither a regular file nor a folder.
+
+    Returns
+    -------
+    str or None
+        ``"a fifo"``, ``"a character device"``, ``"a block device"``, ``"a socket"``
+        or ``"a symlink loop"``; None for a file, a folder or a missing path.
+
+    Examples
+    --------
+    >>> special_kind("/dev/null"), special_kind("/"), special_kind("/no/such")
+    ('a character device', None, None)
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        return "a symlink loop" if exc.errno == errno.ELOOP else None
+    for test, kind in ((stat.S_ISFIFO, "a fifo"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return None
+
+
 def check_writable(files=(), folders=(), source=None) -> None:
     """Every output can be created: its folder exists or can be made, and is writable.
 
@@ -197,6 +224,10 @@ def check_writable(files=(), folders=(), source=None) -> None:
     asked = [(d, True) for d in folders] + [(f, False) for f in files]
     for path, is_folder in asked:
         p = os.path.abspath(os.fspath(path))
+        kind = special_kind(p)
+        if kind:   # replacing a device or a fifo with a file is never what was meant
+            raise InputError(f"output {os.fspath(path)!r} is {kind}, not a "
+                             f"{'folder' if is_folder else 'file'}", source or path)
         if os.path.isdir(p) and not is_folder:
             raise InputError(f"output {os.fspath(path)!r} is a folder, not a file",
                              source or path)
@@ -336,7 +367,7 @@ def staged_outputs():
     stage = StagedOutputs()
     try:
         yield stage
-    except BaseException:
+        stage.commit()
+    except BaseException:   # in the block, or a move that failed: nothing staged stays
         stage.discard()
         raise
-    stage.commit()
