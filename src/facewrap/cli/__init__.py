@@ -51,7 +51,7 @@ class _OneLineParser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (no usage block), status 2."""
 
     def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+        self.exit(2, f"facewrap: error: {message} (see '{self.prog} --help')\n")
 
 
 def build_parser(command: str | None = None, *, every: bool = True

@@ -38,16 +38,23 @@ def not_a_file(path) -> InputError:
 
 
 def memory_budget() -> int:
-    """Bytes one command may plan to hold: half the machine's memory.
+    """Bytes one command may plan to hold: half the machine's memory, or half the
+    process's address-space limit (``ulimit -v``) when that is lower.
 
     Work whose memory need is known up front (a texture bake, an animation's
     frames) is refused before it starts when it needs more, instead of failing
     after minutes with an allocation error.
     """
     try:
-        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+        budget = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
     except (AttributeError, ValueError, OSError):   # not a POSIX system
-        return 4 << 30
+        budget = 4 << 30
+    try:
+        import resource
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, OSError, ValueError):
+        return budget
+    return budget if limit == resource.RLIM_INFINITY else min(budget, limit // 2)
 
 
 def file_size(path) -> int:

@@ -65,7 +65,8 @@ def _bounded(value: int, path, line=None) -> int:
 
 
 def _text(path) -> str:
-    return read_file_bytes(path, text=True).decode("utf-8", errors="replace")
+    # a byte-order mark (Windows editors write one) is not part of the first line
+    return read_file_bytes(path, text=True).decode("utf-8-sig", errors="replace")
 
 
 def _content_lines(text: str):
@@ -350,6 +351,8 @@ def read_landmarks_json(path) -> Landmarks:
                 points[i] = p
         except (TypeError, ValueError) as exc:
             raise InputError(f"{where}: {exc}", path) from None
+    if not any(isinstance(it, dict) and "name" in it for it in items):
+        names = None   # names are optional: without any, the set pairs by order
     try:
         return Landmarks(vertex, triangle, bary, points, names)
     except ValueError as exc:
@@ -368,7 +371,8 @@ def write_landmarks_json(path, landmarks: Landmarks) -> None:
     """Write any landmark set in the facewrap JSON format (names kept)."""
     items = []
     for i in range(len(landmarks)):
-        it = {"name": landmarks.label(i)}
+        # an unnamed set stays unnamed (read back, it pairs by order again)
+        it = {} if landmarks.names is None else {"name": landmarks.names[i]}
         if landmarks.vertex[i] >= 0:
             it["vertex"] = int(landmarks.vertex[i])
         elif landmarks.triangle[i] >= 0:

@@ -31,7 +31,8 @@ from pathlib import Path
 from facewrap.errors import InputError
 
 __all__ = ["real_path", "side_files", "find_overlap", "check_outputs_apart", "check_writable",
-           "check_output_paths", "special_kind", "StagedOutputs", "staged_outputs"]
+           "check_output_paths", "special_kind", "shown_path",
+           "new_folders_removed_on_failure", "StagedOutputs", "staged_outputs"]
 
 #: Prefix of staged files and folders (hidden, so a listing does not show them).
 STAGE_PREFIX = ".facewrap-staged-"
@@ -177,6 +178,25 @@ def _nearest_existing(path: str) -> str:
     return path
 
 
+_STAGED = re.compile(r"^(?:\.facewrap-staged-|\.tmp-)[0-9a-f]{8}-(.+)$")
+
+
+def shown_path(path) -> str:
+    """``path`` as the user named it: staged and temporary names taken off.
+
+    Outputs are written under hidden names (:class:`StagedOutputs`,
+    :func:`~facewrap.io.atomic.atomic_write`); an error while writing names the
+    output the user asked for.
+
+    Examples
+    --------
+    >>> shown_path("out/.facewrap-staged-0a1b2c3d-seq/.tmp-89abcdef-f.obj")
+    'out/seq/f.obj'
+    """
+    parts = os.fspath(path).split(os.sep)
+    return os.sep.join(m.group(1) if (m := _STAGED.match(p)) else p for p in parts)
+
+
 def special_kind(path) -> str | None:
     """What ``path`` is when it exists but is neither a regular file nor a folder.
 
@@ -223,6 +243,9 @@ def check_writable(files=(), folders=(), source=None) -> None:
     """
     asked = [(d, True) for d in folders] + [(f, False) for f in files]
     for path, is_folder in asked:
+        if not os.fspath(path):   # "" would be the current folder: never what was meant
+            raise InputError(f"the output {'folder' if is_folder else 'file'} name is "
+                             "empty", source or "''")
         p = os.path.abspath(os.fspath(path))
         kind = special_kind(p)
         if kind:   # replacing a device or a fifo with a file is never what was meant
@@ -341,6 +364,39 @@ class StagedOutputs:
             with contextlib.suppress(OSError):
                 folder.rmdir()   # only when still empty
         self._files, self._folders, self._made = [], [], []
+
+
+@contextlib.contextmanager
+def new_folders_removed_on_failure(folder):
+    """Folders up to ``folder`` that the block creates are removed if it fails.
+
+    For writers that create their destination folder themselves: a failed run
+    leaves no empty folder behind (a folder that received other files stays).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> try:
+    ...     with new_folders_removed_on_failure(d / "a" / "b"):
+    ...         (d / "a" / "b").mkdir(parents=True)
+    ...         raise OSError("disk full")
+    ... except OSError:
+    ...     pass
+    >>> list(d.iterdir())
+    []
+    """
+    here, missing = Path(os.path.abspath(os.fspath(folder))), []
+    while not os.path.lexists(here) and here.parent != here:
+        missing.append(here)
+        here = here.parent
+    try:
+        yield
+    except BaseException:
+        for made in missing:   # deepest first
+            with contextlib.suppress(OSError):
+                made.rmdir()   # only when still empty
+        raise
 
 
 @contextlib.contextmanager

@@ -224,8 +224,8 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if job.texture and need > memory_budget():
         raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "
                          f"about {need / 2 ** 30:.1f} GiB of memory, more than the "
-                         f"{memory_budget() / 2 ** 30:.1f} GiB allowed (half this "
-                         "machine's memory)", source or job.output)
+                         f"{memory_budget() / 2 ** 30:.1f} GiB budget (half the memory, "
+                         "or of ulimit -v)", source or job.output)
     if job.output_frame not in OUTPUT_FRAMES:
         raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
                          f" got {job.output_frame!r}", source or job.output)
