@@ -238,3 +238,22 @@ def test_deeply_nested_json_is_one_error(tmp_path):
     p.write_text("[" * 200_000 + "]" * 200_000)
     with pytest.raises(InputError, match="nested too deeply"):
         read_landmarks(p)
+
+
+@pytest.mark.parametrize("items, said", [
+    ([{"point": [True, False, 1]}], "landmark 0: 'point' must be 3 finite numbers"),
+    ([{"point": [1, 2]}], "'point' must be 3 finite numbers"),
+    ([{"triangle": 0, "barycentric": [1, 0, None]}], "'barycentric' must be 3 finite")])
+def test_landmark_json_numbers_are_numbers(tmp_path, items, said):
+    p = tmp_path / "l.json"
+    p.write_text(json.dumps({"format": "facewrap.landmarks", "landmarks": items}))
+    with pytest.raises(InputError, match=said):
+        read_landmarks_json(p)
+
+
+def test_a_later_landmark_format_version_is_refused(tmp_path):
+    p = tmp_path / "l.json"
+    p.write_text(json.dumps({"format": "facewrap.landmarks", "version": 99,
+                             "landmarks": [{"vertex": 1}]}))
+    with pytest.raises(InputError, match="format version 99 is not supported"):
+        read_landmarks_json(p)

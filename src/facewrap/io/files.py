@@ -175,6 +175,9 @@ def read_format_items(path, format_name: str, key: str, what: str) -> list:
     if not isinstance(d, dict) or d.get("format") != format_name:
         raise InputError(f'not a facewrap {what} file ("format": "{format_name}" missing)',
                          path)
+    if d.get("version", 1) != 1:   # a later format may mean its fields differently
+        raise InputError(f"format version {str(d['version'])[:20]} is not supported "
+                         "(this facewrap reads version 1)", path)
     items = d.get(key)
     if not isinstance(items, list) or not items:
         raise InputError(f"'{key}' must be a non-empty list", path)

@@ -340,15 +340,9 @@ def read_landmarks_json(path) -> Landmarks:
                 vertex[i] = _nonneg_int(it["vertex"])
             elif keys[0] == "triangle":
                 triangle[i] = _nonneg_int(it["triangle"])
-                b = np.asarray(it.get("barycentric"), dtype=np.float64)
-                if b.shape != (3,) or not np.isfinite(b).all():
-                    raise ValueError("'barycentric' must be 3 finite numbers")
-                bary[i] = b
+                bary[i] = _three_numbers(it.get("barycentric"), "barycentric")
             else:
-                p = np.asarray(it["point"], dtype=np.float64)
-                if p.shape != (3,) or not np.isfinite(p).all():
-                    raise ValueError("'point' must be 3 finite numbers")
-                points[i] = p
+                points[i] = _three_numbers(it["point"], "point")
         except (TypeError, ValueError) as exc:
             raise InputError(f"{where}: {exc}", path) from None
     if not any(isinstance(it, dict) and "name" in it for it in items):
@@ -357,6 +351,17 @@ def read_landmarks_json(path) -> Landmarks:
         return Landmarks(vertex, triangle, bary, points, names)
     except ValueError as exc:
         raise InputError(str(exc), path) from None
+
+
+def _three_numbers(value, key: str) -> np.ndarray:
+    """A JSON ``[x, y, z]`` of finite numbers (``true`` is not the number 1)."""
+    if (not isinstance(value, list) or len(value) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)):
+        raise ValueError(f"'{key}' must be 3 finite numbers")
+    out = np.asarray(value, dtype=np.float64)
+    if not np.isfinite(out).all():
+        raise ValueError(f"'{key}' must be 3 finite numbers")
+    return out
 
 
 def _nonneg_int(x) -> int:
