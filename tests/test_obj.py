@@ -114,7 +114,7 @@ def test_binary_garbage_and_missing_file(tmp_path):
     p.write_bytes(bytes(range(256)) * 10)
     with pytest.raises(InputError, match="binary"):
         read_obj(p)
-    with pytest.raises(InputError, match="no such file"):
+    with pytest.raises(InputError, match="cannot read"):
         read_obj(tmp_path / "missing.obj")
     with pytest.raises(InputError, match="is a folder, not a file"):
         read_obj(tmp_path)

@@ -68,7 +68,7 @@ def file_size(path) -> int:
     -------
     int
     """
-    if not os.path.isfile(path):
+    if os.path.lexists(path) and not os.path.isfile(path):   # say what it is instead
         raise not_a_file(path)
     try:
         return os.stat(path).st_size
