@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from facewrap.animation import (FRAME_MATERIAL, interpolate_textures,
-                                interpolate_vertices, write_obj_sequence)
+from facewrap.animation import (FRAME_MATERIAL, check_sequence_budget, interpolate_textures,
+                                interpolate_vertices, obj_sequence_files,
+                                write_obj_sequence)
 from facewrap.io.obj import read_obj
 from facewrap.mesh import Mesh
 from facewrap.texture import load_image
@@ -125,3 +126,27 @@ def test_write_obj_sequence_checks_its_arguments(mixed_mesh, tmp_path):
         write_obj_sequence(tmp_path, bare, np.stack([bare.vertices] * 2),
                            textures=[np.zeros((2, 2, 3), np.uint8)] * 2)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_frame_counts_are_bounded_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match=r"in \[2, 100000\]"):
+        obj_sequence_files(tmp_path, 10 ** 9)
+    with pytest.raises(ValueError, match=r"need about 0\.4 GiB of memory"):
+        check_sequence_budget(tmp_path, 10, 10 ** 6, 100, memory_limit=2 ** 28)
+    # an image per frame counts too: 1000 frames of 4096 x 4096 RGB is 47 GiB
+    with pytest.raises(ValueError, match="need about 46.9 GiB of memory"):
+        check_sequence_budget(tmp_path, 1000, 10, 100, image_shape=(4096, 4096, 3),
+                              memory_limit=2 ** 30)
+    check_sequence_budget(tmp_path / "new" / "folder", 100, 1000, 10_000)
+
+
+def test_animate_refuses_a_frame_count_in_one_line(mixed_mesh, tmp_path, capsys):
+    from facewrap.cli import main
+    from facewrap.io.obj import write_obj
+    a = tmp_path / "a.obj"
+    write_obj(a, mixed_mesh)
+    assert main(["animate", str(a), str(a), "--frames", "1000000000", "-o",
+                 str(tmp_path / "seq")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("facewrap: error: --frames: must be an int in [2, 100000]")
+    assert "\n" not in err and sorted(p.name for p in tmp_path.iterdir()) == ["a.obj"]

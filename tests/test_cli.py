@@ -71,7 +71,8 @@ def test_a_value_the_settings_refuse_is_one_line_and_exit_2(tmp_path, capsys):
             "--node-spacing", "-1"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("facewrap: error: WrapSettings.node_spacing") and "\n" not in err
+    # the option as typed, not the settings field behind it
+    assert err.startswith("facewrap: error: --node-spacing: must be") and "\n" not in err
     assert not (tmp_path / "o.obj").exists()
 
 

@@ -7,7 +7,8 @@ import dataclasses
 
 import pytest
 
-from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
+from facewrap.cli.fit_options import add_fit_options, option_name, wrap_settings_from_args
+from facewrap.errors import InputError
 from facewrap.params import choices_of
 from facewrap.wrapping import WrapSettings
 
@@ -42,9 +43,24 @@ def test_options_map_to_settings():
                        "rigid_refine"}
 
 
-def test_values_the_settings_refuse_name_the_field():
-    with pytest.raises(ValueError, match="WrapSettings.node_spacing"):
+def test_values_the_settings_refuse_name_the_option():
+    with pytest.raises(InputError, match="^--node-spacing: must be .*; got -1.0$"):
         wrap_settings_from_args(parse("--node-spacing", "-1"))
+
+
+def test_every_settings_field_has_its_option():
+    """option_name names a flag the parser knows, for every field an option sets."""
+    p = argparse.ArgumentParser()
+    add_fit_options(p)
+    flags = {s for a in p._actions for s in a.option_strings}
+    fields = {f.name for f in dataclasses.fields(WrapSettings)}
+    checked = 0
+    for action in p._actions:
+        field = action.dest.removeprefix("no_")
+        if field in fields:
+            assert option_name(field) in flags, field
+            checked += 1
+    assert checked >= 15
 
 
 def test_alignment_and_matching_options_map_to_settings():
@@ -58,8 +74,8 @@ def test_alignment_and_matching_options_map_to_settings():
     ("--max-normal-angle", "max_normal_angle", "181"),
     ("--point-weight", "point_weight", "-0.1"),
     ("--point-weight", "point_weight", "nan")])
-def test_values_outside_the_settings_table_name_the_field(option, field, value):
-    with pytest.raises(ValueError, match=f"WrapSettings.{field}"):
+def test_values_outside_the_settings_table_name_the_option(option, field, value):
+    with pytest.raises(InputError, match=f"^{option}: must be"):
         wrap_settings_from_args(parse(option, value))
 
 

@@ -121,3 +121,24 @@ def test_cli_output_follows_the_umask_of_the_shell(tmp_path):
         assert r.returncode == 0, r.stderr
         assert mode_of(out) == expected
     assert src.read_bytes() == before and mode_of(src) == 0o444
+
+
+def test_a_write_beyond_the_file_size_limit_names_the_output(tmp_path):
+    """EFBIG (``ulimit -f``; ENOSPC alike) carries no file name: the error names the
+    output as the user asked for it, and nothing is left."""
+    import errno
+    import resource
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    staged = tmp_path / ".facewrap-staged-0123abcd-out"
+    staged.mkdir()
+    target = staged / "big.bin"
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4096, hard))
+    try:
+        with pytest.raises(OSError) as exc:
+            with atomic_write(target, "wb") as fh:
+                fh.write(b"x" * 100_000)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert exc.value.errno == errno.EFBIG
+    assert exc.value.filename == str(tmp_path / "out" / "big.bin")
+    assert litter(staged) == [] and not target.exists()

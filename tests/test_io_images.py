@@ -32,3 +32,17 @@ def test_png_round_trip_and_image_errors(tmp_path):
         load_image(tmp_path / "cut.png")
     with pytest.raises(ValueError, match="uint8"):
         save_png(tmp_path / "f.png", rgb.astype(np.float32))
+
+
+def test_check_image_decodes_the_whole_file(tmp_path):
+    from facewrap.io.images import check_image, png_bytes
+    rng = np.random.default_rng(1)
+    data = png_bytes(rng.integers(0, 256, (40, 30, 3), dtype=np.uint8))
+    p = tmp_path / "a.png"
+    p.write_bytes(data)
+    assert check_image(p) == (30, 40)
+    p.write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputError, match="a.png: cannot read image"):
+        check_image(p)
+    with pytest.raises(InputError, match="is a folder"):
+        check_image(tmp_path)

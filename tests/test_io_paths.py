@@ -9,7 +9,8 @@ import pytest
 
 from facewrap.errors import InputError
 from facewrap.io.paths import (StagedOutputs, check_output_paths, check_outputs_apart,
-                               check_writable, find_overlap, side_files, staged_outputs)
+                               check_writable, find_overlap, new_folders_removed_on_failure,
+                               shown_path, side_files, special_kind, staged_outputs)
 
 
 @pytest.fixture
@@ -123,3 +124,49 @@ def test_discard_keeps_folders_that_were_there(tree):
     stage.file(tree / "out" / "x.obj").write_text("x")
     stage.discard()
     assert (tree / "out").is_dir() and list((tree / "out").iterdir()) == []
+
+
+def test_outputs_that_are_devices_or_fifos_are_refused(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for path, folder, said in ((fifo, False, "is a fifo, not a file"),
+                               (fifo, True, "is a fifo, not a folder"),
+                               ("/dev/null", False, "is a character device")):
+        with pytest.raises(InputError, match=said):
+            check_writable(**({"folders": [path]} if folder else {"files": [path]}))
+    loop = tmp_path / "loop"
+    os.symlink(loop, loop)
+    assert special_kind(loop) == "a symlink loop"
+    assert special_kind(tmp_path) is None and special_kind(tmp_path / "none") is None
+    with pytest.raises(InputError, match="name is empty"):
+        check_writable(folders=[""])
+
+
+def test_a_commit_that_fails_leaves_no_staged_files(tmp_path):
+    """A folder output whose destination turned into a file meanwhile: the move
+    fails, and neither the staged folder nor its files are left behind."""
+    final = tmp_path / "out"
+    with pytest.raises(OSError):
+        with staged_outputs() as stage:
+            (stage.folder(final) / "a.txt").write_text("a")
+            final.write_text("in the way")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_shown_path_takes_staged_names_off():
+    staged = os.path.join("o", ".facewrap-staged-0123abcd-seq", ".tmp-89abcdef-f.obj")
+    assert shown_path(staged) == os.path.join("o", "seq", "f.obj")
+    assert shown_path("a/.hidden-f.obj") == "a/.hidden-f.obj"
+
+
+def test_new_folders_are_removed_on_failure_only(tmp_path):
+    kept = tmp_path / "ok" / "deep"
+    with new_folders_removed_on_failure(kept):
+        kept.mkdir(parents=True)
+    assert kept.is_dir()
+    with pytest.raises(RuntimeError):
+        with new_folders_removed_on_failure(tmp_path / "x" / "y"):
+            (tmp_path / "x" / "y").mkdir(parents=True)
+            (tmp_path / "x" / "other.txt").write_text("not ours to remove")
+            raise RuntimeError
+    assert sorted(p.name for p in (tmp_path / "x").iterdir()) == ["other.txt"]

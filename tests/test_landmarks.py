@@ -1,4 +1,6 @@
 import json
+import os
+import re
 
 import numpy as np
 import pytest
@@ -181,3 +183,77 @@ def test_pair_landmarks_refuses_names_on_one_side_only():
     shuffled = Landmarks.from_points(np.zeros((68, 3)), names=IBUG68_NAMES[::-1])
     with pytest.raises(ValueError, match="have names"):
         pair_landmarks(Landmarks.from_vertices(np.arange(68)), shuffled)
+
+
+def test_markers_giving_a_vertex_two_partners_are_refused(tmp_path):
+    p = tmp_path / "m.txt"
+    p.write_text("5 6\n7 8\n5 6\n")   # a pair given twice agrees with itself
+    src, tgt = read_markers(p)
+    assert src.tolist() == [5, 7, 5] and tgt.tolist() == [6, 8, 6]
+    for text, said in (("5 6\n7 8\n5 9\n", "markers 0 and 2 pair source vertex 5 with "
+                                           r"two target vertices \(6 and 9\)"),
+                       ("5 6\n7 8\n1 8\n", "markers 1 and 2 pair target vertex 8 with "
+                                           r"two source vertices \(7 and 1\)")):
+        p.write_text(text)
+        with pytest.raises(InputError, match=f"^{re.escape(str(p))}: {said}"):
+            read_markers(p)
+    j = tmp_path / "m.json"
+    j.write_text(json.dumps({"format": "facewrap.markers", "pairs": [[1, 2], [1, 3]]}))
+    with pytest.raises(InputError, match="one partner only"):
+        read_markers(j)
+
+
+def test_landmark_text_with_a_byte_order_mark(tmp_path):
+    p = tmp_path / "l.txt"
+    p.write_bytes(b"\xef\xbb\xbf1, 2, 3\r\n4 5 6\r\n7 8 9.5\r\n")
+    assert read_landmarks(p, kind="points").points[0].tolist() == [1.0, 2.0, 3.0]
+
+
+def test_landmark_json_without_names_is_unnamed_and_stays_so(tmp_path):
+    p = tmp_path / "l.json"
+    p.write_text(json.dumps({"format": "facewrap.landmarks",
+                             "landmarks": [{"vertex": 3}, {"point": [1, 2, 3]}]}))
+    lm = read_landmarks_json(p)
+    assert lm.names is None and lm.vertex.tolist() == [3, -1]
+    write_landmarks_json(tmp_path / "w.json", lm)
+    assert read_landmarks_json(tmp_path / "w.json").names is None
+    p.write_text(json.dumps({"format": "facewrap.landmarks",
+                             "landmarks": [{"vertex": 3, "name": "nose"}, {"vertex": 4}]}))
+    assert read_landmarks_json(p).names == ("nose", "1")   # one named: all are
+
+
+@pytest.mark.parametrize("make, said", [
+    (lambda p: p.mkdir(), "is a folder, not a file"),
+    (lambda p: os.mkfifo(p), "is a fifo, not a regular file"),
+    (lambda p: os.symlink(p, p), "is a symlink loop, not a regular file")])
+def test_an_input_that_is_not_a_file_says_what_it_is(tmp_path, make, said):
+    p = tmp_path / "l.txt"
+    make(p)
+    with pytest.raises(InputError, match=f"^{re.escape(str(p))}: {said}$"):
+        read_landmarks(p)
+
+
+def test_deeply_nested_json_is_one_error(tmp_path):
+    p = tmp_path / "l.json"
+    p.write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(InputError, match="nested too deeply"):
+        read_landmarks(p)
+
+
+@pytest.mark.parametrize("items, said", [
+    ([{"point": [True, False, 1]}], "landmark 0: 'point' must be 3 finite numbers"),
+    ([{"point": [1, 2]}], "'point' must be 3 finite numbers"),
+    ([{"triangle": 0, "barycentric": [1, 0, None]}], "'barycentric' must be 3 finite")])
+def test_landmark_json_numbers_are_numbers(tmp_path, items, said):
+    p = tmp_path / "l.json"
+    p.write_text(json.dumps({"format": "facewrap.landmarks", "landmarks": items}))
+    with pytest.raises(InputError, match=said):
+        read_landmarks_json(p)
+
+
+def test_a_later_landmark_format_version_is_refused(tmp_path):
+    p = tmp_path / "l.json"
+    p.write_text(json.dumps({"format": "facewrap.landmarks", "version": 99,
+                             "landmarks": [{"vertex": 1}]}))
+    with pytest.raises(InputError, match="format version 99 is not supported"):
+        read_landmarks_json(p)

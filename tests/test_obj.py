@@ -116,6 +116,8 @@ def test_binary_garbage_and_missing_file(tmp_path):
         read_obj(p)
     with pytest.raises(InputError, match="cannot read"):
         read_obj(tmp_path / "missing.obj")
+    with pytest.raises(InputError, match="is a folder, not a file"):
+        read_obj(tmp_path)
 
 
 def test_read_vertices_only_checks_count(tmp_path, mixed_mesh):

@@ -9,11 +9,14 @@ topology (faces, UVs, groups, materials), each with its own texture when given.
 
 from __future__ import annotations
 
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import memory_budget
 from facewrap.io.obj import write_obj
 from facewrap.io.paths import staged_outputs
 from facewrap.geometry.checks import as_points
@@ -21,7 +24,11 @@ from facewrap.mesh import Mesh
 from facewrap.texture import interpolate_images, save_png
 
 __all__ = ["interpolate_vertices", "interpolate_textures", "write_obj_sequence",
-           "obj_sequence_files"]
+           "obj_sequence_files", "check_sequence_budget", "MAX_FRAMES"]
+
+# More frames than this is a slip of the keyboard (1e9), not an animation: every
+# frame is one file and all of them are held in memory before the first is written.
+MAX_FRAMES = 100_000
 
 # Material given to every face when textured frames are written for a mesh that has
 # no per-face materials.
@@ -29,11 +36,73 @@ FRAME_MATERIAL = "facewrap_texture"
 
 
 def _frame_count(frames) -> int:
-    if (isinstance(frames, (bool, np.bool_))
-            or not isinstance(frames, (int, np.integer)) or frames < 2):
-        raise ValueError(f"frames must be an int >= 2 (both ends are included), "
-                         f"got {frames!r}")
+    if (isinstance(frames, (bool, np.bool_)) or not isinstance(frames, (int, np.integer))
+            or not 2 <= frames <= MAX_FRAMES):
+        raise ValueError(f"frames must be an int in [2, {MAX_FRAMES}] (both ends are "
+                         f"included), got {frames!r}")
     return int(frames)
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2 ** 30:.1f} GiB"
+
+
+def _free_disk(folder) -> int | None:
+    """Free bytes where ``folder`` would be created (None when unknown)."""
+    here = os.path.abspath(os.fspath(folder))
+    while not os.path.isdir(here) and os.path.dirname(here) != here:
+        here = os.path.dirname(here)
+    try:
+        return shutil.disk_usage(here).free
+    except OSError:
+        return None
+
+
+def check_sequence_budget(folder, frames: int, n_vertices: int, frame_bytes: int,
+                          image_shape=None, memory_limit: int | None = None) -> None:
+    """Refuse a sequence that cannot be held in memory or written to disk.
+
+    Checked before any work: :func:`interpolate_vertices` and
+    :func:`interpolate_textures` hold every frame at once (8 bytes per coordinate,
+    1 per texel), and :func:`write_obj_sequence` writes one OBJ (and image) each.
+
+    Parameters
+    ----------
+    folder : path
+        Where the frames go (free space is looked up on its nearest existing folder).
+    frames : int
+    n_vertices : int
+    frame_bytes : int
+        Estimated size of one frame's OBJ file.
+    image_shape : tuple, optional
+        ``(H, W, C)`` of the textures, when frames are textured (a PNG is counted at
+        its raw size: an upper bound).
+    memory_limit : int, optional
+        Bytes; default half the machine's memory.
+
+    Raises
+    ------
+    ValueError
+        Saying what is needed and what is available.
+
+    Examples
+    --------
+    >>> check_sequence_budget(".", 10, 100, 5000)
+    >>> check_sequence_budget(".", 10, 10 ** 6, 5000, memory_limit=2 ** 28)
+    Traceback (most recent call last):
+    ValueError: 10 frames of 1000000 vertices need about 0.4 GiB of memory, more than the 0.2 GiB allowed
+    """
+    frames = _frame_count(frames)
+    texels = int(np.prod(image_shape)) if image_shape is not None else 0
+    memory = frames * (2 * n_vertices * 3 * 8 + texels)   # frames + one temporary
+    limit = memory_budget() if memory_limit is None else memory_limit
+    if memory > limit:
+        raise ValueError(f"{frames} frames of {n_vertices} vertices need about "
+                         f"{_gib(memory)} of memory, more than the {_gib(limit)} allowed")
+    disk, free = frames * (frame_bytes + texels), _free_disk(folder)
+    if free is not None and disk > free:
+        raise ValueError(f"{frames} frames need about {_gib(disk)} of disk, and "
+                         f"{folder} has {_gib(free)} free")
 
 
 def interpolate_vertices(start, end, frames: int) -> np.ndarray:
@@ -220,7 +289,7 @@ def obj_sequence_files(folder, frames: int, pattern: str = "frame_{:04d}.obj",
     ['frame_0000.obj', 'frame_0000.png', 'frame_0000.mtl']
     """
     out = []
-    for name in _frame_names(pattern, frames):
+    for name in _frame_names(pattern, _frame_count(frames)):
         path = Path(folder) / name
         out += [path] + ([path.with_suffix(".png"), path.with_suffix(".mtl")]
                          if textures else [])

@@ -23,11 +23,11 @@ Examples
 >>> Knob(kind="c")
 Traceback (most recent call last):
 ...
-ValueError: Knob.kind must be one of 'a', 'b'; got 'c'
+facewrap.params.SettingsError: Knob.kind must be one of 'a', 'b'; got 'c'
 >>> Knob(level=-1.0)
 Traceback (most recent call last):
 ...
-ValueError: Knob.level must be a real number in [0, inf); got -1.0
+facewrap.params.SettingsError: Knob.level must be a real number in [0, inf); got -1.0
 """
 
 from __future__ import annotations
@@ -39,7 +39,29 @@ from numbers import Integral, Real
 import numpy as np
 
 __all__ = ["Constraint", "Options", "Interval", "Flag", "NoneAllowed", "Empty", "Pair",
-           "Instances", "validate", "choices_of", "invalid_examples"]
+           "Instances", "SettingsError", "validate", "choices_of", "invalid_examples"]
+
+
+class SettingsError(ValueError):
+    """A settings field whose value is not allowed.
+
+    ``str()`` names the class and the field (``WrapSettings.node_spacing must be
+    ...``), as a job file's key would be named; a command line names its option
+    instead, from :attr:`field` and :attr:`problem`.
+
+    Attributes
+    ----------
+    owner : str
+        The settings class.
+    field : str
+        The field's name.
+    problem : str
+        What is allowed and what was given (``must be ...; got ...``).
+    """
+
+    def __init__(self, owner: str, field: str, problem: str):
+        self.owner, self.field, self.problem = owner, field, problem
+        super().__init__(f"{owner}.{field} {problem}")
 
 
 class Constraint:
@@ -240,9 +262,9 @@ def validate(settings) -> None:
 
     Raises
     ------
-    ValueError
-        For the first field whose value follows none of its alternatives: names the
-        class and field, what is allowed and what was given.
+    SettingsError
+        A ``ValueError`` for the first field whose value follows none of its
+        alternatives: names the class and field, what is allowed and what was given.
     """
     cls = type(settings)
     table = getattr(cls, "constraints", {})
@@ -255,7 +277,7 @@ def validate(settings) -> None:
         alts = _alternatives(rule)
         if not any(c.holds(value) for c in alts):
             allowed = " or ".join(c.describe() for c in alts)
-            raise ValueError(f"{cls.__name__}.{name} must be {allowed}; got {value!r}")
+            raise SettingsError(cls.__name__, name, f"must be {allowed}; got {value!r}")
 
 
 def choices_of(cls, name: str) -> tuple | None:

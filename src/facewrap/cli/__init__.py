@@ -47,6 +47,13 @@ def chosen_command(argv) -> str | None:
     return next((a for a in argv if not a.startswith("-")), None)
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (no usage block), status 2."""
+
+    def error(self, message):
+        self.exit(2, f"facewrap: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser(command: str | None = None, *, every: bool = True
                  ) -> argparse.ArgumentParser:
     """The ``facewrap`` argument parser.
@@ -59,7 +66,7 @@ def build_parser(command: str | None = None, *, every: bool = True
         Load every subcommand (when no ``command`` is given); otherwise the others
         are listed by their summary line only.
     """
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(   # its subcommands' parsers are of its class too
         prog="facewrap",
         description="Wrap a template head onto face scans, transfer deformations, "
                     "make avatar blendshapes.")

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+
 import numpy as np
 
 from facewrap.errors import InputError
@@ -14,29 +17,47 @@ __all__ = ["register", "cmd_animate"]
 def cmd_animate(args) -> int:
     """Frames between two fitted meshes of one topology, as an OBJ sequence."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
-    from facewrap.animation import (interpolate_textures, interpolate_vertices,
-                                    obj_sequence_files, write_obj_sequence)
+    from facewrap.animation import (check_sequence_budget, interpolate_textures,
+                                    interpolate_vertices, obj_sequence_files,
+                                    write_obj_sequence)
     from facewrap.io.images import load_image
+    with _naming_frames():
+        obj_sequence_files(args.out, args.frames)   # the count, before reading anything
     start, end = read_mesh(args.start), read_mesh(args.end)
     if (start.n_vertices != end.n_vertices
             or not np.array_equal(start.face_indices, end.face_indices)):
         raise InputError(f"is not in the topology of {args.start} (vertex count or "
                          "faces differ)", args.end)
-    frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     check_output_paths(files=obj_sequence_files(args.out, args.frames,
                                                 textures=bool(args.textures)),
                        folders=[args.out],
                        inputs=[args.start, args.end, *(args.textures or ())])
-    textures = None
+    a = b = None
     if args.textures:
         a, b = (load_image(p) for p in args.textures)
         if a.shape != b.shape:
             raise InputError(f"image size {b.shape[:2]} differs from "
                              f"{args.textures[0]} {a.shape[:2]}", args.textures[1])
-        textures = interpolate_textures(a, b, args.frames)
+    # an OBJ frame is about as large as the start mesh's file (and at least a
+    # vertex line per vertex)
+    frame_bytes = max(os.path.getsize(args.start), 40 * start.n_vertices)
+    with _naming_frames():
+        check_sequence_budget(args.out, args.frames, start.n_vertices, frame_bytes,
+                              image_shape=None if a is None else a.shape)
+    frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
+    textures = None if a is None else interpolate_textures(a, b, args.frames)
     paths = write_obj_sequence(args.out, start, frames, textures=textures)
     print(f"wrote {len(paths)} frames to {args.out}")
     return 0
+
+
+@contextlib.contextmanager
+def _naming_frames():
+    """A refused frame count as one line naming ``--frames``."""
+    try:
+        yield
+    except ValueError as exc:
+        raise InputError(str(exc).removeprefix("frames "), "--frames") from None
 
 
 def register(subparsers, summary: str) -> None:

@@ -10,10 +10,11 @@ from __future__ import annotations
 import dataclasses
 
 from facewrap.jobs.wrap_job import OUTPUT_FRAMES, WrapJob
-from facewrap.params import choices_of
+from facewrap.errors import InputError
+from facewrap.params import SettingsError, choices_of
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["add_fit_options", "wrap_settings_from_args"]
+__all__ = ["add_fit_options", "wrap_settings_from_args", "option_name"]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(WrapSettings)}
 
@@ -101,10 +102,31 @@ def wrap_settings_from_args(args) -> WrapSettings:
 
     Raises
     ------
-    ValueError
+    InputError
         When WrapSettings refuses a value (e.g. a negative ``--node-spacing``),
-        naming the field.
+        naming the option.
     """
+    try:
+        return _settings(args)
+    except SettingsError as exc:
+        raise InputError(exc.problem, option_name(exc.field)) from None
+
+
+def option_name(field: str) -> str:
+    """The command-line option that sets a :class:`WrapSettings` field.
+
+    >>> option_name("node_spacing"), option_name("scale")
+    ('--node-spacing', '--no-scale')
+    """
+    return _NEGATED.get(field, "--" + field.replace("_", "-"))
+
+
+# fields set by a --no-... switch (the others are --field-name)
+_NEGATED = {"scale": "--no-scale", "project": "--no-project",
+            "landmark_pull": "--no-landmark-pull"}
+
+
+def _settings(args) -> WrapSettings:
     return WrapSettings(model=args.model, kernel=args.kernel, smoothing=args.smoothing,
                         scale=not args.no_scale, max_normal_angle=args.max_normal_angle,
                         point_weight=args.point_weight,

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from facewrap.cli.evaluate import read_ground_truth
-from facewrap.io.paths import check_output_paths
+from facewrap.io.paths import check_output_paths, new_folders_removed_on_failure
 from facewrap.units import add_units_argument
 
 __all__ = ["register", "cmd_report"]
@@ -27,10 +27,11 @@ def cmd_report(args) -> int:
         run = load_run_report(args.run_report)
         result = run_meshes(run["job"], Path(args.run_report))[2]
         truth = read_ground_truth(args.ground_truth, result)
-    page = build_report_page(args.run_report, args.out, images=args.image or (),
-                             units=args.units, ground_truth=truth,
-                             template_up=args.template_up,
-                             template_front=args.template_front, title=args.title)
+    with new_folders_removed_on_failure(args.out):   # a failed page leaves no folder
+        page = build_report_page(args.run_report, args.out, images=args.image or (),
+                                 units=args.units, ground_truth=truth,
+                                 template_up=args.template_up,
+                                 template_front=args.template_front, title=args.title)
     print(page)
     return 0
 

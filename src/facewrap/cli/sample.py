@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from facewrap.errors import InputError
 from facewrap.io.paths import check_writable, staged_outputs
 
 __all__ = ["register", "cmd_sample"]
@@ -13,10 +14,12 @@ def cmd_sample(args) -> int:
     """Write the built-in synthetic template and scan to a folder; print the files."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.sample import make_scan, make_template, write_sample
+    if not args.out.strip():   # Path("") is the current folder: never what was meant
+        raise InputError("the output folder name is empty", "OUT")
+    out = Path(args.out)
+    check_writable(folders=[out])   # before any work
     template = make_template()
     scan = make_scan(template)
-    out = Path(args.out)
-    check_writable(folders=[out])
     with staged_outputs() as stage:   # every file of the sample appears, or none
         staged = stage.folder(out)
         paths = write_sample(staged, template, scan)

@@ -16,13 +16,18 @@ and group are not either (only root could set them).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import stat
 
+from facewrap.io.paths import shown_path
+
 __all__ = ["atomic_write"]
 
 _NEW_FILE_MODE = 0o666
+# errors of a write that ran out of room (disk full, quota, ulimit -f)
+_FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 _TRIES = 100
 
 
@@ -83,7 +88,10 @@ def atomic_write(path, mode: str = "w", **open_kwargs):
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.filename is None and exc.errno in _FULL:
+            # a write that ran out of room names no file: say which output it was
+            raise OSError(exc.errno, exc.strerror, shown_path(path)) from None
         raise

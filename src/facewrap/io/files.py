@@ -6,14 +6,55 @@ import json
 import os
 
 from facewrap.errors import InputError
+from facewrap.io.paths import special_kind
 
 __all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
-           "read_format_items"]
+           "read_format_items", "memory_budget", "not_a_file"]
 
 # How much of each end of a file is looked at before the whole is read: enough to
 # catch a binary or sparse (zero-filled) file handed to a text reader, small enough
 # to cost nothing.
 _SAMPLE_BYTES = 1 << 16
+
+
+def not_a_file(path) -> InputError:
+    """The error for an input ``path`` that is not a regular file, saying what it is.
+
+    Examples
+    --------
+    >>> str(not_a_file("/")), str(not_a_file("/dev/null"))
+    ('/: is a folder, not a file', '/dev/null: is a character device, not a regular file')
+    >>> str(not_a_file("/no/such"))
+    '/no/such: no such file'
+    """
+    if os.path.isdir(path):
+        return InputError("is a folder, not a file", path)
+    kind = special_kind(path)
+    if kind:
+        return InputError(f"is {kind}, not a regular file", path)
+    if os.path.islink(path):
+        return InputError("is a symlink to a missing file", path)
+    return InputError("no such file", path)
+
+
+def memory_budget() -> int:
+    """Bytes one command may plan to hold: half the machine's memory, or half the
+    process's address-space limit (``ulimit -v``) when that is lower.
+
+    Work whose memory need is known up front (a texture bake, an animation's
+    frames) is refused before it starts when it needs more, instead of failing
+    after minutes with an allocation error.
+    """
+    try:
+        budget = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (AttributeError, ValueError, OSError):   # not a POSIX system
+        budget = 4 << 30
+    try:
+        import resource
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, OSError, ValueError):
+        return budget
+    return budget if limit == resource.RLIM_INFINITY else min(budget, limit // 2)
 
 
 def file_size(path) -> int:
@@ -27,6 +68,8 @@ def file_size(path) -> int:
     -------
     int
     """
+    if os.path.lexists(path) and not os.path.isfile(path):   # say what it is instead
+        raise not_a_file(path)
     try:
         return os.stat(path).st_size
     except OSError as exc:
@@ -92,11 +135,13 @@ def read_file_bytes(path, text: bool = False) -> bytes:
 def read_json(path):
     """A JSON file's content; :class:`InputError` naming the file (and line) when
     it is missing, empty or not valid JSON."""
-    text = read_file_bytes(path, text=True).decode("utf-8", errors="replace")
+    text = read_file_bytes(path, text=True).decode("utf-8-sig", errors="replace")
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+    except RecursionError:   # the C decoder recurses once per nesting level
+        raise InputError("invalid JSON: nested too deeply", path) from None
 
 
 def read_format_items(path, format_name: str, key: str, what: str) -> list:
@@ -130,6 +175,9 @@ def read_format_items(path, format_name: str, key: str, what: str) -> list:
     if not isinstance(d, dict) or d.get("format") != format_name:
         raise InputError(f'not a facewrap {what} file ("format": "{format_name}" missing)',
                          path)
+    if d.get("version", 1) != 1:   # a later format may mean its fields differently
+        raise InputError(f"format version {str(d['version'])[:20]} is not supported "
+                         "(this facewrap reads version 1)", path)
     items = d.get(key)
     if not isinstance(items, list) or not items:
         raise InputError(f"'{key}' must be a non-empty list", path)

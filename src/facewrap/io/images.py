@@ -6,6 +6,7 @@ Images are ``uint8`` arrays ``(H, W)`` (grey), ``(H, W, 3)`` (RGB) or ``(H, W, 4
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 
@@ -14,7 +15,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
 
-__all__ = ["as_image", "to_uint8", "png_bytes", "save_png", "load_image"]
+__all__ = ["as_image", "to_uint8", "png_bytes", "save_png", "load_image", "check_image"]
 
 
 def as_image(image, name: str) -> np.ndarray:
@@ -129,7 +130,7 @@ def load_image(path) -> np.ndarray:
     """
     # deferred: only image files need Pillow (start-up of every other command)
     from PIL import Image
-    try:
+    with _image_errors(path):
         with Image.open(path) as img:
             img.load()
             if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
@@ -137,8 +138,36 @@ def load_image(path) -> np.ndarray:
                 grey = grey / 257.0 if grey.max(initial=0) > 255 else grey
                 return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
             return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
+
+
+def check_image(path) -> tuple[int, int]:
+    """``(width, height)`` of an image file that decodes whole.
+
+    For images that are only passed on (a report's pictures): a truncated or
+    broken file is refused before any work instead of showing as a broken picture.
+
+    Raises
+    ------
+    InputError
+        Naming the file, as :func:`load_image` does.
+    """
+    from PIL import Image
+    with _image_errors(path):
+        with Image.open(path) as img:
+            img.load()   # decodes every pixel: a truncated file fails here
+            return img.size
+
+
+@contextlib.contextmanager
+def _image_errors(path):
+    """Pillow's failures on ``path`` as one :class:`InputError` naming it."""
+    from PIL import Image
+    try:
+        yield
     except FileNotFoundError:
         raise InputError("image file not found", path) from None
+    except IsADirectoryError:
+        raise InputError("is a folder, not an image file", path) from None
     except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
         raise InputError(f"cannot read image ({type(exc).__name__}: {exc})",
                          path) from None

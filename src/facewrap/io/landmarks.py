@@ -44,7 +44,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import read_file_bytes, read_format_items, read_json
+from facewrap.io.files import not_a_file, read_file_bytes, read_format_items, read_json
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_pts", "read_ljson",
            "read_landmarks_json", "write_landmarks_json", "write_points",
@@ -65,7 +65,8 @@ def _bounded(value: int, path, line=None) -> int:
 
 
 def _text(path) -> str:
-    return read_file_bytes(path, text=True).decode("utf-8", errors="replace")
+    # a byte-order mark (Windows editors write one) is not part of the first line
+    return read_file_bytes(path, text=True).decode("utf-8-sig", errors="replace")
 
 
 def _content_lines(text: str):
@@ -339,21 +340,28 @@ def read_landmarks_json(path) -> Landmarks:
                 vertex[i] = _nonneg_int(it["vertex"])
             elif keys[0] == "triangle":
                 triangle[i] = _nonneg_int(it["triangle"])
-                b = np.asarray(it.get("barycentric"), dtype=np.float64)
-                if b.shape != (3,) or not np.isfinite(b).all():
-                    raise ValueError("'barycentric' must be 3 finite numbers")
-                bary[i] = b
+                bary[i] = _three_numbers(it.get("barycentric"), "barycentric")
             else:
-                p = np.asarray(it["point"], dtype=np.float64)
-                if p.shape != (3,) or not np.isfinite(p).all():
-                    raise ValueError("'point' must be 3 finite numbers")
-                points[i] = p
+                points[i] = _three_numbers(it["point"], "point")
         except (TypeError, ValueError) as exc:
             raise InputError(f"{where}: {exc}", path) from None
+    if not any(isinstance(it, dict) and "name" in it for it in items):
+        names = None   # names are optional: without any, the set pairs by order
     try:
         return Landmarks(vertex, triangle, bary, points, names)
     except ValueError as exc:
         raise InputError(str(exc), path) from None
+
+
+def _three_numbers(value, key: str) -> np.ndarray:
+    """A JSON ``[x, y, z]`` of finite numbers (``true`` is not the number 1)."""
+    if (not isinstance(value, list) or len(value) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)):
+        raise ValueError(f"'{key}' must be 3 finite numbers")
+    out = np.asarray(value, dtype=np.float64)
+    if not np.isfinite(out).all():
+        raise ValueError(f"'{key}' must be 3 finite numbers")
+    return out
 
 
 def _nonneg_int(x) -> int:
@@ -368,7 +376,8 @@ def write_landmarks_json(path, landmarks: Landmarks) -> None:
     """Write any landmark set in the facewrap JSON format (names kept)."""
     items = []
     for i in range(len(landmarks)):
-        it = {"name": landmarks.label(i)}
+        # an unnamed set stays unnamed (read back, it pairs by order again)
+        it = {} if landmarks.names is None else {"name": landmarks.names[i]}
         if landmarks.vertex[i] >= 0:
             it["vertex"] = int(landmarks.vertex[i])
         elif landmarks.triangle[i] >= 0:
@@ -394,7 +403,7 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
     """
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if not os.path.isfile(path):
-        raise InputError("no such file", path)
+        raise not_a_file(path)
     if ext == ".ljson":
         return read_ljson(path)
     if ext == ".pts":
@@ -419,13 +428,47 @@ def read_markers(path) -> tuple[np.ndarray, np.ndarray]:
 
     Accepts Sumner's ``.cons`` (optional count line, then ``src, tgt`` or ``src tgt``
     per line), YAML with ``markers: ["src:tgt", ...]`` (``.yml``/``.yaml``), and the
-    facewrap marker JSON.
+    facewrap marker JSON.  A pair given twice is kept; a vertex paired with two
+    different partners is refused (the two pairs contradict each other).
 
     Returns
     -------
     source : (k,) int64
     target : (k,) int64
+
+    Raises
+    ------
+    InputError
+        Naming the file: malformed, or the first pair that contradicts another.
     """
+    source, target = _read_marker_pairs(path)
+    _check_one_partner(source, target, path)
+    return source, target
+
+
+def _check_one_partner(source: np.ndarray, target: np.ndarray, path) -> None:
+    """Refuse a vertex on either side that two markers give different partners."""
+    pairs = np.stack([source, target], axis=1)
+    _, first = np.unique(pairs, axis=0, return_index=True)
+    first = np.sort(first)   # one marker per distinct pair, in file order
+    for side, other, what, whose in ((0, 1, "source", "target"),
+                                     (1, 0, "target", "source")):
+        ids = pairs[first, side]
+        _, seen, counts = np.unique(ids, return_index=True, return_counts=True)
+        if not np.any(counts > 1):
+            continue
+        vertex = ids[seen[counts > 1]]
+        rows = first[np.isin(ids, vertex)]
+        a = rows[0]                                   # the first pair in conflict
+        b = rows[(pairs[rows, side] == pairs[a, side])][1]
+        raise InputError(f"markers {a} and {b} pair {what} vertex {pairs[a, side]} with "
+                         f"two {whose} vertices ({pairs[a, other]} and "
+                         f"{pairs[b, other]}): each vertex can have one partner only",
+                         path)
+
+
+def _read_marker_pairs(path) -> tuple[np.ndarray, np.ndarray]:
+    """Marker pairs as the file gives them (see :func:`read_markers`)."""
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if ext in (".yml", ".yaml"):
         return _read_markers_yaml(path)

@@ -21,6 +21,7 @@ from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import read_file_bytes
+from facewrap.io.paths import new_folders_removed_on_failure
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 
@@ -228,6 +229,9 @@ def _parse_corners(rows: _Rows, path):
                 out[c, j] = int(p)
             except ValueError:
                 raise InputError(f"face index is not an integer: {tok!r}", path,
+                                 rows.line(face_of_corner[c])) from None
+            except OverflowError:   # beyond int64: no mesh has that many vertices
+                raise InputError(f"face index out of range: {tok!r}", path,
                                  rows.line(face_of_corner[c])) from None
     return sizes, out
 
@@ -441,9 +445,11 @@ def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -
             parts.append(f"usemtl {mesh.materials[mt]}\n")
         prev_g, prev_m = g, mt
         parts.append(_face_block(mesh, s, e))
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with atomic_write(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.writelines(parts)
+    folder = os.path.dirname(os.path.abspath(path))
+    with new_folders_removed_on_failure(folder):
+        os.makedirs(folder, exist_ok=True)
+        with atomic_write(path, "w", encoding="utf-8", newline="\n") as fh:
+            fh.writelines(parts)
 
 
 def read_obj_vertices(path, n_vertices: int | None = None) -> np.ndarray:

@@ -20,16 +20,19 @@ earlier run's outputs intact when a re-run fails.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import secrets
 import shutil
+import stat
 from pathlib import Path
 
 from facewrap.errors import InputError
 
 __all__ = ["real_path", "side_files", "find_overlap", "check_outputs_apart", "check_writable",
-           "check_output_paths", "StagedOutputs", "staged_outputs"]
+           "check_output_paths", "special_kind", "shown_path",
+           "new_folders_removed_on_failure", "StagedOutputs", "staged_outputs"]
 
 #: Prefix of staged files and folders (hidden, so a listing does not show them).
 STAGE_PREFIX = ".facewrap-staged-"
@@ -175,6 +178,50 @@ def _nearest_existing(path: str) -> str:
     return path
 
 
+_STAGED = re.compile(r"^(?:\.facewrap-staged-|\.tmp-)[0-9a-f]{8}-(.+)$")
+
+
+def shown_path(path) -> str:
+    """``path`` as the user named it: staged and temporary names taken off.
+
+    Outputs are written under hidden names (:class:`StagedOutputs`,
+    :func:`~facewrap.io.atomic.atomic_write`); an error while writing names the
+    output the user asked for.
+
+    Examples
+    --------
+    >>> shown_path("out/.facewrap-staged-0a1b2c3d-seq/.tmp-89abcdef-f.obj")
+    'out/seq/f.obj'
+    """
+    parts = os.fspath(path).split(os.sep)
+    return os.sep.join(m.group(1) if (m := _STAGED.match(p)) else p for p in parts)
+
+
+def special_kind(path) -> str | None:
+    """What ``path`` is when it exists but is neither a regular file nor a folder.
+
+    Returns
+    -------
+    str or None
+        ``"a fifo"``, ``"a character device"``, ``"a block device"``, ``"a socket"``
+        or ``"a symlink loop"``; None for a file, a folder or a missing path.
+
+    Examples
+    --------
+    >>> special_kind("/dev/null"), special_kind("/"), special_kind("/no/such")
+    ('a character device', None, None)
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        return "a symlink loop" if exc.errno == errno.ELOOP else None
+    for test, kind in ((stat.S_ISFIFO, "a fifo"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return None
+
+
 def check_writable(files=(), folders=(), source=None) -> None:
     """Every output can be created: its folder exists or can be made, and is writable.
 
@@ -196,7 +243,14 @@ def check_writable(files=(), folders=(), source=None) -> None:
     """
     asked = [(d, True) for d in folders] + [(f, False) for f in files]
     for path, is_folder in asked:
+        if not os.fspath(path):   # "" would be the current folder: never what was meant
+            raise InputError(f"the output {'folder' if is_folder else 'file'} name is "
+                             "empty", source or "''")
         p = os.path.abspath(os.fspath(path))
+        kind = special_kind(p)
+        if kind:   # replacing a device or a fifo with a file is never what was meant
+            raise InputError(f"output {os.fspath(path)!r} is {kind}, not a "
+                             f"{'folder' if is_folder else 'file'}", source or path)
         if os.path.isdir(p) and not is_folder:
             raise InputError(f"output {os.fspath(path)!r} is a folder, not a file",
                              source or path)
@@ -313,6 +367,39 @@ class StagedOutputs:
 
 
 @contextlib.contextmanager
+def new_folders_removed_on_failure(folder):
+    """Folders up to ``folder`` that the block creates are removed if it fails.
+
+    For writers that create their destination folder themselves: a failed run
+    leaves no empty folder behind (a folder that received other files stays).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> try:
+    ...     with new_folders_removed_on_failure(d / "a" / "b"):
+    ...         (d / "a" / "b").mkdir(parents=True)
+    ...         raise OSError("disk full")
+    ... except OSError:
+    ...     pass
+    >>> list(d.iterdir())
+    []
+    """
+    here, missing = Path(os.path.abspath(os.fspath(folder))), []
+    while not os.path.lexists(here) and here.parent != here:
+        missing.append(here)
+        here = here.parent
+    try:
+        yield
+    except BaseException:
+        for made in missing:   # deepest first
+            with contextlib.suppress(OSError):
+                made.rmdir()   # only when still empty
+        raise
+
+
+@contextlib.contextmanager
 def staged_outputs():
     """A :class:`StagedOutputs` committed when the block succeeds, else discarded.
 
@@ -336,7 +423,7 @@ def staged_outputs():
     stage = StagedOutputs()
     try:
         yield stage
-    except BaseException:
+        stage.commit()
+    except BaseException:   # in the block, or a move that failed: nothing staged stays
         stage.discard()
         raise
-    stage.commit()

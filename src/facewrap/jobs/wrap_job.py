@@ -35,6 +35,7 @@ from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import memory_budget
 from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
@@ -198,6 +199,12 @@ def job_outputs(job: WrapJob) -> list[str]:
     return out + images + mtl
 
 
+# Peak memory of a texture bake per texel of one image (rasterised UV triangles,
+# barycentrics, scan lookups): measured 330-380 bytes on the built-in sample
+# (facewrap sample) at 1024, 2048 and 4096.
+BAKE_BYTES_PER_TEXEL = 400
+
+
 def check_job_paths(job: WrapJob, source=None) -> None:
     """Check outputs before any work: formats known, apart from inputs, writable.
 
@@ -221,6 +228,12 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size must be an integer in [1, 16384], got "
                          f"{job.texture_size!r}", source or job.output)
+    need = job.texture_size ** 2 * BAKE_BYTES_PER_TEXEL
+    if job.texture and need > memory_budget():
+        raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "
+                         f"about {need / 2 ** 30:.1f} GiB of memory, more than the "
+                         f"{memory_budget() / 2 ** 30:.1f} GiB budget (half the memory, "
+                         "or of ulimit -v)", source or job.output)
     if job.output_frame not in OUTPUT_FRAMES:
         raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
                          f" got {job.output_frame!r}", source or job.output)
@@ -356,8 +369,11 @@ def read_mesh_landmarks(path, mesh, kind: str = "auto"):
     return landmarks
 
 
-def load_wrap_inputs(job: WrapJob) -> dict:
+def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict:
     """Read and cross-check a job's input files.
+
+    ``settings`` (optional) are checked against what the files hold: no more
+    ``pca_components`` than blendshapes.
 
     Returns
     -------
@@ -426,6 +442,11 @@ def load_wrap_inputs(job: WrapJob) -> dict:
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
+        k = None if settings is None else settings.pca_components
+        if k is not None and k > len(shapes):   # the basis has one axis per shape
+            raise InputError(f"pca_components (--pca-components) is {k} but the folder "
+                             f"holds {len(shapes)} shape(s); use at most {len(shapes)}",
+                             job.blendshapes)
     image = None
     if job.texture:
         if scan.uvs is None:
@@ -542,7 +563,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     settings = settings or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
-    inputs = load_wrap_inputs(job)
+    inputs = load_wrap_inputs(job, settings)
     read_seconds = time.perf_counter() - t0
     # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
     # here that becomes the file, in its warnings and in a refusal alike

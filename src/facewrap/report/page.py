@@ -28,7 +28,6 @@ current folder.  A report without ``vertex_roles`` (older runs) counts the job's
 
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 
@@ -39,6 +38,8 @@ from facewrap.errors import InputError
 from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
+from facewrap.io.files import read_json
+from facewrap.io.images import check_image
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.landmarks import pair_landmarks
 from facewrap.report.html import write_html_report
@@ -84,12 +85,13 @@ def load_run_report(report_path) -> dict:
         and output paths.
     """
     report_path = Path(report_path)
+    if not report_path.exists():
+        raise InputError("no such file", report_path)
     try:
-        run = json.loads(report_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("no such file", report_path) from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"not a JSON report ({exc})", report_path) from None
+        run = read_json(report_path)
+    except InputError as exc:
+        raise InputError(f"not a JSON report ({exc.problem})", report_path,
+                         exc.line) from None
     job = run.get("job") if isinstance(run, dict) else None
     if not isinstance(job, dict) or not all(k in job for k in ("template", "scan",
                                                                "output")):
@@ -238,6 +240,7 @@ def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
     for _, p in pictures:
         if not Path(p).is_file():
             raise InputError("no such file", p)
+        check_image(p)
     return pictures
 
 
@@ -300,6 +303,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     report_path = Path(report_path)
     run = load_run_report(report_path)
     job = run["job"]
+    pictures = _pictures(run, report_path, images)   # checked before any work
     M = _similarity(run, report_path)
     A, t = M[:3, :3], M[:3, 3]
     template, scan, result = run_meshes(job, report_path)
@@ -322,7 +326,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,
         warnings=run["warnings"] if isinstance(run.get("warnings"), list) else (),
-        images=_pictures(run, report_path, images),
+        images=pictures,
         meshes={"template (aligned)": (template.vertices @ A.T + t, template.triangles),
                 "scan": scan, **layers},
         visible=list(layers), scalars=scalars, points=points,
