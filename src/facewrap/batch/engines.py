@@ -216,8 +216,9 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
     from distributed import as_completed as dask_completed
     cluster = None
     if address == "local":
+        # the dashboard on a free port: another cluster on 8787 would print a warning
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         client = Client(cluster)
     elif isinstance(address, str):
         client = Client(address)
