@@ -138,3 +138,16 @@ def test_fit_mask_and_pins_from_the_command_line(sample_dir, tmp_path):
     assert count["pinned"] == 30 and count["part"] == 0 and count["cavity"] == 0
     assert count["fitted"] == len(face[::2]) - len(set(face[::2]) & set(face[:30]))
     shutil.rmtree(tmp_path)
+
+
+def test_report_page_draws_the_profiles_landmarks(sample_dir, tmp_path, caplog):
+    from facewrap.report.page import build_report_page
+    d, p, _ = sample_dir
+    rep = tmp_path / "run.json"
+    assert facewrap("wrap", p["template"], p["scan"], "--scan-landmarks",
+                    p["scan_landmarks"], "-o", tmp_path / "r.obj", "--report", rep,
+                    "-q") == 0
+    page = build_report_page(rep, tmp_path / "page")
+    html = page.read_text()
+    assert "landmarks: result" in html and "landmarks: template" in html
+    assert "landmarks not shown" not in caplog.text

@@ -41,6 +41,7 @@ from facewrap.io import read_mesh
 from facewrap.io.files import read_json
 from facewrap.io.images import check_image
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
+from facewrap.io.profile import read_template_profile
 from facewrap.landmarks import pair_landmarks
 from facewrap.report.html import write_html_report
 from facewrap.report.run_tables import run_summary
@@ -183,7 +184,21 @@ def _result_layers(result, codes) -> dict:
     return layers
 
 
-def _landmark_points(job: dict, report_path: Path, template, scan, result, M):
+def _template_landmarks(job: dict, report_path: Path, profile):
+    """The run's template landmarks: from their file, else from the template profile
+    the run used (``profile``: its path, from the report)."""
+    if "template_landmarks" in job or not profile:
+        return read_landmarks(_existing(job["template_landmarks"], report_path,
+                                        "template landmarks"), kind="auto")
+    landmarks = read_template_profile(_existing(profile, report_path,
+                                                "template profile")).landmarks
+    if landmarks is None:
+        raise InputError("has no landmarks", profile)
+    return landmarks
+
+
+def _landmark_points(job: dict, report_path: Path, template, scan, result, M,
+                     profile=None):
     """Landmark sets for the viewer, labels of the worst, and the paired errors.
 
     Returns ``(points, labels, errors)``: ``points`` maps "landmarks: template"
@@ -192,8 +207,7 @@ def _landmark_points(job: dict, report_path: Path, template, scan, result, M):
     errors; ``errors`` is (l,) float over the pairs.  Empty when the files are gone.
     """
     try:
-        tl = read_landmarks(_existing(job["template_landmarks"], report_path,
-                                      "template landmarks"), kind="auto")
+        tl = _template_landmarks(job, report_path, profile)
         sl = read_landmarks(_existing(job["scan_landmarks"], report_path,
                                       "scan landmarks"), kind="points")
         tl.check(template.n_vertices, len(template.triangles))
@@ -311,7 +325,9 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     unit, source = _run_units(run, units, result)
     truth = _ground_truth_values(ground_truth, result, codes)
     to_scan, to_result = _distances(scan, result, codes)
-    points, worst, errors = _landmark_points(job, report_path, template, scan, result, M)
+    profile = run.get("template_profile", {}).get("path")
+    points, worst, errors = _landmark_points(job, report_path, template, scan, result, M,
+                                             profile)
     labelled = [(name, float(errors[j])) for j, _, name in worst]
     scalars = {"distance to scan": ("result", to_scan, unit),
                "distance to result": ("scan", to_result, unit)}
