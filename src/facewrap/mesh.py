@@ -323,6 +323,23 @@ class Mesh:
         return float(np.linalg.norm(hi - lo))
 
     # -- new meshes --------------------------------------------------------------------
+    def corner_attributes(self) -> dict:
+        """The per-corner UVs and normals as :class:`Mesh` keyword arguments
+        (``uvs``, ``face_uvs``, ``normals``, ``face_normals``; those it has), for
+        building a mesh of the same faces with other vertices or materials.
+
+        >>> m = Mesh(np.eye(3), [[0, 1, 2]], uvs=np.zeros((3, 2)), face_uvs=[[0, 1, 2]])
+        >>> sorted(m.corner_attributes())
+        ['face_uvs', 'uvs']
+        """
+        out = {}
+        if self.face_uvs is not None:
+            out.update(uvs=self.uvs, face_uvs=(self.face_offsets, self.face_uvs))
+        if self.face_normals is not None:
+            out.update(normals=self.normals,
+                       face_normals=(self.face_offsets, self.face_normals))
+        return out
+
     def with_vertices(self, vertices, normals="drop") -> "Mesh":
         """Same topology, UVs and materials, new vertex positions.
 

@@ -205,20 +205,15 @@ def with_library(mesh: Mesh, library: str | None, face_materials=None,
     Mesh
         Same vertices, faces, UVs, normals, groups and colours.
     """
-    offsets = mesh.face_offsets
-    kw = {}
-    if mesh.face_uvs is not None:
-        kw.update(uvs=mesh.uvs, face_uvs=(offsets, mesh.face_uvs))
-    if mesh.face_normals is not None:
-        kw.update(normals=mesh.normals, face_normals=(offsets, mesh.face_normals))
     if face_materials is None:
         face_materials, materials = mesh.face_materials, mesh.materials
-    return Mesh(mesh.vertices, (offsets, mesh.face_indices),
+    return Mesh(mesh.vertices, (mesh.face_offsets, mesh.face_indices),
                 face_materials=None if face_materials is None
                 else np.asarray(face_materials, dtype=np.int64),
                 materials=tuple(materials or ()), face_groups=mesh.face_groups,
                 groups=mesh.groups, mtllib=(library,) if library else (),
-                vertex_colors=mesh.vertex_colors, texture=mesh.texture, **kw)
+                vertex_colors=mesh.vertex_colors, texture=mesh.texture,
+                **mesh.corner_attributes())
 
 
 #: Material given to a mesh read with one texture image and no materials (a PLY's

@@ -82,11 +82,7 @@ def weld_duplicates(mesh, landmarks, path):
     if dupes == 0:
         return mesh, landmarks, None
     offsets = mesh.face_offsets
-    kw = {}
-    if mesh.uvs is not None:
-        kw.update(uvs=mesh.uvs, face_uvs=(offsets, mesh.face_uvs))
-    if mesh.face_normals is not None:
-        kw.update(normals=mesh.normals, face_normals=(offsets, mesh.face_normals))
+    kw = mesh.corner_attributes()
     if mesh.vertex_colors is not None:
         kw.update(vertex_colors=mesh.vertex_colors[first])
     welded = Mesh(mesh.vertices[first], (offsets, inverse[mesh.face_indices]),
