@@ -203,3 +203,15 @@ def test_wrap_reads_a_scan_in_each_format(sample, tmp_path, ext, capsys):
     assert facewrap("wrap", *argv[:1], paths["scan"], *argv[2:], "-o", ref) == 0
     # the same scan surface, read through another format: the same fit
     assert np.abs(read(out).vertices - read(ref).vertices).max() < 1e-3 * scan.mesh.scale()
+
+
+def test_read_mesh_says_what_a_path_that_is_no_file_is(tmp_path):
+    import os
+    from facewrap.errors import InputError
+    from facewrap.io import read_mesh
+    (tmp_path / "dir.obj").mkdir()
+    os.mkfifo(tmp_path / "pipe.obj")
+    for name, what in (("dir.obj", "is a folder"), ("pipe.obj", "is a fifo"),
+                       ("gone.obj", "no such file"), ("", "is a folder")):
+        with pytest.raises(InputError, match=what):
+            read_mesh(tmp_path / name)

@@ -138,3 +138,16 @@ def test_cli_batch_lists_and_runs_transfer_jobs(files, tmp_path, capsys):
     assert facewrap("batch", tmp_path / "m.toml", "--job", tmp_path / "shared.toml",
                     "-q", "--workers", 1) == 0
     assert (tmp_path / "x" / "smile.obj").is_file()
+
+
+def test_a_target_without_faces_is_refused_naming_it(files, tmp_path):
+    from facewrap.errors import InputError
+    from facewrap.io.ply import write_ply
+    from facewrap.mesh import Mesh
+    cloud = tmp_path / "cloud.ply"
+    write_ply(cloud, Mesh(files["scan"].vertices, np.zeros((0, 3), np.int64)))
+    job = job_in(files, tmp_path)
+    job.target_neutral = str(cloud)
+    with pytest.raises(InputError, match="has no faces") as exc:
+        run_transfer_job(job)
+    assert str(cloud) in str(exc.value) and not (tmp_path / "shapes").exists()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 
 from facewrap.errors import InputError
+from facewrap.io.files import not_a_file
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
@@ -45,10 +46,12 @@ def read_mesh(path) -> Mesh:
         the file.
     """
     ext = _ext(path)
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise not_a_file(path)          # a folder, fifo, device: say which
     if ext not in MESH_READ_EXTENSIONS:
         raise _unknown(ext, MESH_READ_EXTENSIONS, path)
     if not os.path.isfile(path):
-        raise InputError("no such file", path)
+        raise not_a_file(path)
     if ext == ".obj":
         return read_obj(path)
     if ext == ".ply":

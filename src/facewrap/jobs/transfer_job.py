@@ -214,6 +214,9 @@ def _read_inputs(job: TransferJob) -> dict:
     """Meshes, marker ids, shapes and the cached correspondence (or None), checked."""
     source = read_mesh(job.source_neutral)
     target = read_mesh(job.target_neutral)
+    for mesh, path in ((source, job.source_neutral), (target, job.target_neutral)):
+        if len(mesh.triangles) == 0:   # a point cloud: no surface to deform
+            raise InputError("has no faces; deformation transfer needs a surface", path)
     src_ids, tgt_ids = check_markers(read_markers(job.markers), source.n_vertices,
                                      target.n_vertices, job.markers)
     anchor = job.settings.anchor
