@@ -157,3 +157,18 @@ def test_track_outputs_in_the_template_frame_undo_the_first_similarity(ramp, tmp
 def model_settings(model):
     from facewrap.wrapping import WrapSettings
     return WrapSettings(model=model)
+
+
+def test_track_with_a_closed_form_model_fits_every_frame():
+    """rbf and rigid have no ICP schedule: later frames are fitted in closed form too
+    (this used to fail on the second frame)."""
+    from facewrap.sample import make_sequence, make_template
+    from facewrap.wrapping import WrapSettings, track
+    from facewrap.wrapping.track import tracking_schedule
+    assert tracking_schedule("rbf") is None and tracking_schedule("graph")
+    tpl = make_template(24)
+    seq = make_sequence(tpl, frames=3, resolution=30)
+    meshes = [f.mesh for f in seq]
+    result = track(tpl.mesh, meshes, tpl.landmarks, [seq[0].landmarks, None, None],
+                   WrapSettings(model="rbf"))
+    assert len(result.frames) == 3

@@ -32,7 +32,7 @@ from facewrap.io.paths import staged_outputs
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.wrapping.icp.schedule import Stage
-from facewrap.wrapping.models import default_schedule
+from facewrap.wrapping.models import default_schedule, model_spec
 from facewrap.wrapping.models.graph import GraphCache
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.stages import WrapResult, wrap
@@ -46,9 +46,10 @@ __all__ = ["TrackResult", "track", "tracking_schedule", "write_track_outputs"]
 PROPAGATED_LANDMARKS = 0.05
 
 
-def tracking_schedule(model: str) -> list[Stage]:
+def tracking_schedule(model: str) -> list[Stage] | None:
     """The schedule of frames after the first: the model's default schedule
-    without its landmark-only stages (the warm start is already close).
+    without its landmark-only stages (the warm start is already close); None for
+    a model with no ICP (rigid, rbf: fitted in closed form every frame).
 
     Where a frame has no landmarks of its own, :func:`track` also lowers every
     landmark weight (``WrapSettings.landmark_scale`` × 0.05): landmarks carried
@@ -56,6 +57,8 @@ def tracking_schedule(model: str) -> list[Stage]:
     only guard against gross failure and the scan surface drives the fit; they
     never pull the result (``WrapSettings.landmark_pull`` is off there).
     """
+    if not model_spec(model).fitted_by_icp:
+        return None
     return [st for st in default_schedule(model) if st.data_weight > 0]
 
 
