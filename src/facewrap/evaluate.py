@@ -29,7 +29,7 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, TriangleQuality, triangle_quality,
                                triangle_to_vertex)
-from facewrap.geometry.checks import as_points, mesh_arrays
+from facewrap.geometry.checks import as_points, as_vertex_mask, mesh_arrays
 from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "GroundTruthErrors", "Evaluation",
@@ -50,24 +50,6 @@ def _stats(values: np.ndarray) -> dict:
     return {"mean": float(v.mean()), "median": float(np.median(v)),
             "p95": float(np.percentile(v, 95)), "max": float(v.max()),
             "rms": float(np.sqrt(np.mean(v * v)))}
-
-
-def _vertex_mask(mask, n: int, name: str = "mask") -> np.ndarray:
-    """(n,) bool from a bool mask or vertex ids; all True for None."""
-    if mask is None:
-        return np.ones(n, dtype=bool)
-    m = np.asarray(mask)
-    if m.dtype == bool:
-        if m.shape != (n,):
-            raise ValueError(f"{name} must have shape ({n},), got {m.shape}")
-        return m.copy()
-    if not np.issubdtype(m.dtype, np.integer) or m.ndim != 1:
-        raise ValueError(f"{name} must be a ({n},) bool mask or 1-D vertex ids")
-    if len(m) and (m.min() < 0 or m.max() >= n):
-        raise ValueError(f"{name} holds vertex ids outside [0, {n})")
-    out = np.zeros(n, dtype=bool)
-    out[m] = True
-    return out
 
 
 # -- vertex roles -----------------------------------------------------------------------------
@@ -202,7 +184,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     P = as_points(points, "points")
     tree = surface if isinstance(surface, ClosestPointTree) else \
         ClosestPointTree(*mesh_arrays(surface, "surface"))
-    eligible = _vertex_mask(mask, len(P))
+    eligible = as_vertex_mask(mask, len(P))
     if len(P) == 0:
         z = np.zeros(0)
         return SurfaceDistances(z, z.copy(), eligible.copy(), eligible)
@@ -327,7 +309,7 @@ def ground_truth_errors(vertices, ground_truth, mask=None) -> GroundTruthErrors:
     G = np.asarray(ground_truth, dtype=np.float64)
     if G.shape != V.shape:
         raise ValueError(f"ground_truth must have shape {V.shape}, got {G.shape}")
-    keep = _vertex_mask(mask, len(V)) & np.isfinite(G).all(axis=1)
+    keep = as_vertex_mask(mask, len(V)) & np.isfinite(G).all(axis=1)
     err = np.full(len(V), np.nan)
     err[keep] = np.linalg.norm(V[keep] - G[keep], axis=1)
     return GroundTruthErrors(err)

@@ -111,3 +111,25 @@ def mesh_arrays(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
         V = as_vertices(mesh[0], f"{name} vertices")
         return V, as_triangles(mesh[1], len(V), f"{name} triangles")
     raise ValueError(f"{name} must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")
+
+
+def as_vertex_mask(mask, n: int, name: str = "mask", default: bool = True) -> np.ndarray:
+    """(n,) bool from a bool mask or vertex ids; every vertex ``default`` for None.
+
+    >>> as_vertex_mask([0, 2], 3).tolist(), as_vertex_mask(None, 2, default=False).tolist()
+    ([True, False, True], [False, False])
+    """
+    if mask is None:
+        return np.full(n, default, dtype=bool)
+    m = np.asarray(mask)
+    if m.dtype == bool:
+        if m.shape != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {m.shape}")
+        return m.copy()
+    if not np.issubdtype(m.dtype, np.integer) or m.ndim != 1:
+        raise ValueError(f"{name} must be a ({n},) bool mask or 1-D vertex ids")
+    if len(m) and (m.min() < 0 or m.max() >= n):
+        raise ValueError(f"{name} holds vertex ids outside [0, {n})")
+    out = np.zeros(n, dtype=bool)
+    out[m] = True
+    return out

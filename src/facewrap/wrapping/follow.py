@@ -44,6 +44,25 @@ def _signed(points, V, T):
     return S, C, N
 
 
+class _SkinSides:
+    """The side of the skin (every triangle that is not part) each part vertex lies
+    on in the aligned template ``R``, and the test of other positions against it."""
+
+    def __init__(self, T, roles, R):
+        self.part = np.flatnonzero(roles == PART)
+        self.skin_T = T[(roles[T] != PART).all(axis=1)]
+        self.usable = bool(len(self.part) and len(self.skin_T))
+        self.s0 = (_signed(R[self.part], R, self.skin_T)[0] if self.usable
+                   else np.zeros(len(self.part)))
+        self.contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
+
+    def wrong(self, points, X):
+        """Part vertices at ``points`` against the skin of ``X``: (wrong side,
+        closest skin points, skin normals there)."""
+        s1, C, N = _signed(points, X, self.skin_T)
+        return (np.sign(s1) != np.sign(self.s0)) & (np.abs(self.s0) > self.contact), C, N
+
+
 def side_changes(template_triangles, reference, vertices, roles) -> np.ndarray:
     """(p,) bool: part vertices (in id order) on the other side of the skin than on
     the aligned template (``reference``); see the module docstring.  Vertices that
@@ -57,17 +76,12 @@ def side_changes(template_triangles, reference, vertices, roles) -> np.ndarray:
     >>> side_changes([[0, 1, 2]], V, fit, roles).tolist()
     [True]
     """
-    T = np.asarray(template_triangles, dtype=np.int64)
-    part = np.flatnonzero(np.asarray(roles) == PART)
-    skin_T = T[(np.asarray(roles)[T] != PART).all(axis=1)]
-    if len(part) == 0 or len(skin_T) == 0:
-        return np.zeros(len(part), dtype=bool)
-    R = np.asarray(reference, dtype=np.float64)
+    sides = _SkinSides(np.asarray(template_triangles, dtype=np.int64), np.asarray(roles),
+                       np.asarray(reference, dtype=np.float64))
+    if not sides.usable:
+        return np.zeros(len(sides.part), dtype=bool)
     X = np.asarray(vertices, dtype=np.float64)
-    s0, _, _ = _signed(R[part], R, skin_T)
-    s1, _, _ = _signed(X[part], X, skin_T)
-    contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
-    return (np.sign(s0) != np.sign(s1)) & (np.abs(s0) > contact)
+    return sides.wrong(X[sides.part], X)[0]
 
 
 def follow_skin(template_triangles, reference, vertices, roles, *,
@@ -133,27 +147,20 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
         if solid[piece]:
             rigid[mine] = similarity_transform(R[part[mine]], X[part[mine]],
                                                scale=False).apply(R[part[mine]])
-    skin_T = T[(roles[T] != PART).all(axis=1)]
-    if len(skin_T) == 0:
+    sides = _SkinSides(T, roles, R)
+    if not sides.usable:
         return X
-    s0, _, _ = _signed(R[part], R, skin_T)
-    contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
-
-    def wrong_side(P) -> np.ndarray:
-        s1, C, N = _signed(P, X, skin_T)
-        return (np.sign(s1) != np.sign(s0)) & (np.abs(s0) > contact), C, N
-
     if solid[pieces].any():
-        bent = np.bincount(pieces, wrong_side(X[part])[0], minlength=len(solid))
-        kept = np.bincount(pieces, wrong_side(rigid)[0], minlength=len(solid))
+        bent = np.bincount(pieces, sides.wrong(X[part], X)[0], minlength=len(solid))
+        kept = np.bincount(pieces, sides.wrong(rigid, X)[0], minlength=len(solid))
         # rigid only where that keeps the whole piece behind the skin: putting single
         # vertices of a rigid piece back would dent it
         whole = (solid & (kept == 0))[pieces]
         X[part[whole]] = rigid[whole]
     for _ in range(rounds):
-        wrong, C, N = wrong_side(X[part])
+        wrong, C, N = sides.wrong(X[part], X)
         if not wrong.any():
             break
         n = N[wrong] / np.maximum(np.linalg.norm(N[wrong], axis=1, keepdims=True), 1e-300)
-        X[part[wrong]] = C[wrong] + n * s0[wrong, None]
+        X[part[wrong]] = C[wrong] + n * sides.s0[wrong, None]
     return X

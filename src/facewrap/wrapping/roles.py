@@ -31,6 +31,7 @@ import numpy as np
 
 from facewrap.evaluate import VERTEX_ROLE_NAMES
 from facewrap.geometry import boundary_edges, connected_components, face_areas
+from facewrap.geometry.checks import as_vertex_mask
 from facewrap.geometry.visibility import outside_views
 
 __all__ = ["VERTEX_ROLES", "FITTED", "PART", "CAVITY", "EXCLUDED", "PINNED",
@@ -176,23 +177,6 @@ class _HiddenSurfaceCache:
 cached_hidden_surface = _HiddenSurfaceCache()
 
 
-def _as_mask(ids, n: int, name: str) -> np.ndarray:
-    """``ids`` (bool mask or vertex ids) as an (n,) bool mask."""
-    mask = np.zeros(n, dtype=bool)
-    if ids is None:
-        return mask
-    a = np.asarray(ids)
-    if a.dtype == bool:
-        if a.shape != (n,):
-            raise ValueError(f"{name} mask must have shape ({n},), got {a.shape}")
-        return a.copy()
-    a = a.astype(np.int64).ravel()
-    if len(a) and (a.min() < 0 or a.max() >= n):
-        raise ValueError(f"{name} holds vertex ids outside [0, {n})")
-    mask[a] = True
-    return mask
-
-
 def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
                  fit_mask=None, pinned=None) -> np.ndarray:
     """The role code (:data:`VERTEX_ROLES`) of each of ``n`` template vertices.
@@ -230,14 +214,14 @@ def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
     """
     roles = np.full(n, FITTED, dtype=np.int8)
     if fit_mask is not None:
-        roles[~_as_mask(fit_mask, n, "fit_mask")] = EXCLUDED
-    roles[_as_mask(exclude, n, "exclude")] = EXCLUDED
+        roles[~as_vertex_mask(fit_mask, n, "fit_mask")] = EXCLUDED
+    roles[as_vertex_mask(exclude, n, "exclude", default=False)] = EXCLUDED
     if fit_mask is None and hidden is not None:
         # what a vertex is wins over why it is left out: an excluded eyeball is
         # still a part, and follows as one
         roles[hidden.cavity] = CAVITY
         roles[hidden.part] = PART
-    roles[_as_mask(pinned, n, "pinned")] = PINNED
+    roles[as_vertex_mask(pinned, n, "pinned", default=False)] = PINNED
     return roles
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from facewrap.evaluate import surface_distances
 from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
@@ -114,19 +115,11 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
     the scan's border (``fit_coverage`` is their fraction of the vertices in
     ``mask``): a template usually covers more than the scanner saw.
     """
-    V = np.asarray(vertices)
-    cp = tree.query(V)
-    # Only vertices the scan covers count: where the closest point is on the scan's
-    # border (holes, cropped regions) the template has nothing to fit to.
-    covered = ~tree.boundary_triangles[cp.triangles]
-    counted = len(V)
-    if mask is not None:
-        covered &= mask
-        counted = int(np.count_nonzero(mask))
-    d = cp.distances[covered] if covered.any() else cp.distances
-    out = {"fit_mean": float(d.mean()), "fit_p95": float(np.percentile(d, 95)),
-           "fit_max": float(d.max()),
-           "fit_coverage": float(covered.sum() / counted) if counted else 0.0}
+    # the one measure of distances to a surface (facewrap.evaluate): only vertices
+    # the scan covers count, where the closest point is on the scan's border (holes,
+    # cropped regions) the template has nothing to fit to
+    d = surface_distances(vertices, tree, exclude_border=True, mask=mask).summary("fit_")
+    out = {k: d[k] for k in ("fit_mean", "fit_p95", "fit_max", "fit_coverage")}
     if landmark_positions is not None:
         e = np.linalg.norm(np.asarray(landmark_positions) - np.asarray(scan_landmarks),
                            axis=1)
