@@ -12,7 +12,8 @@ from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template
 from facewrap.wrapping import WrapSettings, wrap
 from facewrap.wrapping.follow import follow_skin, side_changes
-from facewrap.wrapping.projection import folded_in, relax_flips
+from facewrap.geometry import folded_in
+from facewrap.wrapping.projection import relax_flips
 from facewrap.wrapping.roles import (CAVITY, EXCLUDED, FITTED, PART, PINNED, VERTEX_ROLES,
                                      find_hidden_surface, role_counts, role_ranges,
                                      vertex_roles)

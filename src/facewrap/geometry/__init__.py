@@ -22,7 +22,8 @@ Closest compatible points (:mod:`.matching`), the normalised frame (:mod:`.frame
 Similarity transforms (:mod:`.similarity`)
     :class:`Similarity`, :func:`similarity_transform` (Umeyama)
 Triangle quality (:mod:`.quality`)
-    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`, :func:`turned_from`
+    :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`, :func:`turned_from`,
+    :func:`folded_in`
     (the one flip test), :func:`triangle_normals`, :func:`triangle_quality`,
     :class:`TriangleQuality`, :func:`triangle_to_vertex`
 What an outside camera sees (:mod:`.visibility`)
@@ -46,7 +47,8 @@ from facewrap.geometry.adjacency import (
 from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.geometry.matching import Matches, closest_compatible_points, compatible
-from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, triangle_normals,
+from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, folded_in,
+                                       triangle_normals,
                                        triangle_quality, triangle_to_vertex, turned,
                                        turned_from, turned_triangles)
 from facewrap.geometry.similarity import Similarity, similarity_transform
@@ -70,6 +72,7 @@ __all__ = [
     "Similarity", "similarity_transform",
     # triangle quality
     "turned", "turned_triangles", "turned_from", "triangle_normals", "flipped_triangles",
+    "folded_in",
     "TriangleQuality", "triangle_quality",
     "triangle_to_vertex",
     # what an outside camera sees

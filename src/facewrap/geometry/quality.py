@@ -5,7 +5,8 @@ after a deformation exceeds it; *flipped* is the 90° case (the normal points
 backwards).  Degenerate triangles (a zero normal on either side) have no
 direction and never count as turned.  Every caller — the projection's fold guard,
 the transfer's flip repair, the evaluation's flipped-triangle count — asks this
-module, each with its own angle.
+module, each with its own angle.  :func:`folded_in` finds triangles a mesh itself
+has inside out (facing away from every neighbour), which no fit should be blamed for.
 
 :func:`triangle_quality` measures each triangle (minimum angle, area) and, against
 a reference mesh in the same topology (similarity-aligned first), its flip, area
@@ -20,11 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from facewrap.geometry.adjacency import triangle_adjacency
 from facewrap.geometry.arrays import cross_columns, edge_vectors
 from facewrap.geometry.checks import as_triangles, as_vertices
 from facewrap.geometry.similarity import similarity_transform
 
-__all__ = ["turned", "turned_triangles", "flipped_triangles", "turned_from",
+__all__ = ["turned", "turned_triangles", "flipped_triangles", "turned_from", "folded_in",
            "triangle_normals", "TriangleQuality", "triangle_quality", "triangle_to_vertex"]
 
 
@@ -113,6 +115,22 @@ def flipped_triangles(vertices, reference, triangles) -> np.ndarray:
     [[False], [True]]
     """
     return turned_triangles(vertices, reference, triangles, 90.0)
+
+
+def folded_in(normals, T) -> np.ndarray:
+    """(t,) bool: triangles facing away (> 90 degrees) from each of their edge
+    neighbours, two at least, given the triangles' ``normals`` (t, 3): folded
+    inside out.
+
+    >>> T = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 3]])
+    >>> n = np.array([[0, 0, 1.], [0, 0, -1], [0, 0, 1]])
+    >>> folded_in(n, T).tolist()
+    [False, True, False]
+    """
+    nb = triangle_adjacency(T)
+    has = nb >= 0
+    dots = np.where(has, np.einsum("ij,ikj->ik", normals, normals[np.maximum(nb, 0)]), 1.0)
+    return (has.sum(axis=1) >= 2) & ((dots < 0) | ~has).all(axis=1)
 
 
 def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:

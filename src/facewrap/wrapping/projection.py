@@ -26,14 +26,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
-                               triangle_adjacency, turned, uniform_laplacian,
-                               vertex_adjacency, vertex_normals)
+                               folded_in, turned, uniform_laplacian, vertex_adjacency,
+                               vertex_normals)
 from facewrap.geometry.matching import compatible
 from facewrap.mesh import Mesh
 from facewrap.solve.fixed import FixedSystem
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
-           "extension_operator", "relax_flips", "folded_in",
+           "extension_operator", "relax_flips",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
 
 METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
@@ -302,22 +302,6 @@ _FOLD_REACH = 6
 #: relaxed this fraction of the vertices
 _STALLED_ROUNDS = 3
 _MOST_RELAXED = 0.02
-
-
-def folded_in(normals, T) -> np.ndarray:
-    """(t,) bool: triangles facing away (> 90 degrees) from each of their edge
-    neighbours, two at least, given the triangles' ``normals`` (t, 3): folded
-    inside out.
-
-    >>> T = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 3]])
-    >>> n = np.array([[0, 0, 1.], [0, 0, -1], [0, 0, 1]])
-    >>> folded_in(n, T).tolist()
-    [False, True, False]
-    """
-    nb = triangle_adjacency(T)
-    has = nb >= 0
-    dots = np.where(has, np.einsum("ij,ikj->ik", normals, normals[np.maximum(nb, 0)]), 1.0)
-    return (has.sum(axis=1) >= 2) & ((dots < 0) | ~has).all(axis=1)
 
 
 def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int = 1,
