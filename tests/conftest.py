@@ -13,6 +13,20 @@ needs_data = pytest.mark.skipif(
                               "(clone with ../shared beside the project to run it)")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory):
+    """Keep the on-disk cache (facewrap.io.cache) of every test, and of the commands
+    they start, out of the user's home: one fresh folder for the whole run."""
+    import os
+    old = os.environ.get("FACEWRAP_CACHE_DIR")
+    os.environ["FACEWRAP_CACHE_DIR"] = str(tmp_path_factory.mktemp("facewrap-cache"))
+    yield
+    if old is None:
+        os.environ.pop("FACEWRAP_CACHE_DIR", None)
+    else:
+        os.environ["FACEWRAP_CACHE_DIR"] = old
+
+
 @pytest.fixture(scope="session")
 def data_dir() -> Path:
     if not DATA.is_dir():

@@ -1,0 +1,157 @@
+"""A cache of arrays on disk, keyed by the content they were computed from.
+
+Work that depends only on an input's bytes (a folder of 53 shape OBJs parsed into
+arrays, the hidden surface of a template) is done once per content and machine, not
+once per process.  Entries are ``.npz`` files in one folder:
+
+- ``$FACEWRAP_CACHE_DIR`` when set, else ``$XDG_CACHE_HOME/facewrap``, else
+  ``~/.cache/facewrap``; never beside an input;
+- ``FACEWRAP_CACHE=0`` turns the cache off (nothing read, nothing written).
+
+Keys are BLAKE2b digests of the content (see :func:`content_key`), never sizes or
+modification times, so an edited file can never be answered from the cache.  An entry
+is written atomically (a reader sees it whole or not at all) and is checked when it is
+read: one that is corrupt, truncated, of another kind or another format version, or
+that does not hold the arrays asked for, is ignored (and rewritten by the next
+:func:`save_arrays`).  A cache folder that cannot be written is not an error: the
+work is simply done again next time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import zipfile
+
+import numpy as np
+
+from facewrap.io.atomic import atomic_write
+
+__all__ = ["cache_dir", "content_key", "load_arrays", "save_arrays"]
+
+# bump when the layout of every entry changes; each kind carries its own version too
+_FORMAT = 1
+_META = "__facewrap_cache__"
+
+
+def cache_dir() -> str | None:
+    """The cache folder, or None when the cache is turned off.
+
+    Examples
+    --------
+    >>> import os
+    >>> os.environ["FACEWRAP_CACHE"] = "0"
+    >>> cache_dir() is None
+    True
+    >>> del os.environ["FACEWRAP_CACHE"]
+    """
+    if os.environ.get("FACEWRAP_CACHE", "1").strip().lower() in ("0", "no", "off", "false"):
+        return None
+    folder = os.environ.get("FACEWRAP_CACHE_DIR")
+    if not folder:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(
+            os.path.expanduser("~"), ".cache")
+        folder = os.path.join(base, "facewrap")
+    return folder
+
+
+def content_key(*parts) -> str:
+    """A hex digest of ``parts``: bytes, str, numbers or numpy arrays, in order.
+
+    An array contributes its dtype, shape and bytes, so two arrays with the same bytes
+    but another shape get other keys.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> content_key(np.zeros(3), "graph") == content_key(np.zeros(3), "graph")
+    True
+    >>> content_key(np.zeros(3)) == content_key(np.zeros((3, 1)))
+    False
+    """
+    h = hashlib.blake2b(digest_size=20)
+    for part in parts:
+        if isinstance(part, np.ndarray):
+            a = np.ascontiguousarray(part)
+            h.update(f"nd:{a.dtype.str}:{a.shape}:".encode())
+            h.update(a.view(np.uint8).reshape(-1) if a.size else b"")
+        elif isinstance(part, (bytes, bytearray, memoryview)):
+            h.update(b"b:%d:" % len(part))
+            h.update(part)
+        else:
+            text = str(part).encode()
+            h.update(b"s:%d:" % len(text))
+            h.update(text)
+    return h.hexdigest()
+
+
+def _entry_path(folder: str, kind: str, key: str) -> str:
+    return os.path.join(folder, f"{kind}-{key}.npz")
+
+
+def load_arrays(kind: str, key: str, names, *, version: int = 1) -> dict | None:
+    """The arrays stored under ``(kind, key)``, or None when there is no usable entry.
+
+    Parameters
+    ----------
+    kind : str
+        What the entry is (``"shapes"``, ``"hidden-surface"``): a word, part of the
+        file name.
+    key : str
+        :func:`content_key` of everything the arrays depend on.
+    names : iterable of str
+        The arrays the caller needs; an entry missing one of them is not used.
+    version : int
+        The caller's layout version for this kind; an entry of another is not used.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray, or None
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> os.environ["FACEWRAP_CACHE_DIR"] = tempfile.mkdtemp()
+    >>> key = content_key(b"some input")
+    >>> load_arrays("example", key, ["x"]) is None
+    True
+    >>> save_arrays("example", key, {"x": np.arange(3)})
+    >>> load_arrays("example", key, ["x"])["x"].tolist()
+    [0, 1, 2]
+    >>> del os.environ["FACEWRAP_CACHE_DIR"]
+    """
+    folder = cache_dir()
+    if folder is None:
+        return None
+    path = _entry_path(folder, kind, key)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = data[_META]
+            if meta.tolist() != [_FORMAT, int(version)]:
+                return None
+            return {name: data[name] for name in names}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        # absent, unreadable, truncated, corrupt or foreign: as if there were none
+        return None
+
+
+def save_arrays(kind: str, key: str, arrays: dict, *, version: int = 1) -> None:
+    """Store ``arrays`` under ``(kind, key)``; silently does nothing if it cannot.
+
+    Parameters
+    ----------
+    kind, key, version
+        As for :func:`load_arrays`.
+    arrays : dict of str to numpy.ndarray
+        Plain numeric or boolean arrays (no objects: entries are read without pickle).
+    """
+    folder = cache_dir()
+    if folder is None:
+        return
+    with contextlib.suppress(OSError):
+        os.makedirs(folder, exist_ok=True)
+        payload = {name: np.asarray(a) for name, a in arrays.items()}
+        payload[_META] = np.array([_FORMAT, int(version)], dtype=np.int64)
+        with atomic_write(_entry_path(folder, kind, key), "wb") as f:
+            np.savez(f, **payload)
