@@ -105,3 +105,53 @@ def test_projection_does_not_fold_triangles_over_a_coarse_scan():
     guarded = project_to_surface(template, tree, **kw)
     assert flipped(plain) > 10 and flipped(guarded) == 0
     assert guarded.projected.mean() > 0.4
+
+
+def _strip_with_sliver():
+    """A flat fan around a sliver (triangle 0: 0.01 wide under a unit edge)."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [.5, .01, 0], [.5, 1, 0], [.5, -1, 0],
+                  [-1, 0, 0], [2, 0, 0]], dtype=float)
+    T = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 0], [0, 4, 1], [5, 0, 3], [5, 4, 0],
+                  [1, 6, 3], [1, 4, 6]])
+    return V, T
+
+
+def test_settle_turns_a_sliver_back_with_its_neighbourhood_rotation():
+    from facewrap.geometry import flipped_triangles
+    from facewrap.geometry.similarity import Similarity
+    from facewrap.wrapping.projection import settle_turned_corners
+    V, T = _strip_with_sliver()
+    # the whole neighbourhood turned 30 degrees about x and moved: the sliver's
+    # corner slipped across the long edge
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    motion = Similarity(np.array([[1, 0, 0], [0, c, -s], [0, s, c]]), np.array([3., 1, 2]))
+    fit = motion.apply(V)
+    fit[2] = motion.apply(V[2] * [1, -1, 1])
+    assert flipped_triangles(fit, V, T).tolist() == [True] + [False] * 7
+    out, moved = settle_turned_corners(Mesh(V, T), V, fit)
+    assert moved.tolist() == [False, False, True, False, False, False, False]
+    assert not flipped_triangles(out, V, T).any()
+    assert np.allclose(out, motion.apply(V), atol=1e-9)        # where the motion puts it
+    # a corner that may not move is left turned; so is a turned triangle of fair shape
+    kept, none = settle_turned_corners(Mesh(V, T), V, fit, movable=np.arange(7) != 2)
+    assert not none.any() and np.array_equal(kept, fit)
+    fair = V.copy()
+    fair[3] = [.5, -.5, 0]                                     # triangles 1, 2 turned over
+    same, none = settle_turned_corners(Mesh(V, T), V, fair)
+    assert not none.any() and np.array_equal(same, fair)
+
+
+def test_relax_flips_fewest_never_leaves_more_folds_than_it_was_given():
+    from facewrap.geometry import flipped_triangles
+    from facewrap.wrapping.projection import relax_flips
+    rng = np.random.default_rng(3)
+    g = np.stack(np.meshgrid(np.arange(8.0), np.arange(8.0)), -1).reshape(-1, 2)
+    V = np.c_[g, np.zeros(64)]
+    quads = [i for i in range(55) if i % 8 < 7]
+    T = np.array([[i, i + 1, i + 9] for i in quads] + [[i, i + 9, i + 8] for i in quads])
+    for _ in range(20):
+        fit = V + rng.normal(scale=0.6, size=V.shape) * [1, 1, 0.2]
+        fixed = rng.random(64) < 0.3
+        out, moved = relax_flips(Mesh(V, T), V, fit, fixed=fixed, rounds=3, fewest=True)
+        assert flipped_triangles(out, V, T).sum() <= flipped_triangles(fit, V, T).sum()
+        assert not moved[fixed].any() and np.array_equal(out[~moved], fit[~moved])

@@ -26,14 +26,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.geometry import (ClosestPointTree, edges_of_polygons, face_normals,
-                               folded_in, turned, uniform_laplacian, vertex_adjacency,
-                               vertex_normals)
+                               folded_in, triangle_normals, turned, uniform_laplacian,
+                               vertex_adjacency, vertex_normals)
 from facewrap.geometry.matching import compatible
+from facewrap.geometry.similarity import similarity_transform
 from facewrap.mesh import Mesh
 from facewrap.solve.fixed import FixedSystem
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "smooth_extension",
-           "extension_operator", "relax_flips",
+           "extension_operator", "relax_flips", "settle_turned_corners",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
 
 METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
@@ -305,7 +306,7 @@ _MOST_RELAXED = 0.02
 
 
 def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int = 1,
-                rounds: int = 10) -> tuple[np.ndarray, np.ndarray]:
+                rounds: int = 10, fewest: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Unfold triangles that face away from ``reference``, by smoothing locally.
 
     A fit can leave a few triangles turned over where the scan ends, in a crease
@@ -330,6 +331,11 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
         Vertices that must not move (pinned ones).
     order : {1, 2}
     rounds : int
+    fewest : bool
+        Return the round that left the fewest triangles turned over (never more
+        than ``vertices`` had) instead of the last one.  The last round's wider
+        smoothing suits a fit that is projected again afterwards; a final pass
+        wants the fewest folds.
 
     Returns
     -------
@@ -360,8 +366,11 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
     A = None
     operator = None
     last, stalled = len(T) + 1, 0
+    best = (len(T) + 1, X, relaxed)
     for _ in range(rounds):
         flipped = turned(n0, face_normals(out, T), 90.0) & ~folded
+        if flipped.sum() < best[0]:
+            best = (int(flipped.sum()), out, relaxed.copy())
         if not flipped.any():
             break
         stalled = stalled + 1 if flipped.sum() >= last else 0
@@ -378,7 +387,103 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
         relaxed |= grown & ~keep
         out = V0 + smooth_extension(template, X - V0, ~relaxed, operator=operator)
         out[~relaxed] = X[~relaxed]
+    if fewest and turned(n0, face_normals(out, T), 90.0)[~folded].sum() >= best[0]:
+        return best[1], best[2]
     return out, relaxed
+
+
+#: settle_turned_corners gives up when more triangles than this are still turned:
+#: a fit that bad needs more than corners moved
+_MOST_SETTLED = 200
+#: a triangle whose height over its longest edge is below this is a sliver: its
+#: orientation is set by sub-micron differences between its corners
+_SLIVER = 0.1
+
+
+def settle_turned_corners(template: Mesh, reference, vertices, *, movable=None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """Turn back slivers still facing away from ``reference``, one corner each.
+
+    What :func:`relax_flips` cannot unfold is mostly a sliver: a triangle so thin
+    (ICT-FaceKit has one 0.02 mm across, standing at 90 degrees to its neighbours)
+    that its orientation is set by sub-micron differences between its corners, so
+    any smooth deformation turns it either way.  Each turned sliver (height below
+    a tenth of its longest edge) has its corner opposite that edge put back where
+    the rigid motion of the vertices around the edge (their best rotation from
+    ``reference`` to ``vertices``) carries it, relative to the edge's midpoint:
+    it moves by about the sliver's width.  A corner is moved only when that leaves
+    fewer triangles around it turned past 90 degrees.  A triangle of fair shape
+    that is still turned is left alone: its turn is the fit's (a rolled lip), not
+    round-off.
+
+    Parameters
+    ----------
+    template : Mesh
+        Topology.
+    reference : (n, 3) float
+        Positions whose orientation is right.
+    vertices : (n, 3) float
+        The fit.
+    movable : (n,) bool, optional
+        Corners that may move (default all).
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    moved : (n,) bool
+
+    Examples
+    --------
+    >>> from facewrap.mesh import Mesh
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [.5, .01, 0], [.5, 1, 0], [.5, -1, 0]])
+    >>> T = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 0], [0, 4, 1]])   # 0 1 2: a sliver
+    >>> fit = V.copy(); fit[2, 1] = -.01            # its corner slips across: turned
+    >>> out, moved = settle_turned_corners(Mesh(V, T), V, fit)
+    >>> moved.tolist(), bool(np.allclose(out[2], V[2]))
+    ([False, False, True, False, False], True)
+    """
+    R = np.asarray(reference, dtype=np.float64)
+    out = np.array(vertices, dtype=np.float64)
+    T = template.triangles
+    n0 = face_normals(R, T)
+    counted = ~folded_in(n0, T)
+    may = np.ones(len(out), bool) if movable is None else np.asarray(movable, bool)
+    moved = np.zeros(len(out), dtype=bool)
+    todo = np.flatnonzero(turned(n0, face_normals(out, T), 90.0) & counted)
+    if not len(todo) or len(todo) > _MOST_SETTLED:
+        return out, moved
+    edges = np.linalg.norm(R[T[todo][:, [1, 2, 0]]] - R[T[todo]], axis=2)   # (k, 3)
+    longest = edges.max(axis=1)
+    # twice the area over the longest edge
+    height = (np.linalg.norm(triangle_normals(R, T[todo]), axis=1)
+              / np.maximum(longest, np.finfo(float).tiny))
+    slivers = height < _SLIVER * longest
+    adjacency = vertex_adjacency(T, len(out)).tocsr()
+    for f, k in zip(todo[slivers], edges[slivers].argmax(axis=1)):   # a handful
+        a, b, c = T[f, k], T[f, (k + 1) % 3], T[f, (k + 2) % 3]
+        if may[c] and _settle_corner(out, R, T, n0, counted, adjacency, a, b, c):
+            moved[c] = True
+    return out, moved
+
+
+def _settle_corner(out, R, T, n0, counted, adjacency, a, b, c) -> bool:
+    """Corner ``c`` put where the rigid motion of the vertices around edge ``ab``
+    carries it from ``R`` (in ``out``, in place), if that leaves fewer triangles
+    around ``c`` turned past 90 degrees."""
+    hood = np.union1d(adjacency[a].indices, adjacency[b].indices)
+    hood = hood[hood != c]
+    if len(hood) < 3:
+        return False
+    rotation = similarity_transform(R[hood], out[hood], scale=False).rotation
+    place = (out[a] + out[b]) / 2 + rotation @ (R[c] - (R[a] + R[b]) / 2)
+    around = np.flatnonzero((T == c).any(axis=1) & counted)
+    before = turned(n0[around], face_normals(out, T[around]), 90.0).sum()
+    kept = out[c].copy()
+    out[c] = place
+    if turned(n0[around], face_normals(out, T[around]), 90.0).sum() < before:
+        return True
+    out[c] = kept
+    return False
 
 
 def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from facewrap.evaluate import surface_distances
-from facewrap.geometry import ClosestPointTree, connected_components
+from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
@@ -36,8 +36,9 @@ from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.projection import (Projection, project_to_surface, relax_flips,
-                                          smooth_extension)
-from facewrap.wrapping.roles import FITTED, PINNED, cached_hidden_surface, vertex_roles
+                                          settle_turned_corners, smooth_extension)
+from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
+                                     vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.warp import pull_to_landmarks
 
@@ -369,15 +370,38 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
         upright = aligned if rest is None else rest
         out, relaxed = relax_flips(template, upright, out, fixed=roles == PINNED,
                                    order=problem.settings.blend_order)
-        summary["unfolded"] = int(relaxed.sum())
         if relaxed.any() and projection is not None:
             # onto the scan again from the unfolded pose, keeping its orientation: the
             # fit is as tight as before where that folds nothing
             projection = project(problem, out, upright=upright)
             out = projection.vertices
+            out, again = _unfold_blended(problem, upright, out, projection)
+            relaxed |= again
+        summary["unfolded"] = int(relaxed.sum())
+        # what smoothing cannot unfold (slivers), one corner each
+        out, settled = settle_turned_corners(template, upright, out,
+                                             movable=(roles != PINNED) & (roles != PART))
+        summary["settled"] = int(settled.sum())
     out = pin(problem, out, similarity, projection)
     out = follow_skin(template.triangles, aligned, out, roles)
     return out, summary
+
+
+def _unfold_blended(problem: WrapProblem, upright, vertices, projection: Projection):
+    """Triangles the second projection's blend turned over, unfolded among the
+    vertices that were not projected (the landing points stay on the scan); kept
+    only when fewer skin triangles are turned over than before.  Returns the
+    positions and the vertices that moved."""
+    template, roles = problem.template, problem.roles
+    fixed = (roles == PINNED) | projection.projected
+    out, again = relax_flips(template, upright, vertices, fixed=fixed,
+                             order=problem.settings.blend_order, fewest=True)
+    skin = (roles[template.triangles] != PART).all(axis=1)
+    if not again.any() or (turned_triangles(out, upright, template.triangles)[skin].sum()
+                           >= turned_triangles(vertices, upright,
+                                               template.triangles)[skin].sum()):
+        return vertices, np.zeros(len(vertices), dtype=bool)
+    return out, again
 
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
