@@ -73,6 +73,13 @@ def _no_face(source, pictures: int) -> InputError:
                       "direction); landmarks can only be detected on a face scan", source)
 
 
+def _frame_points(points) -> bool:
+    """Whether lifted points hold what the face frame needs: some of each eye and
+    of the mouth on the surface."""
+    hit = np.isfinite(points).all(axis=1)
+    return all(hit[s].sum() >= 2 for s in (slice(36, 42), slice(42, 48), slice(48, 68)))
+
+
 def _central_face(model, view):
     """The face nearest the picture's centre, or None."""
     faces = model.faces(view.gray)
@@ -143,7 +150,7 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         raise _no_face(source, len(search_directions(V, T)))
     pictures = found.pictures
     lifted, _ = found.view.lift(scene, found.face.points)
-    if np.isnan(lifted[36:68]).all(axis=1).any():
+    if not _frame_points(lifted):
         raise _no_face(source, pictures)
     rotation, center, eyes = face_frame(lifted, found.view.camera.direction)
     for _ in range(_FRAME_PASSES - 1):
@@ -153,7 +160,7 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         if face is None:
             break
         pts, _ = view.lift(scene, face.points)
-        if np.isnan(pts[36:68]).any(axis=1).all():
+        if not _frame_points(pts):
             break
         rotation, center, eyes = face_frame(pts, view.camera.direction)
     t2 = time.perf_counter()
