@@ -28,6 +28,7 @@ from facewrap.landmarks import IBUG68_NAMES, Landmarks
 __all__ = ["DetectedLandmarks", "detect_landmarks"]
 
 _FRAME_PASSES = 2        # frontal re-renders that settle the face frame
+_NOSE_DEPTH = 0.125      # of the eye distance: least height of a nose tip
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +72,20 @@ class DetectedLandmarks:
 def _no_face(source, pictures: int) -> InputError:
     return InputError(f"no face found on the mesh ({pictures} pictures from every "
                       "direction); landmarks can only be detected on a face scan", source)
+
+
+def _face_like(points, rotation, eyes: float, views) -> bool:
+    """Whether what was found is a face and not a pattern of shading: found in two
+    refined views at least (when there are two), and a nose tip standing out of the
+    eye corners' plane by an eighth of the eye distance (a real nose: about a third;
+    a ball's curvature over the same span: under a tenth)."""
+    if sum(v["found"] for v in views) < min(2, len(views)):
+        return False
+    depth = points @ rotation[2]
+    corners = depth[[36, 39, 42, 45]]
+    if not np.isfinite(depth[30]) or not np.isfinite(corners).any():
+        return False
+    return bool(depth[30] - np.nanmean(corners) > _NOSE_DEPTH * eyes)
 
 
 def _frame_points(points) -> bool:
@@ -166,6 +181,8 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
     t2 = time.perf_counter()
     fused, views, reprojection = _refined(scene, model, rotation, center, eyes, settings)
     pictures += len(views)
+    if fused is None or not _face_like(fused.points, rotation, eyes, views):
+        raise _no_face(source, pictures)
     t3 = time.perf_counter()
     return _result(scene, fused, views, reprojection, eyes, settings, tree, source,
                    {"model": t_model, "search": t2 - t1, "refine": t3 - t2,
