@@ -216,7 +216,7 @@ def render_view(scene: SceneArrays, camera: Camera) -> RenderedView:
     (0, True)
     >>> point, tri = view.lift(scene, [[15.5, 15.5]])
     >>> np.round(point, 2).tolist(), tri.tolist()
-    [[[0.0, 0.0, 0.0]], [0]]
+    ([[0.0, 0.0, 0.0]], [0])
     """
     w, h = camera.size
     C = (scene.V - camera.center) @ camera.rotation.T
