@@ -58,11 +58,10 @@ def cmd_landmarks(args) -> int:
                              confidence=found.confidence,
                              low_confidence=found.low_confidence,
                              views=found.views, source="detected")
-    if not args.quiet:
-        unit, source = resolve_units(args.units, mesh.vertices)
-        print(f"wrote {args.output}: {detection_summary(found, unit)}")
-        if source == "inferred":
-            print(units_note(unit, source))
+    unit, source = resolve_units(args.units, mesh.vertices)
+    lines = [f"wrote {args.output}: {detection_summary(found, unit)}"]
+    lines += [units_note(unit, source)] if source == "inferred" else []
+    print("\n".join([] if args.quiet else lines), end="" if args.quiet else "\n")
     return 0
 
 

@@ -40,6 +40,11 @@ IBUG68_MIRROR = np.array(
     + [35, 34, 33, 32, 31] + [45, 44, 43, 42, 47, 46] + [39, 38, 37, 36, 41, 40]
     + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55] + [64, 63, 62, 61, 60, 67, 66, 65])
 
+#: Starting boxes of the predictor: (scale, shift right, shift down), shifts in half
+#: box widths, around the detector's box.
+_JITTER = ((1.0, 0.0, 0.0), (1.08, 0.0, 0.0), (0.93, 0.0, 0.0), (1.0, 0.05, 0.0),
+           (1.0, -0.05, 0.0), (1.0, 0.0, 0.05), (1.0, 0.0, -0.05))
+
 _PREDICTOR = os.path.join("models", "shape_predictor_68_face_landmarks.dat")
 _MODEL = None          # the loaded FaceModel, shared by every call in the process
 
@@ -85,20 +90,32 @@ class FaceModel:
         return sorted(found, key=lambda f: -f.score)
 
     def points(self, gray: np.ndarray, box) -> np.ndarray:
-        """(68, 2) points of the face in ``box``: the mean of the predictor's answer
-        on the picture and on its mirror image (mirrored back, left and right
-        swapped), which halves its one-sided bias."""
+        """(68, 2) points of the face in ``box``.
+
+        The mean of the predictor's answers from a few boxes (the detector's, a
+        little larger, smaller and shifted: the regression depends on where it
+        starts) on the picture and on its mirror image (mirrored back, left and
+        right swapped, which cancels the model's one-sided bias).
+        """
         img = np.ascontiguousarray(gray, dtype=np.uint8)
+        flipped = np.ascontiguousarray(img[:, ::-1])
         w = img.shape[1]
-        left, top, right, bottom = (int(round(b)) for b in box)
-        direct = self._shape(img, left, top, right, bottom)
-        mirror = self._shape(np.ascontiguousarray(img[:, ::-1]), w - 1 - right, top,
-                             w - 1 - left, bottom)
-        mirror[:, 0] = w - 1 - mirror[:, 0]
-        return (direct + mirror[IBUG68_MIRROR]) / 2
+        left, top, right, bottom = np.asarray(box, dtype=np.float64)
+        cx, cy, half = (left + right) / 2, (top + bottom) / 2, (right - left) / 2
+        total = np.zeros((68, 2))
+        for scale, dx, dy in _JITTER:
+            r = half * scale
+            x0, x1 = cx + dx * half - r, cx + dx * half + r
+            y0, y1 = cy + dy * half - r, cy + dy * half + r
+            total += self._shape(img, x0, y0, x1, y1)
+            mirror = self._shape(flipped, w - 1 - x1, y0, w - 1 - x0, y1)
+            mirror[:, 0] = w - 1 - mirror[:, 0]
+            total += mirror[IBUG68_MIRROR]
+        return total / (2 * len(_JITTER))
 
     def _shape(self, img, left, top, right, bottom) -> np.ndarray:
-        shape = self._predictor(img, self._dlib.rectangle(left, top, right, bottom))
+        box = self._dlib.rectangle(*(int(round(v)) for v in (left, top, right, bottom)))
+        shape = self._predictor(img, box)
         return np.array([[p.x, p.y] for p in shape.parts()], dtype=np.float64)
 
 

@@ -27,7 +27,7 @@ from facewrap.landmarks import IBUG68_NAMES, Landmarks
 
 __all__ = ["DetectedLandmarks", "detect_landmarks"]
 
-_FRAME_PASSES = 2        # frontal re-renders that settle the face frame
+_FRAME_PASSES = 3        # frontal re-renders that settle the face frame
 _NOSE_DEPTH = 0.125      # of the eye distance: least height of a nose tip
 
 
@@ -52,7 +52,8 @@ class DetectedLandmarks:
         point and the fused landmark projected into that view (NaN: seen nowhere).
     views : list of dict
         Every refined view: ``direction`` (3 floats, toward the camera, model
-        coordinates), ``yaw`` (degrees), ``pixel_size`` (model units), ``found``.
+        coordinates), ``yaw`` and ``pitch`` (degrees from the frontal view),
+        ``pixel_size`` (model units), ``found``.
     eye_distance : float
         Between the eye centres, model units.
     timings : dict of str to float
@@ -190,17 +191,20 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
 
 
 def _refined(scene, model, rotation, center, eyes, settings):
-    """Fused points of the frontal and yawed views, the views, reprojection (px)."""
-    up = rotation[1]
-    yaws = (0.0,) if settings.yaw == 0 else (0.0, settings.yaw, -settings.yaw)
+    """Fused points of the frontal, yawed and pitched views, the views, reprojection
+    (px)."""
+    turns = [(0.0, 0.0)] + [(y, 0.0) for y in (settings.yaw, -settings.yaw) if y] \
+        + [(0.0, p) for p in (settings.pitch, -settings.pitch) if p]
     normals = trusted_face_normals(scene.V, scene.T)
     normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     lifts, pixels, cameras, views = [], [], [], []
-    for yaw in yaws:
-        cam = _face_camera(rotation @ rotation_about(up, yaw), center, eyes, settings)
+    for yaw, pitch in turns:
+        turned = rotation @ rotation_about(rotation[1], yaw) @ rotation_about(rotation[0],
+                                                                              pitch)
+        cam = _face_camera(turned, center, eyes, settings)
         view = render_view(scene, cam)
         face = _central_face(model, view)
-        views.append({"direction": cam.direction.tolist(), "yaw": yaw,
+        views.append({"direction": cam.direction.tolist(), "yaw": yaw, "pitch": pitch,
                       "pixel_size": cam.pixel_size, "found": face is not None})
         if face is None:
             continue

@@ -23,8 +23,10 @@ class DetectionSettings:
     face_fraction : float
         Share of a refined picture's width the face (its 68 points) spans.
     yaw : float
-        Degrees: the refined views look at the face from the front and this far to
-        either side (0: the frontal view only).
+        Degrees: the refined views look at the face from the front, this far to
+        either side (0: none to the sides) ...
+    pitch : float
+        ... and this far from above and below (0: none).
     agreement : float
         Two views agree on a point when their lifts lie within this fraction of the
         distance between the eye centres (about 6 mm on an adult at 0.1).
@@ -35,6 +37,7 @@ class DetectionSettings:
     refine_size: int = 384
     face_fraction: float = 0.55
     yaw: float = 20.0
+    pitch: float = 0.0
     agreement: float = 0.1
     min_confidence: float = 0.5
 
@@ -43,6 +46,7 @@ class DetectionSettings:
         "refine_size": Interval(int, 96, 2048),
         "face_fraction": Interval(float, 0.2, 0.95),
         "yaw": Interval(float, 0.0, 45.0),
+        "pitch": Interval(float, 0.0, 45.0),
         "agreement": Interval(float, 0.0, 1.0, closed="right"),
         "min_confidence": Interval(float, 0.0, 1.0),
     }

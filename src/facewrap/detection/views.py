@@ -27,6 +27,8 @@ __all__ = ["Camera", "SceneArrays", "RenderedView", "render_view", "rotation_abo
 
 _AMBIENT = 0.25          # grey level of a surface seen edge-on (shaded pictures)
 _BACKGROUND = 0          # black: the detector sees the head's outline
+_LIGHT = np.array([0.0, 0.42, 0.91])    # camera coordinates: in front, above
+_TEXTURE_SHADING = 0.6   # how much of the shading a textured picture takes on
 _EDGE_SLACK = 0.05       # barycentric slack: a point on a shared edge stays exact
 
 
@@ -227,16 +229,19 @@ def render_view(scene: SceneArrays, camera: Camera) -> RenderedView:
     if len(raster.pixels):
         tri = raster.triangle.reshape(-1)[raster.pixels]
         bary = raster.barycentric
+        # one light, from the camera's side and a little above it (as a portrait is
+        # lit: shadows under the brows and the nose), both sides of a triangle lit
+        corners = scene.T[tri]
+        n = np.einsum("kj,kjd->kd", bary, scene.normals[corners].astype(np.float32))
+        light = camera.rotation.T @ _LIGHT
+        lit = np.abs(n @ light.astype(np.float32))
+        lit /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)
+        shade = _AMBIENT + (1 - _AMBIENT) * lit
         if scene.texture is not None:
             uv = np.einsum("kj,kjd->kd", bary.astype(np.float64), scene.corner_uvs[tri])
-            rgb = sample_image(scene.texture, uv)
-            gray[raster.pixels] = rgb @ np.array([0.299, 0.587, 0.114])
+            albedo = sample_image(scene.texture, uv) @ np.array([0.299, 0.587, 0.114])
+            gray[raster.pixels] = albedo * (_TEXTURE_SHADING * shade + 1 - _TEXTURE_SHADING)
         else:
-            # one head light: Lambert on interpolated normals, both sides lit
-            corners = scene.T[tri]
-            n = np.einsum("kj,kjd->kd", bary, scene.normals[corners].astype(np.float32))
-            nz = np.abs(n @ camera.rotation[2].astype(np.float32))
-            nz /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)
-            gray[raster.pixels] = 255.0 * (_AMBIENT + (1 - _AMBIENT) * nz)
+            gray[raster.pixels] = 255.0 * shade
     return RenderedView(camera, np.clip(np.rint(gray), 0, 255).astype(np.uint8)
                         .reshape(h, w), raster)
