@@ -54,6 +54,28 @@ def _moved(mesh: Mesh, R, scale) -> Mesh:
                 (mesh.face_offsets, mesh.face_uvs))
 
 
+def wrap_comparison(found) -> dict:
+    """ICT's face onto james from the manual landmarks and from the detected ones
+    (the confident points): fit, flipped triangles, and the manual landmarks (a
+    check only) on each result (``bench_realscan``'s measures)."""
+    from bench_realscan import _cases, measures
+    from facewrap.detection.for_wrap import confident_landmarks
+    from facewrap.wrapping import WrapSettings, wrap
+    cases = [c for c, _ in _cases() if c.name.startswith("ICT face")]
+    if not cases:
+        return {}
+    case = cases[0]
+    out = {}
+    tl, sl = confident_landmarks(case.landmarks, found)
+    for name, (a, b) in (("manual", (case.landmarks, case.scan_landmarks)),
+                         ("detected", (tl, sl))):
+        t = time.perf_counter()
+        res = wrap(case.template, case.scan, a, b, WrapSettings(model="graph"))
+        out[name] = {"seconds": time.perf_counter() - t, "landmarks": len(b),
+                     **measures(res.vertices, case)}
+    return out
+
+
 def run() -> dict:
     t = time.perf_counter()
     face_model()
@@ -100,6 +122,7 @@ def run() -> dict:
             ok = ~found.low_confidence & ~base.low_confidence
             out["turns"][f"{axis}{angle} {unit}"] = float(
                 np.linalg.norm(back - base.positions, axis=1)[ok].mean())
+    out["wrap"] = wrap_comparison(base)
     V, T = subdivide(*subdivide(james.vertices, james.triangles))
     out["triangles_200k"] = len(T)
     out["detect_200k_s"] = best_of(lambda: detect_landmarks((V, T)), 2)[0]
@@ -126,6 +149,16 @@ def markdown(r: dict) -> str:
                   "landmarks to the unturned answer after undoing the transform: "
                   + ", ".join(f"{k}: {v:.2f}" if isinstance(v, float) else f"{k}: {v}"
                               for k, v in r["turns"].items())]
+    if r.get("wrap"):
+        lines += ["", "ICT's face onto james (graph model), from the manual landmarks and "
+                  "from the detected ones (confident points only); the manual landmarks "
+                  "are the check in both rows:", "",
+                  "| landmarks | used | fit p95 (mm) | flipped | manual landmarks mean / "
+                  "max (mm) | s |", "|---|---|---|---|---|---|"]
+        for name, w in r["wrap"].items():
+            lines.append(f"| {name} | {w['landmarks']} | {w['fit_p95']:.2f} | "
+                         f"{w['flipped']} | {w['landmark_mean']:.2f} / "
+                         f"{w['landmark_max']:.2f} | {w['seconds']:.1f} |")
     if "detect_200k_s" in r:
         lines += ["", f"Time: model load {r['model_load_s']:.1f} s (once per process); "
                   f"detection on james {r['detect_james_s']:.2f} s, on a "
