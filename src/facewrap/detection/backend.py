@@ -42,8 +42,7 @@ IBUG68_MIRROR = np.array(
 
 #: Starting boxes of the predictor: (scale, shift right, shift down), shifts in half
 #: box widths, around the detector's box.
-_JITTER = ((1.0, 0.0, 0.0), (1.08, 0.0, 0.0), (0.93, 0.0, 0.0), (1.0, 0.05, 0.0),
-           (1.0, -0.05, 0.0), (1.0, 0.0, 0.05), (1.0, 0.0, -0.05))
+_JITTER = ((1.0, 0.0, 0.0), (1.08, 0.0, 0.0), (0.93, 0.0, 0.0))
 
 _PREDICTOR = os.path.join("models", "shape_predictor_68_face_landmarks.dat")
 _MODEL = None          # the loaded FaceModel, shared by every call in the process
@@ -93,14 +92,19 @@ class FaceModel:
         """(68, 2) points of the face in ``box``.
 
         The mean of the predictor's answers from a few boxes (the detector's, a
-        little larger, smaller and shifted: the regression depends on where it
-        starts) on the picture and on its mirror image (mirrored back, left and
+        little larger and smaller: the regression depends on where it starts) on the picture and on its mirror image (mirrored back, left and
         right swapped, which cancels the model's one-sided bias).
         """
-        img = np.ascontiguousarray(gray, dtype=np.uint8)
+        left, top, right, bottom = np.asarray(box, dtype=np.float64)
+        # the predictor copies the picture it is given: give it the face's surroundings
+        h, w = gray.shape
+        pad = right - left
+        c0, r0 = int(max(left - pad, 0)), int(max(top - pad, 0))
+        c1, r1 = int(min(right + pad + 1, w)), int(min(bottom + pad + 1, h))
+        img = np.ascontiguousarray(gray[r0:r1, c0:c1], dtype=np.uint8)
         flipped = np.ascontiguousarray(img[:, ::-1])
         w = img.shape[1]
-        left, top, right, bottom = np.asarray(box, dtype=np.float64)
+        left, right, top, bottom = left - c0, right - c0, top - r0, bottom - r0
         cx, cy, half = (left + right) / 2, (top + bottom) / 2, (right - left) / 2
         total = np.zeros((68, 2))
         for scale, dx, dy in _JITTER:
@@ -111,7 +115,7 @@ class FaceModel:
             mirror = self._shape(flipped, w - 1 - x1, y0, w - 1 - x0, y1)
             mirror[:, 0] = w - 1 - mirror[:, 0]
             total += mirror[IBUG68_MIRROR]
-        return total / (2 * len(_JITTER))
+        return total / (2 * len(_JITTER)) + [c0, r0]
 
     def _shape(self, img, left, top, right, bottom) -> np.ndarray:
         box = self._dlib.rectangle(*(int(round(v)) for v in (left, top, right, bottom)))

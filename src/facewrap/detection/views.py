@@ -178,6 +178,16 @@ class RenderedView:
         return out, tri
 
 
+def _interpolated(values, corners, bary) -> np.ndarray:
+    """(p, d) float32: ``values`` at the (p, 3) ``corners`` (or, for per-corner
+    (p, 3, d) values, corners (3,)) weighted by (p, 3) barycentric coordinates."""
+    if values.ndim == 3:
+        picks = [values[:, j].astype(np.float32) for j in range(3)]
+    else:
+        picks = [values[corners[:, j]].astype(np.float32) for j in range(3)]
+    return (bary[:, 0:1] * picks[0] + bary[:, 1:2] * picks[1] + bary[:, 2:3] * picks[2])
+
+
 def _barycentric_2d(corners: np.ndarray, points: np.ndarray) -> np.ndarray:
     """(k, 3) barycentric coordinates of (k, 2) points in (k, 3, 2) triangles (NaN
     for degenerate ones)."""
@@ -232,13 +242,13 @@ def render_view(scene: SceneArrays, camera: Camera) -> RenderedView:
         # one light, from the camera's side and a little above it (as a portrait is
         # lit: shadows under the brows and the nose), both sides of a triangle lit
         corners = scene.T[tri]
-        n = np.einsum("kj,kjd->kd", bary, scene.normals[corners].astype(np.float32))
+        n = _interpolated(scene.normals, corners, bary)
         light = camera.rotation.T @ _LIGHT
         lit = np.abs(n @ light.astype(np.float32))
         lit /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)
         shade = _AMBIENT + (1 - _AMBIENT) * lit
         if scene.texture is not None:
-            uv = np.einsum("kj,kjd->kd", bary.astype(np.float64), scene.corner_uvs[tri])
+            uv = _interpolated(scene.corner_uvs[tri], np.arange(3), bary)
             albedo = sample_image(scene.texture, uv) @ np.array([0.299, 0.587, 0.114])
             gray[raster.pixels] = albedo * (_TEXTURE_SHADING * shade + 1 - _TEXTURE_SHADING)
         else:
