@@ -12,6 +12,8 @@ from facewrap.cli import main
 from facewrap.io.landmarks import read_landmark_details, read_landmarks_json
 from facewrap.landmarks import IBUG68_NAMES
 
+from conftest import needs_data
+
 pytestmark = pytest.mark.slow
 pytest.importorskip("dlib", reason="the optional extra facewrap[landmarks] is absent")
 
@@ -91,3 +93,12 @@ def test_wrap_with_no_landmark_files_detects_them(folder, tmp_path, capsys):
     assert set(r["detected_landmarks"]) == {"scan", "template"}
     assert len(r["detected_landmarks"]["scan"]["confidence"]) == 68
     assert out.is_file()
+
+
+@needs_data
+@pytest.mark.shared_data
+def test_the_sumner_horse_has_no_face(data_dir, tmp_path, capsys):
+    horse = data_dir / "sumner2004" / "horse-camel" / "horse_ref.obj"
+    assert main(["landmarks", str(horse), "-o", str(tmp_path / "lm.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{horse}: no face found" in err
