@@ -2,7 +2,7 @@
 
 Each subcommand lives in its own module here (``info``, ``convert``, ``sample``,
 ``wrap``, ``animate``, ``track``, ``transfer``, ``evaluate``, ``report``, ``run``,
-``batch``, ``demo``) with ``register(subparsers, summary)`` and a
+``batch``, ``demo``, ``landmarks``) with ``register(subparsers, summary)`` and a
 ``cmd_<name>(args)`` that parses and calls the library.  Only the chosen
 command's module is imported (the others appear in ``--help`` by their summary
 line), so a command pays the start-up of what it uses and nothing else.  Errors in user input
@@ -39,6 +39,7 @@ COMMANDS = {
     "run": "run a wrap or transfer described by a TOML job file",
     "batch": "run many wrap or transfer jobs from a manifest (CSV or TOML), resumable",
     "demo": "run the main job on the built-in sample",
+    "landmarks": "detect the 68 face landmarks on a scan or template (no user input)",
 }
 
 

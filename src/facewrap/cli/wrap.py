@@ -27,6 +27,9 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
         if issubclass(w.category, InputWarning):
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
     if not quiet:
+        for what, found in report.get("detected_landmarks", {}).items():
+            print(f"{what} landmarks detected: {len(found['low_confidence'])} of 68 "
+                  "low-confidence, left out")
         print(wrap_summary_line(job, report))
         if report.get("units_source") == "inferred":
             print(units_note(report["units"], "inferred"))
@@ -69,8 +72,10 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--template-landmarks",
                    help="template vertex ids (text) or facewrap landmark JSON (default: "
                         "the template profile's)")
-    p.add_argument("--scan-landmarks", required=True,
-                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON")
+    p.add_argument("--scan-landmarks",
+                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON "
+                        "(default: the 68 iBUG points detected on the scan, and on the "
+                        "template when it has no landmarks; needs facewrap[landmarks])")
     p.add_argument("--template-profile", metavar="FILE",
                    help="the template's landmarks and fitting vertices: ICT-FaceKit's "
                         "vertex_indices.json or a facewrap profile (default: one found "

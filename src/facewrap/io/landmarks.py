@@ -23,6 +23,8 @@ Formats read (and, where it makes sense, written):
          {"name": "mouth_left", "triangle": 511, "barycentric": [0.2, 0.3, 0.5]},
          {"name": "pupil_r", "point": [31.2, 10.5, 88.0]}]}
 
+  Detected landmarks may add ``"confidence"`` and ``"low_confidence"`` per landmark
+  and top-level ``"source"`` and ``"views"`` (:func:`read_landmark_details`).
   A marker-pair JSON uses ``{"format": "facewrap.markers", "version": 1,
   "pairs": [[src, tgt], ...]}``.
 
@@ -44,10 +46,13 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import not_a_file, read_file_bytes, read_format_items, read_json
+from facewrap.io.files import not_a_file, read_file_bytes, read_json
+from facewrap.io.landmarks_json import (read_landmark_details, read_landmarks_json,
+                                         write_landmarks_json)
 
 __all__ = ["read_landmarks", "read_vertex_indices", "read_points", "read_pts", "read_ljson",
-           "read_landmarks_json", "write_landmarks_json", "write_points",
+           "read_landmarks_json", "write_landmarks_json", "read_landmark_details",
+           "write_points",
            "write_vertex_indices", "read_markers", "write_markers"]
 
 _INT = re.compile(r"^[+-]?\d+$")
@@ -317,78 +322,6 @@ def _menpo_face_to_ibug68(lm: Landmarks) -> Landmarks:
             return lm
         order += [pos[k] for k in keys]
     return Landmarks.from_points(lm.points[order], IBUG68_NAMES)
-
-
-def read_landmarks_json(path) -> Landmarks:
-    """Read the facewrap landmark JSON format (see the module docstring)."""
-    items = read_format_items(path, "facewrap.landmarks", "landmarks", "landmark")
-    k = len(items)
-    vertex, triangle = np.full(k, -1), np.full(k, -1)
-    bary, points = np.zeros((k, 3)), np.full((k, 3), np.nan)
-    names = []
-    for i, it in enumerate(items):
-        where = f"landmark {i}"
-        if not isinstance(it, dict):
-            raise InputError(f"{where} must be an object", path)
-        names.append(it.get("name", str(i)))
-        keys = [key for key in ("vertex", "triangle", "point") if key in it]
-        if len(keys) != 1:
-            raise InputError(f"{where} needs exactly one of 'vertex', 'triangle' "
-                             "(+ 'barycentric') or 'point'", path)
-        try:
-            if keys[0] == "vertex":
-                vertex[i] = _nonneg_int(it["vertex"])
-            elif keys[0] == "triangle":
-                triangle[i] = _nonneg_int(it["triangle"])
-                bary[i] = _three_numbers(it.get("barycentric"), "barycentric")
-            else:
-                points[i] = _three_numbers(it["point"], "point")
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{where}: {exc}", path) from None
-    if not any(isinstance(it, dict) and "name" in it for it in items):
-        names = None   # names are optional: without any, the set pairs by order
-    try:
-        return Landmarks(vertex, triangle, bary, points, names)
-    except ValueError as exc:
-        raise InputError(str(exc), path) from None
-
-
-def _three_numbers(value, key: str) -> np.ndarray:
-    """A JSON ``[x, y, z]`` of finite numbers (``true`` is not the number 1)."""
-    if (not isinstance(value, list) or len(value) != 3
-            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)):
-        raise ValueError(f"'{key}' must be 3 finite numbers")
-    out = np.asarray(value, dtype=np.float64)
-    if not np.isfinite(out).all():
-        raise ValueError(f"'{key}' must be 3 finite numbers")
-    return out
-
-
-def _nonneg_int(x) -> int:
-    if isinstance(x, bool) or not isinstance(x, int) or x < 0:
-        raise ValueError(f"index must be a non-negative integer, got {x!r}")
-    if x > _MAX_INDEX:
-        raise ValueError(f"index {str(x)[:30]} is too large")
-    return x
-
-
-def write_landmarks_json(path, landmarks: Landmarks) -> None:
-    """Write any landmark set in the facewrap JSON format (names kept)."""
-    items = []
-    for i in range(len(landmarks)):
-        # an unnamed set stays unnamed (read back, it pairs by order again)
-        it = {} if landmarks.names is None else {"name": landmarks.names[i]}
-        if landmarks.vertex[i] >= 0:
-            it["vertex"] = int(landmarks.vertex[i])
-        elif landmarks.triangle[i] >= 0:
-            it["triangle"] = int(landmarks.triangle[i])
-            it["barycentric"] = landmarks.barycentric[i].tolist()
-        else:
-            it["point"] = landmarks.points[i].tolist()
-        items.append(it)
-    with atomic_write(path, "w") as fh:
-        json.dump({"format": "facewrap.landmarks", "version": 1, "landmarks": items},
-                  fh, indent=1)
 
 
 def read_landmarks(path, kind: str = "auto") -> Landmarks:

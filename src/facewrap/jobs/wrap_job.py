@@ -21,6 +21,7 @@ files and batch manifests.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 import warnings
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.datasets import load_shape_folder
+from facewrap.detection.for_wrap import confident_landmarks, detection_report
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh, write_mesh
@@ -49,6 +51,8 @@ from facewrap.texture.tiles import bake_tiles, file_layout, material_images, til
 from facewrap.texture.udim import FIRST_TILE
 from facewrap.units import check_units_choice, metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
+
+log = logging.getLogger(__name__)
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES"]
@@ -74,8 +78,10 @@ class WrapJob:
         Template mesh (OBJ/PLY) whose topology the result keeps.
     scan : path
         Scan mesh (OBJ/PLY).
-    scan_landmarks : path
-        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON.
+    scan_landmarks : path or None
+        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON; None: the
+        68 iBUG points are detected on the scan (:mod:`facewrap.detection`), and on
+        the template too when it has no landmarks of its own.
     output : path
         Fitted mesh (OBJ/PLY) in the template's exact topology.
     template_landmarks : path, optional
@@ -118,7 +124,7 @@ class WrapJob:
     """
     template: str = input_field()
     scan: str = input_field()
-    scan_landmarks: str = input_field()
+    scan_landmarks: str | None = input_field()
     output: str = output_field()
     template_landmarks: str | None = input_field(default=None)
     template_profile: str | None = input_field(default=None)
@@ -291,8 +297,19 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     if len(scan.triangles) == 0:
         raise InputError("has no faces; a scan must be a surface", job.scan)
     profile = _template_profile(job, template)
-    tl, tl_source = _template_landmarks(job, template, profile)
-    sl = read_mesh_landmarks(job.scan_landmarks, scan, kind="points")
+    detections = {}
+    if not job.template_landmarks and (profile is None or profile.landmarks is None) \
+            and not job.scan_landmarks:
+        detections["template"] = _detect(template, job.template, None)
+    tl, tl_source = _template_landmarks(job, template, profile, detections)
+    if job.scan_landmarks:
+        sl = read_mesh_landmarks(job.scan_landmarks, scan, kind="points")
+    else:
+        detections["scan"] = _detect(scan, job.scan, job.texture)
+        try:
+            tl, sl = confident_landmarks(tl, detections["scan"])
+        except ValueError as exc:
+            raise InputError(str(exc).partition(": ")[2], tl_source) from None
     if (tl.names is None or sl.names is None) and len(tl) != len(sl):
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({tl_source}) have {len(tl)}", job.scan_landmarks)
@@ -318,9 +335,10 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         notes.append(f"{job.scan}: scan has only {len(scan.triangles)} triangle(s)")
     check_landmark_spread(tl.positions(template), job.template_landmarks)
     scan_points = sl.positions(scan)
-    check_landmark_spread(scan_points, job.scan_landmarks)
+    check_landmark_spread(scan_points, job.scan_landmarks or job.scan)
     tree = ClosestPointTree(scan.vertices, scan.triangles)
-    notes += check_landmarks_on_scan(scan_points, sl.names, tree, scan_size, job.scan_landmarks)
+    notes += check_landmarks_on_scan(scan_points, sl.names, tree, scan_size,
+                                     job.scan_landmarks or job.scan)
 
     n = template.n_vertices
     exclude, fit_mask, pinned = (
@@ -352,7 +370,20 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
             "pinned": pinned, "profile": profile, "blendshapes": shapes,
-            "texture": image, "scan_tree": tree, "warnings": notes}
+            "texture": image, "scan_tree": tree, "warnings": notes,
+            "detections": detections}
+
+
+def _detect(mesh: Mesh, path, texture_path):
+    """The 68 landmarks detected on a job's mesh (textured when it has an image)."""
+    from facewrap.detection import detect_landmarks, mesh_texture  # dlib loads on use
+
+    image = load_image(texture_path) if texture_path and mesh.uvs is not None \
+        else mesh_texture(path, mesh)
+    found = detect_landmarks(mesh, image, source=path)
+    log.info("%s: 68 landmarks detected (%d low-confidence, left out)", path,
+             int(found.low_confidence.sum()))
+    return found
 
 
 def _template_profile(job: WrapJob, template: Mesh):
@@ -366,14 +397,16 @@ def _template_profile(job: WrapJob, template: Mesh):
     return profile
 
 
-def _template_landmarks(job: WrapJob, template: Mesh, profile):
-    """The template landmarks (from their file, else the profile) and where they
-    came from."""
+def _template_landmarks(job: WrapJob, template: Mesh, profile, detections):
+    """The template landmarks (from their file, else the profile, else detected) and
+    where they came from."""
     if job.template_landmarks:
         return (read_mesh_landmarks(job.template_landmarks, template, kind="auto"),
                 job.template_landmarks)
     if profile is not None and profile.landmarks is not None:
         return profile.landmarks, profile.path
+    if "template" in detections:
+        return detections["template"].landmarks, job.template
     raise InputError("no template landmarks: give --template-landmarks (template_"
                      "landmarks in a job file) or a template profile with landmarks "
                      "(see facewrap.io.profile)", job.template)
@@ -462,7 +495,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     read_seconds = time.perf_counter() - t0
     # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
     # here that becomes the file, in its warnings and in a refusal alike
-    files = {"scan": job.scan, "scan landmarks": job.scan_landmarks,
+    files = {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
              "template landmarks": job.template_landmarks}
     try:
         result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
@@ -496,6 +529,11 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     if inputs["profile"] is not None:
         report["template_profile"] = {"path": inputs["profile"].path,
                                       "gives": inputs["profile"].summary()}
+    report["scan_landmarks_source"] = "detected" if "scan" in inputs["detections"] \
+        else "file"
+    if inputs["detections"]:
+        report["detected_landmarks"] = {k: detection_report(v)
+                                        for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
                                                             result.mesh.vertices)
     if result.weights is not None:

@@ -1,0 +1,166 @@
+"""Benchmark: landmark detection (issue 18) — per-group errors against manual or
+known landmarks (sample scan and template, james textured and shaded, ICT's
+template, MeshMonk's 5 points), the same answer under 90/180-degree turns and
+unit changes, and the time on a 200k-triangle scan (the detector's model load is
+timed apart: once per process).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _timing import best_of
+from bench_render import subdivide
+from facewrap.cli import main as cli_main
+from facewrap.detection import detect_landmarks, mesh_texture
+from facewrap.detection.backend import face_model
+from facewrap.io import read_mesh
+from facewrap.io.landmarks import read_landmarks, read_ljson, read_points
+from facewrap.mesh import Mesh
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+GROUPS = {"jaw": slice(0, 17), "brows": slice(17, 27), "nose": slice(27, 36),
+          "eyes": slice(36, 48), "mouth": slice(48, 68)}
+TURNS = [(axis, angle) for axis in "xyz" for angle in (90, 180)]
+
+
+def _rotation(axis: str, degrees: float) -> np.ndarray:
+    i = "xyz".index(axis)
+    a = np.radians(degrees)
+    c, s = np.cos(a), np.sin(a)
+    j, k = [n for n in range(3) if n != i]
+    R = np.eye(3)
+    R[j, j], R[j, k], R[k, j], R[k, k] = c, -s, s, c
+    return np.round(R, 12)
+
+
+def _errors(found, truth, mm: float) -> dict:
+    err = np.linalg.norm(found.positions - truth, axis=1) * mm
+    low = found.low_confidence
+    out = {g: [float(err[s].mean()), float(err[s].max())] for g, s in GROUPS.items()}
+    out.update(mean=float(err.mean()), confident_mean=float(err[~low].mean()),
+               flagged=int(low.sum()), unflagged_over_8mm=int(np.sum((err > 8) & ~low)))
+    return out
+
+
+def _moved(mesh: Mesh, R, scale) -> Mesh:
+    return Mesh(scale * mesh.vertices @ R.T, (mesh.face_offsets, mesh.face_indices),
+                uvs=mesh.uvs, face_uvs=None if mesh.uvs is None else
+                (mesh.face_offsets, mesh.face_uvs))
+
+
+def wrap_comparison(found) -> dict:
+    """ICT's face onto james from the manual landmarks and from the detected ones
+    (the confident points): fit, flipped triangles, and the manual landmarks (a
+    check only) on each result (``bench_realscan``'s measures)."""
+    from bench_realscan import _cases, measures
+    from facewrap.detection.for_wrap import confident_landmarks
+    from facewrap.wrapping import WrapSettings, wrap
+    cases = [c for c, _ in _cases() if c.name.startswith("ICT face")]
+    if not cases:
+        return {}
+    case = cases[0]
+    out = {}
+    tl, sl = confident_landmarks(case.landmarks, found)
+    for name, (a, b) in (("manual", (case.landmarks, case.scan_landmarks)),
+                         ("detected", (tl, sl))):
+        t = time.perf_counter()
+        res = wrap(case.template, case.scan, a, b, WrapSettings(model="graph"))
+        out[name] = {"seconds": time.perf_counter() - t, "landmarks": len(b),
+                     **measures(res.vertices, case)}
+    return out
+
+
+def run() -> dict:
+    t = time.perf_counter()
+    face_model()
+    out = {"model_load_s": time.perf_counter() - t, "cases": {}, "turns": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        cli_main(["sample", tmp])
+        scan = read_mesh(Path(tmp) / "scan.obj")
+        tpl = read_mesh(Path(tmp) / "template.obj")
+        truth = read_landmarks(Path(tmp) / "scan_landmarks.txt", kind="points").points
+        out["cases"]["sample scan (textured)"] = _errors(
+            detect_landmarks(scan, mesh_texture(Path(tmp) / "scan.obj", scan)), truth, 1.0)
+        lm = read_landmarks(Path(tmp) / "template_landmarks.txt", kind="vertices")
+        out["cases"]["sample template (shaded)"] = _errors(
+            detect_landmarks(tpl), lm.positions(tpl), 1.0)
+    if not DATA.is_dir():
+        return out
+    jp = DATA / "scans" / "james" / "james.obj"
+    james = read_mesh(jp)
+    image = mesh_texture(jp, james)
+    manual = read_ljson(DATA / "scans" / "james" / "james.ljson").points
+    base = detect_landmarks(james, image)
+    out["cases"]["james (textured)"] = _errors(base, manual, 1.0)
+    out["cases"]["james (shaded)"] = _errors(detect_landmarks(james), manual, 1.0)
+    ict = read_mesh(DATA / "ict-facekit" / "FaceXModel" / "generic_neutral_mesh.obj")
+    ids = json.loads((DATA / "ict-facekit" / "FaceXModel" / "vertex_indices.json")
+                     .read_text())["idx_to_landmark_verts"]
+    out["cases"]["ICT template (shaded, cm -> mm)"] = _errors(
+        detect_landmarks(ict), ict.vertices[ids], 10.0)
+    mm_path = DATA / "scans" / "meshmonk" / "DemoFace_10K.obj"
+    monk = detect_landmarks(read_mesh(mm_path))
+    five = read_points(DATA / "scans" / "meshmonk" / "DemoFaceLandmarks.csv").points
+    d = np.linalg.norm(five[:, None] - monk.positions[None], axis=2)
+    out["meshmonk_5"] = [[monk.landmarks.names[int(j)], float(d[i, j])]
+                         for i, j in enumerate(d.argmin(axis=1))]
+    for axis, angle in TURNS:
+        for unit, scale in (("mm", 1.0), ("cm", 0.1), ("m", 0.001)):
+            R = _rotation(axis, angle)
+            try:
+                found = detect_landmarks(_moved(james, R, scale), image)
+            except ValueError as exc:
+                out["turns"][f"{axis}{angle} {unit}"] = str(exc)
+                continue
+            back = (found.positions / scale) @ R
+            ok = ~found.low_confidence & ~base.low_confidence
+            out["turns"][f"{axis}{angle} {unit}"] = float(
+                np.linalg.norm(back - base.positions, axis=1)[ok].mean())
+    out["wrap"] = wrap_comparison(base)
+    V, T = subdivide(*subdivide(james.vertices, james.triangles))
+    out["triangles_200k"] = len(T)
+    out["detect_200k_s"] = best_of(lambda: detect_landmarks((V, T)), 2)[0]
+    out["detect_james_s"] = best_of(lambda: detect_landmarks(james, image), 2)[0]
+    return out
+
+
+def markdown(r: dict) -> str:
+    lines = ["## Landmark detection (issue 18)", "",
+             "dlib's HOG face detector + iBUG 68-point model on facewrap's renders "
+             "(frontal and ±20° yaw), lifted and fused.  Errors in mm against the "
+             "manual / known landmarks: mean / max per group.", "",
+             "| case | jaw | brows | nose | eyes | mouth | mean | confident mean | flagged "
+             "| unflagged > 8 mm |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, e in r["cases"].items():
+        cells = " | ".join(f"{e[g][0]:.1f} / {e[g][1]:.1f}" for g in GROUPS)
+        lines.append(f"| {name} | {cells} | {e['mean']:.2f} | {e['confident_mean']:.2f} | "
+                     f"{e['flagged']} | {e['unflagged_over_8mm']} |")
+    if "meshmonk_5" in r:
+        lines += ["", "MeshMonk demo face, its 5 points to the nearest detected landmark: "
+                  + ", ".join(f"{n} {d:.1f} mm" for n, d in r["meshmonk_5"])]
+    if r["turns"]:
+        lines += ["", "james turned and rescaled, mean distance (mm) of confident "
+                  "landmarks to the unturned answer after undoing the transform: "
+                  + ", ".join(f"{k}: {v:.2f}" if isinstance(v, float) else f"{k}: {v}"
+                              for k, v in r["turns"].items())]
+    if r.get("wrap"):
+        lines += ["", "ICT's face onto james (graph model), from the manual landmarks and "
+                  "from the detected ones (confident points only); the manual landmarks "
+                  "are the check in both rows:", "",
+                  "| landmarks | used | fit p95 (mm) | flipped | manual landmarks mean / "
+                  "max (mm) | s |", "|---|---|---|---|---|---|"]
+        for name, w in r["wrap"].items():
+            lines.append(f"| {name} | {w['landmarks']} | {w['fit_p95']:.2f} | "
+                         f"{w['flipped']} | {w['landmark_mean']:.2f} / "
+                         f"{w['landmark_max']:.2f} | {w['seconds']:.1f} |")
+    if "detect_200k_s" in r:
+        lines += ["", f"Time: model load {r['model_load_s']:.1f} s (once per process); "
+                  f"detection on james {r['detect_james_s']:.2f} s, on a "
+                  f"{r['triangles_200k']:,}-triangle scan {r['detect_200k_s']:.2f} s."]
+    return "\n".join(lines) + "\n"

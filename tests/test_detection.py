@@ -1,0 +1,155 @@
+"""Landmark detection (issue 18) on the built-in sample, and on real scans.
+
+Oracles: the sample's own landmarks (its template's vertex ids, its scan's points),
+the same mesh turned and scaled (the answer must turn and scale with it), a sphere
+(no face), the manual landmarks of the real scans.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from facewrap.cli import main
+from facewrap.detection import DetectionSettings, detect_landmarks, mesh_texture
+from facewrap.detection.fuse import fuse_views
+from facewrap.errors import InputError
+from facewrap.geometry.visibility import sphere_directions
+from facewrap.io import read_mesh
+from facewrap.io.landmarks import read_landmarks, read_ljson
+from facewrap.landmarks import IBUG68_NAMES
+from facewrap.mesh import Mesh
+
+from conftest import ROOT, needs_data
+
+pytestmark = pytest.mark.slow
+pytest.importorskip("dlib", reason="the optional extra facewrap[landmarks] is absent")
+
+GROUPS = {"jaw": slice(0, 17), "brows": slice(17, 27), "nose": slice(27, 36),
+          "eyes": slice(36, 48), "mouth": slice(48, 68)}
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sample")
+    assert main(["sample", str(folder)]) == 0
+    scan = read_mesh(folder / "scan.obj")
+    found = detect_landmarks(scan, mesh_texture(folder / "scan.obj", scan))
+    return folder, scan, found
+
+
+def test_the_sample_scan_gives_68_named_points_on_its_surface(sample):
+    folder, scan, found = sample
+    assert found.landmarks.names == IBUG68_NAMES
+    assert found.positions.shape == (68, 3)
+    assert np.allclose(found.landmarks.positions(scan), found.positions)
+    assert np.all((found.confidence >= 0) & (found.confidence <= 1))
+    assert np.array_equal(found.low_confidence, found.confidence < 0.5)
+    assert any(v["found"] for v in found.views) and found.views[0]["yaw"] == 0
+    truth = read_landmarks(folder / "scan_landmarks.txt", kind="points").points
+    err = np.linalg.norm(found.positions - truth, axis=1)
+    # the inner face (nose, eyes) lands near the sample's own points, in mm
+    assert err[GROUPS["nose"]].mean() < 8.0 and err[GROUPS["eyes"]].mean() < 12.0
+
+
+def _moved_back(scan, image, found, R, scale):
+    """Distances between ``found`` and the landmarks of the scan turned by ``R`` and
+    scaled, with the transform undone; and which points both call confident."""
+    moved = Mesh(scale * scan.vertices @ R.T, (scan.face_offsets, scan.face_indices),
+                 uvs=scan.uvs, face_uvs=(scan.face_offsets, scan.face_uvs))
+    again = detect_landmarks(moved, image)
+    back = (again.positions / scale) @ R
+    return (np.linalg.norm(back - found.positions, axis=1),
+            ~found.low_confidence & ~again.low_confidence)
+
+
+def test_the_answer_turns_and_scales_with_the_mesh(sample):
+    folder, scan, found = sample
+    R = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])          # 90 degrees about x
+    dist, ok = _moved_back(scan, mesh_texture(folder / "scan.obj", scan), found, R, 10.0)
+    assert ok.sum() >= 20
+    assert dist[ok].mean() < 1.5   # mm
+
+
+def test_a_sphere_has_no_face(tmp_path):
+    V = sphere_directions(600) * 100.0
+    from scipy.spatial import ConvexHull
+    T = ConvexHull(V).simplices
+    with pytest.raises(InputError, match="ball.obj: no face found"):
+        detect_landmarks((V, T), source="ball.obj",
+                         settings=DetectionSettings(search_size=128))
+
+
+def test_fusing_keeps_agreeing_views_and_scores_the_others_low():
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(68, 3)) * 30
+    lifts = truth + rng.normal(scale=0.2, size=(3, 68, 3))
+    lifts[2, :10] += 20.0                       # one view wrong on the first ten
+    lifts[1:, 60:] = np.nan                     # two views do not see the last eight
+    fused = fuse_views(lifts, radius=5.0)
+    assert np.linalg.norm(fused.points[10:60] - truth[10:60], axis=1).max() < 1.0
+    assert np.linalg.norm(fused.points[:10] - truth[:10], axis=1).max() < 1.0
+    assert np.all(fused.confidence[:10] < fused.confidence[10:60].min())
+    assert np.all(fused.confidence[60:] < 0.5) and np.all(fused.seen[60:] == 1)
+
+
+def test_without_the_extra_the_command_names_it(tmp_path):
+    code = ("import sys; sys.modules['dlib'] = None\n"
+            "from facewrap.cli import main\n"
+            f"sys.exit(main(['landmarks', {str(tmp_path / 'x.obj')!r}, '-o', "
+            f"{str(tmp_path / 'x.json')!r}]))")
+    (tmp_path / "x.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env)
+    assert run.returncode == 2
+    assert run.stderr.count("\n") == 1 and "facewrap[landmarks]" in run.stderr
+    assert not (tmp_path / "x.json").exists()
+
+
+def _james(data_dir):
+    """Landmarks detected on the textured james scan, and their errors (mm)."""
+    path = data_dir / "scans" / "james" / "james.obj"
+    scan = read_mesh(path)
+    found = detect_landmarks(scan, mesh_texture(path, scan), source=path)
+    manual = read_ljson(data_dir / "scans" / "james" / "james.ljson").points
+    return found, np.linalg.norm(found.positions - manual, axis=1)
+
+
+@needs_data
+@pytest.mark.shared_data
+def test_james_landmarks_against_the_manual_ones(data_dir):
+    found, err = _james(data_dir)
+    ok = ~found.low_confidence
+    # measured (bench_detection): eyes 3.0 mm, mouth 2.0 mm, confident points
+    # 2.8 mm mean, no confident point more than 8 mm off
+    assert err[GROUPS["eyes"]].mean() < 4.0 and err[GROUPS["mouth"]].mean() < 3.0
+    assert err[ok].mean() < 3.5 and ok.sum() >= 40
+    assert not np.any((err > 8.0) & ok)
+
+
+@needs_data
+@pytest.mark.shared_data
+@pytest.mark.xfail(reason="issue 18's 2.5 mm mean over all 68: dlib's jaw contour on our "
+                          "renders is 13 mm off james's (5.2 mm mean over all, 2.8 mm "
+                          "over the confident points)", strict=True)
+def test_james_meets_the_issue_18_acceptance(data_dir):
+    found, err = _james(data_dir)
+    assert err.mean() < 2.5 and not np.any((err > 8.0) & ~found.low_confidence)
+
+
+@needs_data
+@pytest.mark.shared_data
+def test_james_turned_upside_down_in_metres_gives_the_same_landmarks(data_dir):
+    path = data_dir / "scans" / "james" / "james.obj"
+    scan = read_mesh(path)
+    image = mesh_texture(path, scan)
+    R = np.diag([-1.0, 1.0, -1.0])                       # 180 degrees about y
+    dist, ok = _moved_back(scan, image, detect_landmarks(scan, image), R, 0.001)
+    # issue 18: within 0.5 mm after undoing the transform (measured 0.27 mm)
+    assert ok.sum() >= 40
+    assert dist[ok].mean() < 0.5
