@@ -408,3 +408,78 @@ def test_page_renders_in_headless_chromium(tmp_path, sample):
         assert canvas.reshape(-1, 3).std(axis=0).max() > 10
         assert len(np.unique(canvas.reshape(-1, 3) // 8, axis=0)) > 50
     assert not np.array_equal(png, png2)
+
+
+# ---------------------------------------------------------------------------------
+# Layers drawn as their glTF: texture and smooth shading, read back from the canvas
+# ---------------------------------------------------------------------------------
+def _checker(size=64, cells=8) -> np.ndarray:
+    """(size, size, 3) uint8: green and blue squares, colours no plain layer has."""
+    yy, xx = np.mgrid[:size, :size] * cells // size
+    img = np.empty((size, size, 3), np.uint8)
+    img[(xx + yy) % 2 == 0] = (30, 200, 30)
+    img[(xx + yy) % 2 == 1] = (30, 30, 220)
+    return img
+
+
+def _canvas_pixels(browser, page) -> tuple[np.ndarray, dict]:
+    """(h, w, 3) float: the viewer's canvas of ``page`` as the screen shows it, and
+    the viewer's state."""
+    from PIL import Image
+    browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+    x, y, w, h = (int(round(v)) for v in browser.evaluate(
+        "(() => { const r = document.querySelector('#fw-canvas-host canvas')"
+        ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()"))
+    shot = np.asarray(Image.open(io.BytesIO(browser.screenshot())).convert("RGB"))
+    return shot[y:y + h, x:x + w].astype(np.float64), browser.evaluate("window.facewrapViewer")
+
+
+def _shade_steps(canvas: np.ndarray) -> np.ndarray:
+    """Luminance steps between neighbouring pixels inside the drawn head (two pixels
+    in from its outline, so the silhouette against the background is not counted)."""
+    from scipy import ndimage
+    L = canvas @ [0.299, 0.587, 0.114]
+    head = ndimage.binary_erosion(np.abs(canvas - canvas[2, 2]).max(axis=2) > 12,
+                                  iterations=3)
+    dx = np.abs(np.diff(L, axis=1))[head[:, 1:] & head[:, :-1]]
+    dy = np.abs(np.diff(L, axis=0))[head[1:] & head[:-1]]
+    return np.concatenate([dx, dy])
+
+
+@needs_chromium
+def test_glTF_layers_render_textured_and_smooth(tmp_path, sample):
+    from facewrap.report.html import MeshLayer
+    result = sample["result"]
+    V, T = result.vertices, result.triangles
+    M = sample["transform"]
+    view = dict(view_up=M[:3, :3] @ [0, 1, 0], view_front=M[:3, :3] @ [0, 0, 1])
+    pages = {
+        "textured": write_html_report(tmp_path / "t", meshes={
+            "result": MeshLayer(result, textures={1001: _checker()})}, **view),
+        "plain": write_html_report(tmp_path / "p", meshes={"result": MeshLayer(result)},
+                                   **view),
+        # the control: every triangle its own vertices, so its normals are the faces'
+        "faceted": write_html_report(tmp_path / "f", meshes={"result": (
+            V[T].reshape(-1, 3), np.arange(3 * len(T)).reshape(-1, 3))}, **view)}
+    browser = Browser(CHROMIUM)
+    try:
+        shown = {k: _canvas_pixels(browser, p) for k, p in pages.items()}
+    finally:
+        browser.close()
+    canvas = {k: c for k, (c, _) in shown.items()}
+    assert browser.errors == [] and all(s["error"] is None for _, s in shown.values())
+    assert shown["textured"][1]["textures"] == 1 and shown["plain"][1]["textures"] == 0
+    r, g, b = (canvas["textured"][..., c] for c in range(3))
+    green = ((g > r + 60) & (g > b + 60)).mean()
+    blue = ((b > r + 60) & (b > g + 60)).mean()
+    assert green > 0.02 and blue > 0.02            # the checker's two colours show
+    r, g, b = (canvas["plain"][..., c] for c in range(3))
+    assert ((g > r + 60) | (b > r + 60)).mean() < 1e-3   # not without the texture
+    assert np.abs(canvas["textured"] - canvas["plain"]).max(axis=2).mean() > 5
+    # smooth: neighbouring pixels close in shade, where the faceted control jumps at
+    # its triangles' edges (the few steps left are the eyelids' creases)
+    smooth, faceted = _shade_steps(canvas["plain"]), _shade_steps(canvas["faceted"])
+    assert len(smooth) > 10_000 and len(faceted) > 10_000
+    assert np.percentile(smooth, 99) < 0.5 * np.percentile(faceted, 99)
+    assert np.percentile(smooth, 90) < 0.75 * np.percentile(faceted, 90)
+    assert (smooth > 8).mean() < 0.35 * (faceted > 8).mean()

@@ -53,7 +53,8 @@ def test_page_of_a_wrap_run(run, tmp_path):
     text = page.read_text()
     assert "a run" in text and "fit mean" in text and "Timings" in text
     assert "Transform" in text
-    assert text.count("data:image/png;base64,") == 2  # baked texture + the image
+    # the baked texture (a picture and the viewer's) + the image
+    assert text.count("data:image/png;base64,") == 3 and len(data["textures"]) == 1
 
 
 def test_cli_report_prints_the_page(run, tmp_path, capsys):
