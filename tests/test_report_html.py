@@ -483,3 +483,56 @@ def test_glTF_layers_render_textured_and_smooth(tmp_path, sample):
     assert np.percentile(smooth, 99) < 0.5 * np.percentile(faceted, 99)
     assert np.percentile(smooth, 90) < 0.75 * np.percentile(faceted, 90)
     assert (smooth > 8).mean() < 0.35 * (faceted > 8).mean()
+
+
+def _with_a_seam(mesh):
+    """``mesh`` with its faces of x > mean on UV tile 1002: a seam through the face."""
+    from facewrap.mesh import Mesh
+    right = mesh.vertices[mesh.triangles].mean(axis=1)[:, 0] > mesh.vertices[:, 0].mean()
+    faces = np.asarray(mesh.triangles)
+    face_uvs = faces + np.where(right, len(mesh.vertices), 0)[:, None]
+    uvs = np.concatenate([mesh.vertices[:, :2], mesh.vertices[:, :2] + [1, 0]])
+    uvs = (uvs - uvs.min(axis=0)) / np.ptp(uvs, axis=0) * [1.99, 0.99]
+    return Mesh(mesh.vertices, faces, uvs=uvs, face_uvs=face_uvs)
+
+
+@needs_chromium
+def test_a_blendshape_keeps_a_textured_layer_smooth_across_its_seams(tmp_path, sample):
+    from facewrap.geometry.normals import vertex_normals
+    from facewrap.report.html import MeshLayer
+    mesh = _with_a_seam(sample["result"])
+    M, tpl = sample["transform"], sample["template"]
+    name = "blink" if "blink" in tpl.blendshapes else next(iter(tpl.blendshapes))
+    posed = mesh.vertices + (tpl.blendshapes[name] - tpl.mesh.vertices) @ M[:3, :3].T
+    page = write_html_report(tmp_path, meshes={"result": MeshLayer(
+        mesh, textures={1001: _checker(), 1002: _checker()[::-1]})},
+        blendshapes=("result", {name: posed}))
+    layer = _page_data(page)["meshes"][0]
+    vid = _decode(layer["vertex_ids"], "<u4")
+    T = _decode(layer["indices"], "<u4").reshape(-1, 3)
+    assert len(np.unique(vid)) < len(vid) and len(layer["groups"]) == 2  # a seam
+    read = ("Array.from(window.facewrapViewer.layerOf('result').geom"
+            ".getAttribute('normal').array)")
+    browser = Browser(CHROMIUM)
+    try:
+        browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+        browser.evaluate("(() => { const r = document.querySelector('[data-fw-shape]');"
+                         " r.value = '1'; r.dispatchEvent(new Event('input'));"
+                         " return true; })()")
+        moved = np.array(browser.evaluate(read)).reshape(-1, 3)
+        browser.evaluate("(() => { document.getElementById('fw-shapes-reset').click();"
+                         " return true; })()")
+        neutral = np.array(browser.evaluate(read)).reshape(-1, 3)
+    finally:
+        browser.close()
+    assert browser.errors == []
+    # the oracle: smooth (angle-weighted) normals of the posed mesh, one per original
+    # vertex, so both sides of the seam get the same
+    want = vertex_normals(posed, vid[T].astype(np.int64))[vid]
+    np.testing.assert_allclose(moved, want, atol=2e-4)
+    assert np.abs(moved - neutral).max() > 0.05            # the shape moved them
+    # back at rest: the glTF's normals again
+    np.testing.assert_allclose(neutral, _decode(layer["normals"], "<f4").reshape(-1, 3),
+                               atol=1e-7)
+    np.testing.assert_allclose(neutral, vertex_normals(mesh.vertices, mesh.triangles)[vid],
+                               atol=1e-6)

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from facewrap.errors import InputError
@@ -34,9 +37,10 @@ def run(tmp_path_factory) -> dict:
                   scan_landmarks=str(paths["scan_landmarks"]),
                   output=str(d / "wrapped.obj"), blendshapes=str(d / "in" / "blendshapes"),
                   texture=str(paths["scan_texture"]), texture_size=64,
-                  report=str(d / "run.json"))
+                  gltf=str(d / "wrapped.glb"), report=str(d / "run.json"))
     run_wrap_job(job, WrapSettings(model="rbf"))
-    return {"dir": d, "paths": paths, "shapes": len(tpl.blendshapes)}
+    return {"dir": d, "paths": paths, "shapes": len(tpl.blendshapes),
+            "template_vertices": tpl.mesh.n_vertices}
 
 
 def test_page_of_a_wrap_run(run, tmp_path):
@@ -55,6 +59,80 @@ def test_page_of_a_wrap_run(run, tmp_path):
     assert "Transform" in text
     # the baked texture (a picture and the viewer's) + the image
     assert text.count("data:image/png;base64,") == 3 and len(data["textures"]) == 1
+
+
+def _glb_vertices(path) -> tuple[dict, dict]:
+    """The GLB's written vertices by (original id, u, v): position and normal; and
+    each triangle's image (pixels), by the triangle's three such keys."""
+    import pygltflib
+    from PIL import Image
+    doc = pygltflib.GLTF2().load(str(path))
+    blob = doc.binary_blob()
+
+    def read(i, dtype, width):
+        acc = doc.accessors[i]
+        view = doc.bufferViews[acc.bufferView]
+        return np.frombuffer(blob, dtype, acc.count * width,
+                             (view.byteOffset or 0) + (acc.byteOffset or 0)
+                             ).reshape(acc.count, width)
+
+    prims = doc.meshes[0].primitives
+    a = prims[0].attributes
+    vid = read(a._FACEWRAP_VERTEX, "<f4", 1)[:, 0].astype(np.int64)
+    uv = read(a.TEXCOORD_0, "<f4", 2) * [1, -1] + [0, 1]      # glTF stores 1 - v
+    keys = [_key(i, u) for i, u in zip(vid, uv)]
+    vertices = {k: (p, n) for k, p, n in zip(keys, read(a.POSITION, "<f4", 3),
+                                             read(a.NORMAL, "<f4", 3))}
+    triangles = {}
+    for prim in prims:
+        info = doc.materials[prim.material].pbrMetallicRoughness.baseColorTexture
+        image = None
+        if info is not None:
+            view = doc.bufferViews[doc.images[doc.textures[info.index].source].bufferView]
+            image = np.asarray(Image.open(io.BytesIO(blob[view.byteOffset:view.byteOffset
+                                                         + view.byteLength])))
+        for t in read(prim.indices, "<u4", 1).reshape(-1, 3):
+            triangles[tuple(sorted(keys[j] for j in t))] = image
+    return vertices, triangles
+
+
+def _key(vertex, uv) -> tuple:
+    return int(vertex), round(float(uv[0]), 5), round(float(uv[1]), 5)
+
+
+def test_the_viewer_draws_what_the_runs_glb_holds(run, tmp_path):
+    from PIL import Image
+    page = build_report_page(run["dir"] / "run.json", tmp_path / "html")
+    data = page_data(page)
+    report = json.loads((run["dir"] / "run.json").read_text())
+    scale = report["gltf"]["scale"]                 # the GLB is in metres
+    vertices, triangles = _glb_vertices(run["dir"] / "wrapped.glb")
+    images = [np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",")[1]))))
+              for uri in data["textures"]]
+    seen = set()
+    for m in data["meshes"]:
+        if m["name"] not in ("result", "part (follows)"):
+            continue
+        dec = (lambda key, dtype, w: np.frombuffer(base64.b64decode(m[key]), dtype)
+               .reshape(-1, w))
+        vid, uv = dec("vertex_ids", "<u4", 1)[:, 0], dec("uvs", "<f4", 2)
+        keys = [_key(i, u) for i, u in zip(vid, uv)]
+        glb = np.array([np.r_[vertices[k][0], vertices[k][1]] for k in keys])
+        # the same vertices (split at the same seams), positions and smooth normals
+        np.testing.assert_allclose(dec("positions", "<f4", 3) * scale, glb[:, :3],
+                                   rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(dec("normals", "<f4", 3), glb[:, 3:], atol=1e-5)
+        # ... and every triangle shows the image the GLB gives it
+        T = dec("indices", "<u4", 3)
+        for start, count, k in m["groups"]:
+            for t in T[start:start + count]:
+                key = tuple(sorted(keys[j] for j in t))
+                want = triangles[key]
+                assert (want is None) == (k < 0)
+                assert k < 0 or np.array_equal(images[k], want)
+                seen.add(key)
+    assert seen == set(triangles)        # every triangle of the GLB, once
+    assert len(vertices) > run["template_vertices"]   # split at the UV seams
 
 
 def test_cli_report_prints_the_page(run, tmp_path, capsys):
@@ -80,3 +158,4 @@ def test_bad_run_reports_are_input_errors(tmp_path, content, match):
 def test_load_run_report_reads_what_a_wrap_job_writes(run):
     rep = load_run_report(run["dir"] / "run.json")
     assert {"job", "settings", "metrics", "timings", "transform"} <= set(rep)
+
