@@ -506,7 +506,8 @@ def test_a_blendshape_keeps_a_textured_layer_smooth_across_its_seams(tmp_path, s
     posed = mesh.vertices + (tpl.blendshapes[name] - tpl.mesh.vertices) @ M[:3, :3].T
     page = write_html_report(tmp_path, meshes={"result": MeshLayer(
         mesh, textures={1001: _checker(), 1002: _checker()[::-1]})},
-        blendshapes=("result", {name: posed}))
+        blendshapes=("result", {name: posed}),
+        scalars={"error to truth": ("result", sample["error"], "mm")})
     layer = _page_data(page)["meshes"][0]
     vid = _decode(layer["vertex_ids"], "<u4")
     T = _decode(layer["indices"], "<u4").reshape(-1, 3)
@@ -523,9 +524,17 @@ def test_a_blendshape_keeps_a_textured_layer_smooth_across_its_seams(tmp_path, s
         browser.evaluate("(() => { document.getElementById('fw-shapes-reset').click();"
                          " return true; })()")
         neutral = np.array(browser.evaluate(read)).reshape(-1, 3)
+        # the heatmap replaces the textures; without it they come back
+        maps = "window.facewrapViewer.layerOf('result').mats.map(m => m.map !== null)"
+        looks = [browser.evaluate(maps)]
+        browser.evaluate("(() => { const s = document.getElementById('fw-heatmap');"
+                         " s.value = '-1'; s.dispatchEvent(new Event('change'));"
+                         " return true; })()")
+        looks.append(browser.evaluate(maps))
     finally:
         browser.close()
     assert browser.errors == []
+    assert looks == [[False, False], [True, True]]
     # the oracle: smooth (angle-weighted) normals of the posed mesh, one per original
     # vertex, so both sides of the seam get the same
     want = vertex_normals(posed, vid[T].astype(np.int64))[vid]

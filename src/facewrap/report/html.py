@@ -86,6 +86,16 @@ class MeshLayer:
     vertices : (n,) bool, optional
         The vertices the layer stands for, counted on the page (default those of
         its triangles), e.g. the template's vertices of one role.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> quad = Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]], [[0, 1, 2, 3]],
+    ...             uvs=[[0, 0], [1, 0], [1, 1], [0, 1]], face_uvs=[[0, 1, 2, 3]])
+    >>> page = write_html_report(tempfile.mkdtemp(), meshes={"result": MeshLayer(
+    ...     quad, textures=np.full((4, 4, 3), 200, np.uint8))})
+    >>> page.read_text().count("data:image/png;base64,")
+    1
     """
 
     mesh: Mesh
@@ -345,7 +355,8 @@ def _viewer_html(data: dict) -> str:
                           f'{e(s["name"])} — {e(s["mesh"])}</option>'
                           for k, s in enumerate(data["scalars"]))
         heat = (f'<h3>Heatmap</h3><select id="fw-heatmap" aria-label="heatmap">'
-                f'<option value="-1">none (plain colours)</option>{options}</select>'
+                f'<option value="-1">none ({"textures, " if data["textures"] else ""}'
+                f'plain colours)</option>{options}</select>'
                 '<div id="fw-colorbar"><div id="fw-colorbar-title"></div>'
                 '<div class="bar"></div><div id="fw-colorbar-ticks"></div>'
                 '<div class="range-row"><label>from<input type="text" id="fw-range-lo">'
