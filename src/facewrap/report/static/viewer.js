@@ -362,30 +362,30 @@
       c.needsUpdate = true;
     }
 
-    // a layer's own look (its colour, or its texture) or the heatmap's vertex colours
-    function showScalar(l, on) {
+    // how a layer looks: "heat" (the heatmap's vertex colours), "plain" (its own
+    // colour, so the parts that follow stand apart from a heatmap) or "own" (its
+    // textures, as its glTF shows it, else its colour)
+    function showAs(l, look) {
       l.mats.forEach(function (mat, gi) {
-        const t = l.groups[gi][2];
-        mat.vertexColors = on;
-        mat.map = on || t < 0 ? null : textures[t];
-        mat.color.set(on || t >= 0 ? 0xffffff : l.spec.color);
+        const t = look === "own" ? l.groups[gi][2] : -1;
+        mat.vertexColors = look === "heat";
+        mat.map = t >= 0 ? textures[t] : null;
+        mat.color.set(look === "heat" || t >= 0 ? 0xffffff : l.spec.color);
         mat.needsUpdate = true;
       });
     }
 
     function setHeatmap(index) {
-      Object.values(layers).forEach(function (l) {
-        if (l.scalar !== null) {
-          l.scalar = null;
-          showScalar(l, false);
-        }
-      });
       active = index >= 0 ? scalars[index] : null;
+      Object.values(layers).forEach(function (l) {
+        l.scalar = null;
+        showAs(l, active ? "plain" : "own");
+      });
       $("fw-colorbar").hidden = active === null;
       if (active) {
         const l = layers[active.mesh];
         l.scalar = active;
-        showScalar(l, true);
+        showAs(l, "heat");
         paint(l, active);
         if (!l.obj.visible) {
           l.obj.visible = true;
