@@ -313,6 +313,25 @@ def test_neutral_mesh_becomes_a_layer(tmp_path):
     assert all(m["visible"] for m in data["meshes"])
 
 
+def test_a_glTF_layer_embeds_its_textures_once(tmp_path, sample):
+    from facewrap.report.html import MeshLayer
+    png = _png((30, 200, 30), (16, 16))
+    result = sample["result"]
+    fitted = np.arange(len(result.triangles)) % 2 == 0
+    data = _page_data(write_html_report(tmp_path, meshes={
+        "result": MeshLayer(result, fitted, {1001: png}),
+        "rest": MeshLayer(result, ~fitted, {1001: png}, np.zeros(result.n_vertices, bool))}))
+    # PNG bytes go in as they are, once for both layers
+    assert data["textures"] == ["data:image/png;base64," + base64.b64encode(png).decode()]
+    layers = {m["name"]: m for m in data["meshes"]}
+    assert [g[2] for g in layers["result"]["groups"]] == [0] == [
+        g[2] for g in layers["rest"]["groups"]]
+    assert sum(g[1] for g in layers["result"]["groups"]) == fitted.sum()
+    assert layers["rest"]["n_vertices"] == 0          # counted by its vertices
+    with pytest.raises(ValueError, match=r"meshes\['x'\].triangles"):
+        write_html_report(tmp_path, meshes={"x": MeshLayer(result, fitted[:3])})
+
+
 def test_page_without_meshes_has_no_viewer(tmp_path):
     text = write_html_report(tmp_path, summary={"a": 1.0}).read_text()
     assert "<script" not in text and "Overview" in text

@@ -53,6 +53,7 @@ _COMPONENTS = {_FLOAT: "<f4", _UINT: "<u4", 5123: "<u2", 5122: "<i2", 5121: "u1"
                5120: "i1"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 _DATA_URI = "data:application/octet-stream;base64,"
+_PNG = b"\x89PNG\r\n\x1a\n"
 _FORMATS = {".glb": "glb", ".gltf": "gltf"}
 # Original vertex ids are stored as float32 (glTF has no integer vertex attribute
 # every viewer keeps), which is exact up to 2**24.
@@ -158,7 +159,8 @@ def _checked_textures(textures) -> dict:
         except (TypeError, ValueError):
             raise ValueError(f"textures: key {key!r} is neither a tile nor a (tile, "
                              "material ids) pair") from None
-        pngs[key] = png_bytes(as_image(im, f"texture {key}"))
+        pngs[key] = (bytes(im) if isinstance(im, bytes) and im.startswith(_PNG)  # as is
+                     else png_bytes(as_image(im, f"texture {key}")))
     if len({isinstance(k, tuple) for k in pngs}) > 1:
         raise ValueError("textures: keys are tiles or (tile, material ids) pairs, "
                          "not both")
@@ -266,7 +268,7 @@ class GltfLayout:
     uvs : (k, 2) float64 or None
         Texture coordinates as the mesh has them (v up; the file stores 1 - v).
     triangles : (t, 3) int64
-        The fan triangulation, into the written vertices.
+        The fan triangulation into the written vertices.
     normals : (k, 3) float64
         Smooth unit normals of the original vertices (equal across a seam).
     images : dict
@@ -297,9 +299,8 @@ def gltf_layout(mesh: Mesh, textures=None) -> GltfLayout:
     """
     pngs = _checked_textures(textures)
     vid, uv, tris = _split_vertices(mesh)
-    image_of = np.full(len(tris), -1, dtype=np.int64)   # index into pngs, -1: none
-    if uv is not None and pngs:
-        image_of = _triangle_textures(mesh, uv, tris, pngs)
+    image_of = (_triangle_textures(mesh, uv, tris, pngs) if uv is not None and pngs
+                else np.full(len(tris), -1, dtype=np.int64))   # into pngs, -1: none
     normals = _smooth_normals(mesh.vertices, mesh.triangles)[vid]
     return GltfLayout(vid, uv, tris, normals, pngs, image_of)
 
@@ -311,8 +312,8 @@ def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=Non
         raise ValueError(f"glTF output holds at most {_MAX_VERTEX_ID} vertices, the "
                          f"mesh has {neutral.n_vertices}")
     lay = gltf_layout(neutral, textures)
-    vid, uv, tris, pngs, image_of = (lay.vertex_ids, lay.uvs, lay.triangles, lay.images,
-                                     lay.image_of)
+    vid, uv, tris, pngs, image_of = lay.vertex_ids, lay.uvs, lay.triangles, lay.images, \
+        lay.image_of
     base = (neutral.vertices[vid] * scale).astype(np.float32)
     names = list(shapes)
     deltas = _shape_deltas(neutral, shapes, vid, scale)
@@ -370,14 +371,14 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
     name : str
         Name of the glTF mesh and node.
     textures : (H, W, 3) uint8, or dict of int to (H, W, 3) uint8, optional
-        Base-colour images, embedded as PNG: per UDIM tile (1001 the unit square),
-        an image alone being tile 1001's.  Used when the mesh has UVs; each tile
-        with an image becomes a primitive with its own textured PBR material, the
-        other triangles share a plain one.  Keys may instead be ``(tile, material
-        ids)`` pairs: the image of the triangles of that tile whose face has one of
-        those materials (-1: no material), for materials whose UVs overlap inside
-        one tile and so each have an image of their own (the texture sets of
-        :func:`facewrap.texture.tiles.texture_sets`).
+        Base-colour images (or PNG files' bytes, kept as they are), embedded as PNG: per
+        UDIM tile (1001 the unit square), an image alone being tile 1001's.  Used when
+        the mesh has UVs; each tile with an image becomes a primitive with its own
+        textured PBR material, the other triangles share a plain one.  Keys may instead
+        be ``(tile, material ids)`` pairs: the image of the triangles of that tile whose
+        face has one of those materials (-1: no material), for materials whose UVs
+        overlap inside one tile and so each have an image of their own (the texture sets
+        of :func:`facewrap.texture.tiles.texture_sets`).
 
     Raises
     ------

@@ -203,7 +203,11 @@ def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
     for k, entry in enumerate(entries):
         if not isinstance(entry, dict) or not entry.get("image"):
             continue
-        image = load_image(_existing(entry["image"], report_path, "texture image"))
+        path = _existing(entry["image"], report_path, "texture image")
+        check_image(path)           # whole: a broken one is refused, not shown broken
+        image = path.read_bytes()   # a PNG is embedded as it is, not encoded again
+        if not image.startswith(b"\x89PNG\r\n\x1a\n"):
+            image = load_image(path)
         tile = int(entry.get("tile", 1001))
         if entry.get("materials") is None:   # an older run: one image, tile 1001
             out[tile] = image
