@@ -347,7 +347,7 @@ def viewer_and_table_counts(browser, page) -> tuple[dict, dict, dict]:
         ".find(c => c.querySelector('h4') && c.querySelector('h4').textContent === "
         "'Vertex roles'); return Object.fromEntries(Array.from(card.querySelectorAll("
         "'tr')).map(r => [r.cells[0].textContent, r.cells[1].textContent])); })()")
-    listed = {ROLE_OF_LAYER[k]: int(v.strip("()").replace(",", ""))
+    listed = {ROLE_OF_LAYER[k]: int(v.replace(",", ""))
               for k, v in layers.items() if k in ROLE_OF_LAYER}
     headed = {ROLE_OF_LAYER[name]: int(n.replace(",", "")) for name, n in re.findall(
         r"(?:^|· |— )([a-z ()]+?) ([\d,]+) vertices", heading) if name in ROLE_OF_LAYER}

@@ -338,8 +338,8 @@ def _viewer_html(data: dict) -> str:
         f'<div class="layer"><label><input type="checkbox" data-fw-layer="{e(m["name"])}"'
         f'{" checked" if m["visible"] else ""}><span class="swatch" style="background:'
         f'{e(m["color"])}"></span><span class="name" title="{e(m["name"])}: '
-        f'{m["n_vertices"]:,} vertices">{e(m["name"])} <span class="count" '
-        f'data-fw-count="{e(m["name"])}">({m["n_vertices"]:,})</span></span></label>'
+        f'{m["n_vertices"]:,} vertices">{e(m["name"])}</span><span class="count" '
+        f'data-fw-count="{e(m["name"])}">{m["n_vertices"]:,}</span></label>'
         f'<input type="range" min="0.1" max="1" step="0.05" value="1" '
         f'title="opacity" aria-label="{e(m["name"])} opacity" '
         f'data-fw-opacity="{e(m["name"])}"></div>' for m in data["meshes"])
