@@ -174,3 +174,21 @@ def test_load_run_report_reads_what_a_wrap_job_writes(run):
     rep = load_run_report(run["dir"] / "run.json")
     assert {"job", "settings", "metrics", "timings", "transform"} <= set(rep)
 
+
+
+def test_a_broken_baked_image_is_refused_before_any_work(run, tmp_path, capsys):
+    report = json.loads((run["dir"] / "run.json").read_text())
+    good = Path(report["texture"]["image"])
+    good = good if good.is_absolute() else run["dir"] / good
+    broken = tmp_path / "broken.1002.png"
+    broken.write_bytes(good.read_bytes()[:200])
+    report["texture"]["images"].append({"image": str(broken), "tile": 1002,
+                                        "materials": []})
+    bad = tmp_path / "run.json"
+    bad.write_text(json.dumps(dict(report, job={
+        k: (str(run["dir"] / v) if k in ("template", "scan", "output") else v)
+        for k, v in report["job"].items()})))
+    assert facewrap("report", bad, "-o", tmp_path / "html") == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "broken.1002.png" in err
+    assert not (tmp_path / "html").exists()

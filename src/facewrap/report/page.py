@@ -204,7 +204,6 @@ def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
         if not isinstance(entry, dict) or not entry.get("image"):
             continue
         path = _existing(entry["image"], report_path, "texture image")
-        check_image(path)           # whole: a broken one is refused, not shown broken
         image = path.read_bytes()   # a PNG is embedded as it is, not encoded again
         if not image.startswith(b"\x89PNG\r\n\x1a\n"):
             image = load_image(path)
@@ -282,12 +281,16 @@ def _blendshape_preview(job: dict, report_path: Path, template, result, A):
 
 
 def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
-    """The baked texture (when the run made one) and the extra images, checked."""
+    """The baked texture (when the run made one) and the extra images, checked, and
+    with them every baked image the viewer shows."""
     pictures = []
     texture = run.get("texture")
     if isinstance(texture, dict) and texture.get("image"):
         pictures.append(("baked texture (template UV layout)",
                          _existing(texture["image"], report_path, "texture image")))
+        for entry in texture.get("images") or ():
+            if isinstance(entry, dict) and entry.get("image"):
+                check_image(_existing(entry["image"], report_path, "texture image"))
     for p in images:
         pictures.append((Path(p).name, Path(p)))
     for _, p in pictures:
