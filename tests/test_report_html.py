@@ -313,6 +313,25 @@ def test_neutral_mesh_becomes_a_layer(tmp_path):
     assert all(m["visible"] for m in data["meshes"])
 
 
+def test_a_glTF_layer_embeds_its_textures_once(tmp_path, sample):
+    from facewrap.report.html import MeshLayer
+    png = _png((30, 200, 30), (16, 16))
+    result = sample["result"]
+    fitted = np.arange(len(result.triangles)) % 2 == 0
+    data = _page_data(write_html_report(tmp_path, meshes={
+        "result": MeshLayer(result, fitted, {1001: png}),
+        "rest": MeshLayer(result, ~fitted, {1001: png}, np.zeros(result.n_vertices, bool))}))
+    # PNG bytes go in as they are, once for both layers
+    assert data["textures"] == ["data:image/png;base64," + base64.b64encode(png).decode()]
+    layers = {m["name"]: m for m in data["meshes"]}
+    assert [g[2] for g in layers["result"]["groups"]] == [0] == [
+        g[2] for g in layers["rest"]["groups"]]
+    assert sum(g[1] for g in layers["result"]["groups"]) == fitted.sum()
+    assert layers["rest"]["n_vertices"] == 0          # counted by its vertices
+    with pytest.raises(ValueError, match=r"meshes\['x'\].triangles"):
+        write_html_report(tmp_path, meshes={"x": MeshLayer(result, fitted[:3])})
+
+
 def test_page_without_meshes_has_no_viewer(tmp_path):
     text = write_html_report(tmp_path, summary={"a": 1.0}).read_text()
     assert "<script" not in text and "Overview" in text
@@ -408,3 +427,140 @@ def test_page_renders_in_headless_chromium(tmp_path, sample):
         assert canvas.reshape(-1, 3).std(axis=0).max() > 10
         assert len(np.unique(canvas.reshape(-1, 3) // 8, axis=0)) > 50
     assert not np.array_equal(png, png2)
+
+
+# ---------------------------------------------------------------------------------
+# Layers drawn as their glTF: texture and smooth shading, read back from the canvas
+# ---------------------------------------------------------------------------------
+def _checker(size=64, cells=8) -> np.ndarray:
+    """(size, size, 3) uint8: green and blue squares, colours no plain layer has."""
+    yy, xx = np.mgrid[:size, :size] * cells // size
+    img = np.empty((size, size, 3), np.uint8)
+    img[(xx + yy) % 2 == 0] = (30, 200, 30)
+    img[(xx + yy) % 2 == 1] = (30, 30, 220)
+    return img
+
+
+def _canvas_pixels(browser, page) -> tuple[np.ndarray, dict]:
+    """(h, w, 3) float: the viewer's canvas of ``page`` as the screen shows it, and
+    the viewer's state."""
+    from PIL import Image
+    browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+    x, y, w, h = (int(round(v)) for v in browser.evaluate(
+        "(() => { const r = document.querySelector('#fw-canvas-host canvas')"
+        ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()"))
+    shot = np.asarray(Image.open(io.BytesIO(browser.screenshot())).convert("RGB"))
+    return shot[y:y + h, x:x + w].astype(np.float64), browser.evaluate("window.facewrapViewer")
+
+
+def _shade_steps(canvas: np.ndarray) -> np.ndarray:
+    """Luminance steps between neighbouring pixels inside the drawn head (two pixels
+    in from its outline, so the silhouette against the background is not counted)."""
+    from scipy import ndimage
+    L = canvas @ [0.299, 0.587, 0.114]
+    head = ndimage.binary_erosion(np.abs(canvas - canvas[2, 2]).max(axis=2) > 12,
+                                  iterations=3)
+    dx = np.abs(np.diff(L, axis=1))[head[:, 1:] & head[:, :-1]]
+    dy = np.abs(np.diff(L, axis=0))[head[1:] & head[:-1]]
+    return np.concatenate([dx, dy])
+
+
+@needs_chromium
+def test_glTF_layers_render_textured_and_smooth(tmp_path, sample):
+    from facewrap.report.html import MeshLayer
+    result = sample["result"]
+    V, T = result.vertices, result.triangles
+    M = sample["transform"]
+    view = dict(view_up=M[:3, :3] @ [0, 1, 0], view_front=M[:3, :3] @ [0, 0, 1])
+    pages = {
+        "textured": write_html_report(tmp_path / "t", meshes={
+            "result": MeshLayer(result, textures={1001: _checker()})}, **view),
+        "plain": write_html_report(tmp_path / "p", meshes={"result": MeshLayer(result)},
+                                   **view),
+        # the control: every triangle its own vertices, so its normals are the faces'
+        "faceted": write_html_report(tmp_path / "f", meshes={"result": (
+            V[T].reshape(-1, 3), np.arange(3 * len(T)).reshape(-1, 3))}, **view)}
+    browser = Browser(CHROMIUM)
+    try:
+        shown = {k: _canvas_pixels(browser, p) for k, p in pages.items()}
+    finally:
+        browser.close()
+    canvas = {k: c for k, (c, _) in shown.items()}
+    assert browser.errors == [] and all(s["error"] is None for _, s in shown.values())
+    assert shown["textured"][1]["textures"] == 1 and shown["plain"][1]["textures"] == 0
+    r, g, b = (canvas["textured"][..., c] for c in range(3))
+    green = ((g > r + 60) & (g > b + 60)).mean()
+    blue = ((b > r + 60) & (b > g + 60)).mean()
+    assert green > 0.02 and blue > 0.02            # the checker's two colours show
+    r, g, b = (canvas["plain"][..., c] for c in range(3))
+    assert ((g > r + 60) | (b > r + 60)).mean() < 1e-3   # not without the texture
+    assert np.abs(canvas["textured"] - canvas["plain"]).max(axis=2).mean() > 5
+    # smooth: neighbouring pixels close in shade, where the faceted control jumps at
+    # its triangles' edges (the few steps left are the eyelids' creases)
+    smooth, faceted = _shade_steps(canvas["plain"]), _shade_steps(canvas["faceted"])
+    assert len(smooth) > 10_000 and len(faceted) > 10_000
+    assert np.percentile(smooth, 99) < 0.5 * np.percentile(faceted, 99)
+    assert np.percentile(smooth, 90) < 0.75 * np.percentile(faceted, 90)
+    assert (smooth > 8).mean() < 0.35 * (faceted > 8).mean()
+
+
+def _with_a_seam(mesh):
+    """``mesh`` with its faces of x > mean on UV tile 1002: a seam through the face."""
+    from facewrap.mesh import Mesh
+    right = mesh.vertices[mesh.triangles].mean(axis=1)[:, 0] > mesh.vertices[:, 0].mean()
+    faces = np.asarray(mesh.triangles)
+    face_uvs = faces + np.where(right, len(mesh.vertices), 0)[:, None]
+    uvs = np.concatenate([mesh.vertices[:, :2], mesh.vertices[:, :2] + [1, 0]])
+    uvs = (uvs - uvs.min(axis=0)) / np.ptp(uvs, axis=0) * [1.99, 0.99]
+    return Mesh(mesh.vertices, faces, uvs=uvs, face_uvs=face_uvs)
+
+
+@needs_chromium
+def test_a_blendshape_keeps_a_textured_layer_smooth_across_its_seams(tmp_path, sample):
+    from facewrap.geometry.normals import vertex_normals
+    from facewrap.report.html import MeshLayer
+    mesh = _with_a_seam(sample["result"])
+    M, tpl = sample["transform"], sample["template"]
+    name = "blink" if "blink" in tpl.blendshapes else next(iter(tpl.blendshapes))
+    posed = mesh.vertices + (tpl.blendshapes[name] - tpl.mesh.vertices) @ M[:3, :3].T
+    page = write_html_report(tmp_path, meshes={"result": MeshLayer(
+        mesh, textures={1001: _checker(), 1002: _checker()[::-1]})},
+        blendshapes=("result", {name: posed}),
+        scalars={"error to truth": ("result", sample["error"], "mm")})
+    layer = _page_data(page)["meshes"][0]
+    vid = _decode(layer["vertex_ids"], "<u4")
+    T = _decode(layer["indices"], "<u4").reshape(-1, 3)
+    assert len(np.unique(vid)) < len(vid) and len(layer["groups"]) == 2  # a seam
+    read = ("Array.from(window.facewrapViewer.layerOf('result').geom"
+            ".getAttribute('normal').array)")
+    browser = Browser(CHROMIUM)
+    try:
+        browser.open(page.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+        browser.evaluate("(() => { const r = document.querySelector('[data-fw-shape]');"
+                         " r.value = '1'; r.dispatchEvent(new Event('input'));"
+                         " return true; })()")
+        moved = np.array(browser.evaluate(read)).reshape(-1, 3)
+        browser.evaluate("(() => { document.getElementById('fw-shapes-reset').click();"
+                         " return true; })()")
+        neutral = np.array(browser.evaluate(read)).reshape(-1, 3)
+        # the heatmap replaces the textures; without it they come back
+        maps = "window.facewrapViewer.layerOf('result').mats.map(m => m.map !== null)"
+        looks = [browser.evaluate(maps)]
+        browser.evaluate("(() => { const s = document.getElementById('fw-heatmap');"
+                         " s.value = '-1'; s.dispatchEvent(new Event('change'));"
+                         " return true; })()")
+        looks.append(browser.evaluate(maps))
+    finally:
+        browser.close()
+    assert browser.errors == []
+    assert looks == [[False, False], [True, True]]
+    # the oracle: smooth (angle-weighted) normals of the posed mesh, one per original
+    # vertex, so both sides of the seam get the same
+    want = vertex_normals(posed, vid[T].astype(np.int64))[vid]
+    np.testing.assert_allclose(moved, want, atol=2e-4)
+    assert np.abs(moved - neutral).max() > 0.05            # the shape moved them
+    # back at rest: the glTF's normals again
+    np.testing.assert_allclose(neutral, _decode(layer["normals"], "<f4").reshape(-1, 3),
+                               atol=1e-7)
+    np.testing.assert_allclose(neutral, vertex_normals(mesh.vertices, mesh.triangles)[vid],
+                               atol=1e-6)

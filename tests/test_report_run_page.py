@@ -137,8 +137,11 @@ def test_parts_that_follow_are_their_own_layers(run, page):
     tpl = run["template"]
     assert layers["part (follows)"]["n_vertices"] == len(tpl.parts["eyeball_left"])
     assert layers["excluded (follows)"]["n_vertices"] == len(tpl.parts["eyeball_right"])
+    # the heatmap's layer holds fitted ones only (its vertices as the glTF splits them)
+    vid = decode(layers["result"]["vertex_ids"], "<u4")
     T = decode(layers["result"]["indices"], "<u4").reshape(-1, 3)
-    assert (run["codes"][T] == 0).all()     # the heatmap's layer holds fitted ones only
+    assert T.max() == len(vid) - 1 and (run["codes"][vid[T]] == 0).all()
+    assert layers["result"]["n_vertices"] == (run["codes"] == 0).sum()
     colours = {m["color"] for m in data["meshes"]}
     assert len(colours) == len(data["meshes"])
     assert all(layers[n]["visible"] for n in ("result", "part (follows)",
@@ -323,3 +326,61 @@ def test_the_viewers_formatter_is_the_twin_of_format_distance(page):
     want = [format_distance(v, u, with_unit=False) for v in values
             for u in ("mm", "cm", "m")]
     assert shown == want
+
+
+ROLE_OF_LAYER = {"result": "fitted", "part (follows)": "part",
+                 "cavity (follows)": "cavity", "excluded (follows)": "excluded",
+                 "pinned (held)": "pinned"}
+
+
+def viewer_and_table_counts(browser, page) -> tuple[dict, dict, dict]:
+    """What the open page shows: vertices per layer in the layer list and in the 3D
+    view's heading, and the "Vertex roles" table, each read from the page's DOM."""
+    layers = browser.evaluate(
+        "Object.fromEntries(Array.from(document.querySelectorAll('[data-fw-count]'))"
+        ".map(e => [e.dataset.fwCount, e.textContent]))")
+    heading = browser.evaluate(
+        "Array.from(document.querySelectorAll('h2')).find(h => h.textContent"
+        ".startsWith('3D view')).textContent")
+    table = browser.evaluate(
+        "(() => { const card = Array.from(document.querySelectorAll('section.card'))"
+        ".find(c => c.querySelector('h4') && c.querySelector('h4').textContent === "
+        "'Vertex roles'); return Object.fromEntries(Array.from(card.querySelectorAll("
+        "'tr')).map(r => [r.cells[0].textContent, r.cells[1].textContent])); })()")
+    listed = {ROLE_OF_LAYER[k]: int(v.replace(",", ""))
+              for k, v in layers.items() if k in ROLE_OF_LAYER}
+    headed = {ROLE_OF_LAYER[name]: int(n.replace(",", "")) for name, n in re.findall(
+        r"(?:^|· |— )([a-z ()]+?) ([\d,]+) vertices", heading) if name in ROLE_OF_LAYER}
+    return listed, headed, {k: int(v.replace(",", "")) for k, v in table.items()}
+
+
+@needs_chromium
+def test_viewer_layers_count_the_vertices_the_roles_table_counts(run, page, tmp_path):
+    # besides the run's eyeballs (pieces apart), a cavity inside the skin: its layer
+    # draws the triangles around it, fitted vertices of its rim included
+    V = run["template"].mesh.vertices
+    codes = run["codes"].copy()
+    centre = np.flatnonzero(codes == 0)[np.argmin(np.linalg.norm(
+        V[codes == 0] - V[codes == 0].mean(axis=0), axis=1))]
+    codes[np.argsort(np.linalg.norm(V - V[centre], axis=1))[:60]] = \
+        VERTEX_ROLE_NAMES.index("cavity")
+    (run["dir"] / "cavity.json").write_text(json.dumps(dict(
+        run["report"], vertex_roles=ranges_of(codes))))
+    cavity_page = build_report_page(run["dir"] / "cavity.json", tmp_path / "cavity")
+    drawn = decode(next(m for m in page_data(cavity_page)["meshes"]
+                        if m["name"] == "cavity (follows)")["vertex_ids"], "<u4")
+    assert (codes[drawn] == 0).any()          # the rim the old count included
+    browser = Browser(CHROMIUM)
+    try:
+        shown = []
+        for p in (page, cavity_page):
+            browser.open(p.as_uri(), "window.facewrapViewer && window.facewrapViewer.ready")
+            shown.append(viewer_and_table_counts(browser, p))
+    finally:
+        browser.close()
+    assert browser.errors == []
+    # the oracle: the report's vertex_roles
+    for (listed, headed, table), c in zip(shown, (run["codes"], codes)):
+        want = {VERTEX_ROLE_NAMES[k]: int((c == k).sum()) for k in np.unique(c)}
+        assert table == want and listed == want and headed == want
+    assert shown[1][0]["cavity"] == 60

@@ -44,7 +44,8 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.files import file_size, nul_at_ends, read_file_head
 from facewrap.io.images import as_image, png_bytes
 
-__all__ = ["write_gltf_morphs", "read_gltf_morphs", "gltf_format", "GltfMorphs"]
+__all__ = ["write_gltf_morphs", "read_gltf_morphs", "gltf_format", "GltfMorphs",
+           "GltfLayout", "gltf_layout"]
 
 _FLOAT, _UINT = 5126, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -52,6 +53,7 @@ _COMPONENTS = {_FLOAT: "<f4", _UINT: "<u4", 5123: "<u2", 5122: "<i2", 5121: "u1"
                5120: "i1"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 _DATA_URI = "data:application/octet-stream;base64,"
+_PNG = b"\x89PNG\r\n\x1a\n"
 _FORMATS = {".glb": "glb", ".gltf": "gltf"}
 # Original vertex ids are stored as float32 (glTF has no integer vertex attribute
 # every viewer keeps), which is exact up to 2**24.
@@ -157,7 +159,8 @@ def _checked_textures(textures) -> dict:
         except (TypeError, ValueError):
             raise ValueError(f"textures: key {key!r} is neither a tile nor a (tile, "
                              "material ids) pair") from None
-        pngs[key] = png_bytes(as_image(im, f"texture {key}"))
+        pngs[key] = (bytes(im) if isinstance(im, bytes) and im.startswith(_PNG)  # as is
+                     else png_bytes(as_image(im, f"texture {key}")))
     if len({isinstance(k, tuple) for k in pngs}) > 1:
         raise ValueError("textures: keys are tiles or (tile, material ids) pairs, "
                          "not both")
@@ -254,35 +257,80 @@ def _materials(gl, blob: _Blob, used, pngs: dict, material_names=()):
     return materials, images, textures, samplers, of_tile
 
 
+@dataclass(frozen=True)
+class GltfLayout:
+    """How :func:`write_gltf_morphs` lays a mesh out (what :func:`gltf_layout` returns).
+
+    Attributes
+    ----------
+    vertex_ids : (k,) int64
+        Original vertex of each written vertex (split at UV seams).
+    uvs : (k, 2) float64 or None
+        Texture coordinates as the mesh has them (v up; the file stores 1 - v).
+    triangles : (t, 3) int64
+        The fan triangulation into the written vertices.
+    normals : (k, 3) float64
+        Smooth unit normals of the original vertices (equal across a seam).
+    images : dict
+        Texture key (tile or ``(tile, material ids)``) → PNG bytes, in order.
+    image_of : (t,) int64
+        Index into ``list(images)`` of the image each triangle shows, -1: none.
+    """
+
+    vertex_ids: np.ndarray
+    uvs: np.ndarray | None
+    triangles: np.ndarray
+    normals: np.ndarray
+    images: dict
+    image_of: np.ndarray
+
+
+def gltf_layout(mesh: Mesh, textures=None) -> GltfLayout:
+    """The written vertices, normals and per-triangle images of a mesh's glTF
+    (``textures`` as :func:`write_gltf_morphs` takes them; the report draws this).
+
+    Examples
+    --------
+    >>> m = Mesh(np.eye(3), [[0, 1, 2]], uvs=[[0, 0], [1, 0], [0, 1]],
+    ...          face_uvs=[[0, 1, 2]])
+    >>> lay = gltf_layout(m, np.zeros((2, 2, 3), np.uint8))
+    >>> lay.vertex_ids.tolist(), lay.image_of.tolist(), list(lay.images)
+    ([0, 1, 2], [0], [1001])
+    """
+    pngs = _checked_textures(textures)
+    vid, uv, tris = _split_vertices(mesh)
+    image_of = (_triangle_textures(mesh, uv, tris, pngs) if uv is not None and pngs
+                else np.full(len(tris), -1, dtype=np.int64))   # into pngs, -1: none
+    normals = _smooth_normals(mesh.vertices, mesh.triangles)[vid]
+    return GltfLayout(vid, uv, tris, normals, pngs, image_of)
+
+
 def _document(neutral: Mesh, shapes: dict, scale: float, name: str, textures=None):
     """The glTF document and its one binary buffer (bytes, 4-byte aligned parts)."""
     gl = _pygltflib()
     if neutral.n_vertices > _MAX_VERTEX_ID:
         raise ValueError(f"glTF output holds at most {_MAX_VERTEX_ID} vertices, the "
                          f"mesh has {neutral.n_vertices}")
-    pngs = _checked_textures(textures)
-    vid, uv, tris = _split_vertices(neutral)
+    lay = gltf_layout(neutral, textures)
+    vid, uv, tris, pngs, image_of = lay.vertex_ids, lay.uvs, lay.triangles, lay.images, \
+        lay.image_of
     base = (neutral.vertices[vid] * scale).astype(np.float32)
-    normals = _smooth_normals(neutral.vertices, neutral.triangles)
     names = list(shapes)
     deltas = _shape_deltas(neutral, shapes, vid, scale)
     blob = _Blob(gl)
     attrs = gl.Attributes(POSITION=blob.add(base, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
-                          NORMAL=blob.add(normals[vid].astype(np.float32), _FLOAT, "VEC3",
+                          NORMAL=blob.add(lay.normals.astype(np.float32), _FLOAT, "VEC3",
                                           _ARRAY_BUFFER))
-    image_of = np.full(len(tris), -1, dtype=np.int64)   # index into pngs, -1: none
     if uv is not None:
         flipped = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)
         attrs.TEXCOORD_0 = blob.add(flipped, _FLOAT, "VEC2", _ARRAY_BUFFER)
-        if pngs:
-            image_of = _triangle_textures(neutral, uv, tris, pngs)
     setattr(attrs, "_FACEWRAP_VERTEX",
             blob.add(vid.astype(np.float32), _FLOAT, "SCALAR", _ARRAY_BUFFER))
     targets = []
     for k, d in enumerate(deltas):
         moved = _smooth_normals(np.asarray(shapes[names[k]], np.float64), neutral.triangles)
         targets.append({"POSITION": blob.add(d, _FLOAT, "VEC3", _ARRAY_BUFFER, True),
-                        "NORMAL": blob.add((moved - normals)[vid].astype(np.float32),
+                        "NORMAL": blob.add((moved[vid] - lay.normals).astype(np.float32),
                                            _FLOAT, "VEC3", _ARRAY_BUFFER)})
     # primitives in the order of the images, the plain one last
     used = sorted((int(t) for t in np.unique(image_of)), key=lambda t: (t < 0, t))
@@ -323,14 +371,14 @@ def write_gltf_morphs(path, neutral: Mesh, shapes: dict, *, scale: float = 1.0,
     name : str
         Name of the glTF mesh and node.
     textures : (H, W, 3) uint8, or dict of int to (H, W, 3) uint8, optional
-        Base-colour images, embedded as PNG: per UDIM tile (1001 the unit square),
-        an image alone being tile 1001's.  Used when the mesh has UVs; each tile
-        with an image becomes a primitive with its own textured PBR material, the
-        other triangles share a plain one.  Keys may instead be ``(tile, material
-        ids)`` pairs: the image of the triangles of that tile whose face has one of
-        those materials (-1: no material), for materials whose UVs overlap inside
-        one tile and so each have an image of their own (the texture sets of
-        :func:`facewrap.texture.tiles.texture_sets`).
+        Base-colour images (or PNG files' bytes, kept as they are), embedded as PNG: per
+        UDIM tile (1001 the unit square), an image alone being tile 1001's.  Used when
+        the mesh has UVs; each tile with an image becomes a primitive with its own
+        textured PBR material, the other triangles share a plain one.  Keys may instead
+        be ``(tile, material ids)`` pairs: the image of the triangles of that tile whose
+        face has one of those materials (-1: no material), for materials whose UVs
+        overlap inside one tile and so each have an image of their own (the texture sets
+        of :func:`facewrap.texture.tiles.texture_sets`).
 
     Raises
     ------

@@ -7,7 +7,9 @@ archived as one file:
 - pictures (PNG or JPEG, from paths or bytes) as base64 ``data:`` URIs;
 - meshes as base64 little-endian ``float32`` positions and ``uint32`` triangles,
   per-vertex heatmap values as ``float32`` (NaN = no value), blendshapes as sparse
-  ``(vertex ids, offsets)`` pairs, all in one JSON block;
+  ``(vertex ids, offsets)`` pairs, all in one JSON block; a :class:`MeshLayer` as its
+  glTF has it (:func:`facewrap.io.gltf.gltf_layout`: split at UV seams, the smooth
+  normals of the whole mesh, UVs, one PNG per UDIM tile or material, once per page);
 - the viewer: three.js (vendored in ``static/three-viewer.min.js``, see its
   README for version and source) and facewrap's ``static/viewer.js`` inlined as
   classic scripts, so no module loading and no network.
@@ -27,16 +29,19 @@ import html
 import json
 import os
 from pathlib import Path
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from facewrap.io.atomic import atomic_write
+from facewrap.io.gltf import gltf_layout
+from facewrap.mesh import Mesh
 from facewrap.report.tables import summary_html
 from facewrap.units import resolution_decimals
 from facewrap.version import __version__
 
-__all__ = ["write_html_report", "STATIC", "THREE_VERSION", "VIEW_NAMES",
+__all__ = ["write_html_report", "MeshLayer", "STATIC", "THREE_VERSION", "VIEW_NAMES",
            "COLOR_RANGE_PERCENTILE"]
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -65,6 +70,78 @@ _IMAGE_TYPES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"
 # ---------------------------------------------------------------------------------
 # Inputs
 # ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MeshLayer:
+    """A viewer layer drawn as the mesh's glTF (``write_gltf_morphs``) shows it.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The whole mesh: normals are its own, smooth across UV seams; heatmaps and
+        blendshapes give one value or position per vertex of it.
+    triangles : (t,) bool, optional
+        Which of ``mesh.triangles`` the layer draws (default all).
+    textures : as :func:`facewrap.io.gltf.write_gltf_morphs` takes them, optional
+        Base-colour images per UDIM tile or ``(tile, material ids)``.
+    vertices : (n,) bool, optional
+        The vertices the layer stands for, counted on the page (default those of
+        its triangles), e.g. the template's vertices of one role.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> quad = Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]], [[0, 1, 2, 3]],
+    ...             uvs=[[0, 0], [1, 0], [1, 1], [0, 1]], face_uvs=[[0, 1, 2, 3]])
+    >>> page = write_html_report(tempfile.mkdtemp(), meshes={"result": MeshLayer(
+    ...     quad, textures=np.full((4, 4, 3), 200, np.uint8))})
+    >>> page.read_text().count("data:image/png;base64,")
+    1
+    """
+
+    mesh: Mesh
+    triangles: np.ndarray | None = None
+    textures: object = None
+    vertices: np.ndarray | None = None
+
+
+def _layer_entry(name: str, layer: MeshLayer, k: int, images: dict,
+                 layouts: dict) -> tuple[dict, np.ndarray]:
+    """The JSON of a :class:`MeshLayer` and (n,) bool of the vertices it draws.
+
+    ``images`` (PNG bytes → index into the page's textures) and ``layouts`` (one
+    glTF layout per mesh and textures) are shared by the layers of one page."""
+    mesh, n = layer.mesh, layer.mesh.n_vertices
+    key = (id(mesh), id(layer.textures))
+    if key not in layouts:
+        layouts[key] = gltf_layout(mesh, layer.textures)
+    lay = layouts[key]
+    # written triangles are the mesh's, in its order
+    pick = (np.ones(len(lay.triangles), bool) if layer.triangles is None else
+            np.asarray(layer.triangles, bool))
+    if pick.shape != (len(lay.triangles),):
+        raise ValueError(f"meshes[{name!r}].triangles must be ({len(lay.triangles)},) "
+                         "bool")
+    order = np.argsort(lay.image_of[pick], kind="stable")     # one group per image
+    T, image_of = lay.triangles[pick][order], lay.image_of[pick][order]
+    written, inverse = np.unique(T, return_inverse=True)
+    vid = lay.vertex_ids[written]
+    drawn = np.bincount(vid, minlength=n) > 0
+    counted = drawn if layer.vertices is None else np.asarray(layer.vertices, bool)
+    if counted.shape != (n,):
+        raise ValueError(f"meshes[{name!r}].vertices must be ({n},) bool")
+    entry = _mesh_entry(name, layer.mesh.vertices[vid], inverse.reshape(-1, 3), k, True)
+    entry.update(n_vertices=int(counted.sum()), n_original=n,
+                 vertex_ids=_b64(vid, np.uint32), normals=_b64(lay.normals[written], "f4"))
+    if lay.uvs is not None and lay.images:
+        keys = list(lay.images)
+        entry["uvs"] = _b64(lay.uvs[written], np.float32)
+        cuts = np.flatnonzero(np.diff(image_of)) + 1
+        entry["groups"] = [[int(a), int(b - a), images.setdefault(
+            lay.images[keys[image_of[a]]], len(images)) if image_of[a] >= 0 else -1]
+            for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(T)]) if b > a]
+    return entry, drawn
+
+
 def _triangles_of(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
     """``(V, T)`` of a :class:`~facewrap.mesh.Mesh` or a ``(V, T)`` pair, checked."""
     if hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):
@@ -260,8 +337,9 @@ def _viewer_html(data: dict) -> str:
     layers = "".join(
         f'<div class="layer"><label><input type="checkbox" data-fw-layer="{e(m["name"])}"'
         f'{" checked" if m["visible"] else ""}><span class="swatch" style="background:'
-        f'{e(m["color"])}"></span><span class="name" title="{e(m["name"])}">'
-        f'{e(m["name"])}</span></label>'
+        f'{e(m["color"])}"></span><span class="name" title="{e(m["name"])}: '
+        f'{m["n_vertices"]:,} vertices">{e(m["name"])}</span><span class="count" '
+        f'data-fw-count="{e(m["name"])}">{m["n_vertices"]:,}</span></label>'
         f'<input type="range" min="0.1" max="1" step="0.05" value="1" '
         f'title="opacity" aria-label="{e(m["name"])} opacity" '
         f'data-fw-opacity="{e(m["name"])}"></div>' for m in data["meshes"])
@@ -277,7 +355,8 @@ def _viewer_html(data: dict) -> str:
                           f'{e(s["name"])} — {e(s["mesh"])}</option>'
                           for k, s in enumerate(data["scalars"]))
         heat = (f'<h3>Heatmap</h3><select id="fw-heatmap" aria-label="heatmap">'
-                f'<option value="-1">none (plain colours)</option>{options}</select>'
+                f'<option value="-1">none ({"textures, " if data["textures"] else ""}'
+                f'plain colours)</option>{options}</select>'
                 '<div id="fw-colorbar"><div id="fw-colorbar-title"></div>'
                 '<div class="bar"></div><div id="fw-colorbar-ticks"></div>'
                 '<div class="range-row"><label>from<input type="text" id="fw-range-lo">'
@@ -342,10 +421,12 @@ def write_html_report(folder, *, title: str = "facewrap report",
         Ints, floats (4 significant digits), bools, strings and None are shown.
     images : sequence of (str, path or bytes)
         Captions and pictures (PNG or JPEG files or bytes), embedded in base64.
-    meshes : dict of str to Mesh or (V, T), optional
+    meshes : dict of str to Mesh, (V, T) or MeshLayer, optional
         Meshes for the viewer, in drawing order, e.g. ``"scan"``, ``"result"``,
         ``"template"``.  ``V`` is (n, 3) float, ``T`` (m, 3) int triangles; a
-        :class:`~facewrap.mesh.Mesh` contributes its fan triangulation.
+        :class:`~facewrap.mesh.Mesh` contributes its fan triangulation; a
+        :class:`MeshLayer` is drawn as its glTF shows it (seams, smooth normals,
+        textures) and counted by its ``vertices``.
     scalars : dict of str to (str, (n,) float, str), optional
         Heatmaps: ``name -> (mesh name, per-vertex values, units)``.  NaN or inf
         mark vertices without a value (drawn grey).  The first is shown at
@@ -424,14 +505,20 @@ def _view_axes(view_up, view_front, initial_view: str) -> tuple[list, list]:
 
 
 def _viewer_data(meshes: dict, scalars: dict, blendshapes, visible) -> dict:
-    """The viewer's JSON: mesh layers, heatmaps and blendshape sliders, checked."""
-    mesh_entries, positions, used = [], {}, {}
+    """The viewer's JSON: mesh layers, heatmaps, blendshape sliders and the
+    textures of the :class:`MeshLayer` s, checked."""
+    mesh_entries, positions, used, images, layouts = [], {}, {}, {}, {}
     for k, (name, mesh) in enumerate(meshes.items()):
-        V, T = _triangles_of(mesh, str(name))
+        name = str(name)
+        if isinstance(mesh, MeshLayer):
+            entry, used[name] = _layer_entry(name, mesh, k, images, layouts)
+            mesh_entries.append(entry)
+            positions[name] = mesh.mesh.vertices
+            continue
+        V, T = _triangles_of(mesh, name)
         mesh_entries.append(_mesh_entry(name, V, T, k, True))
-        positions[str(name)] = V
-        used[str(name)] = np.bincount(np.asarray(T, np.int64).ravel(),
-                                      minlength=len(V)) > 0
+        positions[name] = V
+        used[name] = np.bincount(np.asarray(T, np.int64).ravel(), minlength=len(V)) > 0
     bs_entry = (_blendshape_entry(blendshapes, mesh_entries, positions)
                 if blendshapes is not None else None)
     if bs_entry is not None and bs_entry["mesh"] not in used:  # the neutral's layer
@@ -448,7 +535,9 @@ def _viewer_data(meshes: dict, scalars: dict, blendshapes, visible) -> dict:
                              f"meshes are {sorted(sizes)}")
     for m in mesh_entries:
         m["visible"] = m["name"] in shown
-    return {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry}
+    return {"meshes": mesh_entries, "scalars": scalar_entries, "blendshapes": bs_entry,
+            "textures": ["data:image/png;base64," + base64.b64encode(png).decode()
+                         for png in images]}
 
 
 def _warnings_html(notes: list[str]) -> str:

@@ -10,7 +10,10 @@ both are over the same vertices (the *fitted* ones of the report's
 
 - layers: the template moved by the run's similarity ("template (aligned)"), the
   scan, the fitted result, and apart from it, in their own colours, the parts that
-  follow (roles part, cavity, excluded, pinned);
+  follow (roles part, cavity, excluded, pinned); the result and its parts drawn as
+  the run's glTF shows them (split at UV seams, smooth normals, the baked image of
+  each UDIM tile and material), each layer counting the template's vertices of its
+  role, as the "vertex roles" table does;
 - landmarks of the template (aligned), the scan and the result, the worst few
   labelled with name and error;
 - heatmaps: result → scan distance over the fitted vertices (grey where the
@@ -39,11 +42,12 @@ from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.files import read_json
-from facewrap.io.images import check_image
+from facewrap.io.images import check_image, load_image
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.profile import read_template_profile
 from facewrap.landmarks import pair_landmarks
-from facewrap.report.html import write_html_report
+from facewrap.texture.tiles import BAKED_MATERIAL
+from facewrap.report.html import MeshLayer, write_html_report
 from facewrap.report.run_tables import run_summary
 from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
@@ -168,20 +172,54 @@ def _distances(scan, result, codes) -> tuple[np.ndarray, np.ndarray]:
     return to_scan, to_result
 
 
-def _result_layers(result, codes) -> dict:
-    """The fitted result (all vertices, its fitted triangles) and one compact layer
-    per role that follows, so the heatmap never paints them and each has a toggle."""
-    V, T = result.vertices, result.triangles
+def _result_layers(result, codes, textures=None) -> dict:
+    """The fitted result (its fitted triangles) and one layer per role that follows,
+    so the heatmap never paints them and each has a toggle; each as the run's glTF
+    draws it, standing for the template's vertices of its role."""
+    T = result.triangles
     fitted = _fitted_triangles(T, codes)
-    layers = {"result": (V, T[fitted])}
+    layers = {"result": MeshLayer(result, fitted, textures, codes == _FITTED)}
     # a triangle that touches a following vertex goes with the highest such role
     tri_role = codes[T].max(axis=1)
     for role, name in _ROLE_LAYERS.items():
-        sel = T[~fitted & (tri_role == VERTEX_ROLE_NAMES.index(role))]
-        if len(sel):
-            used, inverse = np.unique(sel, return_inverse=True)
-            layers[name] = (V[used], inverse.reshape(-1, 3))
+        code = VERTEX_ROLE_NAMES.index(role)
+        sel = ~fitted & (tri_role == code)
+        if sel.any():
+            layers[name] = MeshLayer(result, sel, textures, codes == code)
     return layers
+
+
+def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
+    """The run's baked images keyed as its glTF holds them: ``(tile, material ids of
+    the result)``; faces the template left without a material (named
+    :data:`~facewrap.texture.tiles.BAKED_MATERIAL` in the output) go with the first
+    image of their tile.  None when the run baked nothing or the result has no UVs."""
+    texture = run.get("texture")
+    if not isinstance(texture, dict) or result.triangle_uvs is None:
+        return None
+    entries = texture.get("images") or [{"image": texture.get("image"), "tile": 1001,
+                                         "materials": None}]
+    out, tiles_seen = {}, set()
+    for k, entry in enumerate(entries):
+        if not isinstance(entry, dict) or not entry.get("image"):
+            continue
+        path = _existing(entry["image"], report_path, "texture image")
+        image = path.read_bytes()   # a PNG is embedded as it is, not encoded again
+        if not image.startswith(b"\x89PNG\r\n\x1a\n"):
+            image = load_image(path)
+        tile = int(entry.get("tile", 1001))
+        if entry.get("materials") is None:   # an older run: one image, tile 1001
+            out[tile] = image
+            continue
+        ids = [m for m, name in enumerate(result.materials) if name in entry["materials"]]
+        if tile not in tiles_seen:
+            ids += [-1] + [m for m, name in enumerate(result.materials)
+                           if name in (BAKED_MATERIAL, f"{BAKED_MATERIAL}_{tile}")]
+            tiles_seen.add(tile)
+        out[(tile, tuple(ids))] = image
+    if len({isinstance(key, tuple) for key in out}) > 1:
+        raise InputError("'texture' mixes images with and without materials", report_path)
+    return out or None
 
 
 def _template_landmarks(job: dict, report_path: Path, profile):
@@ -243,12 +281,16 @@ def _blendshape_preview(job: dict, report_path: Path, template, result, A):
 
 
 def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
-    """The baked texture (when the run made one) and the extra images, checked."""
+    """The baked texture (when the run made one) and the extra images, checked, and
+    with them every baked image the viewer shows."""
     pictures = []
     texture = run.get("texture")
     if isinstance(texture, dict) and texture.get("image"):
         pictures.append(("baked texture (template UV layout)",
                          _existing(texture["image"], report_path, "texture image")))
+        for entry in texture.get("images") or ():
+            if isinstance(entry, dict) and entry.get("image"):
+                check_image(_existing(entry["image"], report_path, "texture image"))
     for p in images:
         pictures.append((Path(p).name, Path(p)))
     for _, p in pictures:
@@ -337,7 +379,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     summary = run_summary(run, unit, source,
                           roles=dict(zip(VERTEX_ROLE_NAMES, counts.tolist())),
                           worst_landmarks=labelled, ground_truth=truth)
-    layers = _result_layers(result, codes)
+    layers = _result_layers(result, codes, _baked_textures(run, report_path, result))
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,

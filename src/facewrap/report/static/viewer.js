@@ -3,10 +3,14 @@
  * the controls: layer toggles and opacity, heatmap choice and range with a colour
  * bar, blendshape sliders, view presets, and a value read-out under the pointer;
  * draws point sets (landmarks) as small balls, each set with a toggle, and text
- * labels that follow the view. Distances print as facewrap.units.format_distance
+ * labels that follow the view. A layer that comes as its glTF has it (vertex_ids:
+ * split at UV seams; normals; uvs and groups of triangles, each showing one of the
+ * page's textures) is drawn with those normals and images; its heatmaps and
+ * blendshapes are per original vertex, and its normals stay smooth across the seams
+ * when a blendshape moves it. Distances print as facewrap.units.format_distance
  * does (about four significant digits, never finer than the unit's resolution).
- * Sets window.facewrapViewer = {ready, webgl, meshes, points, labels, error} once
- * drawn (tests).
+ * Sets window.facewrapViewer = {ready, webgl, meshes, points, labels, textures,
+ * error} once drawn with every texture (tests).
  */
 (function () {
   "use strict";
@@ -92,6 +96,36 @@
     return g;
   }
 
+  // angle-weighted smooth normals (as facewrap.geometry.normals.vertex_normals) of
+  // positions pos (3k) over triangles idx; written vertices with the same id in ids
+  // (split at a UV seam) share one normal
+  function smoothNormals(pos, idx, ids, n, out) {
+    const acc = new Float64Array(3 * n);
+    const e = [0, 0, 0, 0, 0, 0, 0, 0, 0];
+    for (let t = 0; t < idx.length; t += 3) {
+      const a = 3 * idx[t], b = 3 * idx[t + 1], c = 3 * idx[t + 2];
+      const ux = pos[b] - pos[a], uy = pos[b + 1] - pos[a + 1], uz = pos[b + 2] - pos[a + 2];
+      const vx = pos[c] - pos[a], vy = pos[c + 1] - pos[a + 1], vz = pos[c + 2] - pos[a + 2];
+      const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+      const len = Math.hypot(nx, ny, nz);
+      if (!(len > 0)) continue;
+      // edges leaving each corner: a->b, a->c; b->c, b->a; c->a, c->b
+      const P = [a, b, c];
+      for (let k = 0; k < 3; k++) {
+        const o = P[k], p = P[(k + 1) % 3], q = P[(k + 2) % 3];
+        for (let d = 0; d < 3; d++) { e[d] = pos[p + d] - pos[o + d]; e[3 + d] = pos[q + d] - pos[o + d]; }
+        const dot = e[0] * e[3] + e[1] * e[4] + e[2] * e[5];
+        const angle = Math.atan2(len, dot);
+        const v = 3 * ids[idx[t + k]];
+        acc[v] += angle * nx / len; acc[v + 1] += angle * ny / len; acc[v + 2] += angle * nz / len;
+      }
+    }
+    for (let j = 0; j < ids.length; j++) {
+      const v = 3 * ids[j], l = Math.hypot(acc[v], acc[v + 1], acc[v + 2]);
+      if (l > 0) { out[3 * j] = acc[v] / l; out[3 * j + 1] = acc[v + 1] / l; out[3 * j + 2] = acc[v + 2] / l; }
+    }
+  }
+
   function fail(message) {
     state.error = message;
     const box = $("fw-viewer-message");
@@ -128,30 +162,55 @@
     camera.add(headlight);
     scene.add(camera);
 
+    // ---- textures (the baked images of the glTF layers) -----------------------
+    const loads = [];
+    const textures = (data.textures || []).map(function (uri) {
+      const img = new Image();
+      const tex = new T.Texture(img);
+      tex.colorSpace = T.SRGBColorSpace;
+      tex.wrapS = tex.wrapT = T.RepeatWrapping;   // a UDIM tile's u in [k, k + 1)
+      img.src = uri;
+      loads.push(img.decode().then(function () { tex.needsUpdate = true; }));
+      return tex;
+    });
+
     // ---- meshes -------------------------------------------------------------
     const layers = {};
     data.meshes.forEach(function (m, k) {
       const pos = decode(m.positions, Float32Array);
+      const idx = decode(m.indices, Uint32Array);
       const geom = new T.BufferGeometry();
       geom.setAttribute("position", new T.BufferAttribute(pos, 3));
-      geom.setIndex(new T.BufferAttribute(decode(m.indices, Uint32Array), 1));
+      geom.setIndex(new T.BufferAttribute(idx, 1));
       const colors = new Float32Array(pos.length);
       geom.setAttribute("color", new T.BufferAttribute(colors, 3));
-      geom.computeVertexNormals();
+      if (m.normals) geom.setAttribute("normal", new T.BufferAttribute(
+        decode(m.normals, Float32Array), 3));
+      else geom.computeVertexNormals();
+      if (m.uvs) geom.setAttribute("uv", new T.BufferAttribute(decode(m.uvs, Float32Array), 2));
       geom.computeBoundingSphere();
-      const mat = new T.MeshStandardMaterial({
-        color: new T.Color(m.color), roughness: 0.62, metalness: 0.0,
-        side: T.DoubleSide, polygonOffset: true,
-        polygonOffsetFactor: k, polygonOffsetUnits: k,
+      const groups = m.groups || [[0, idx.length / 3, -1]];
+      const mats = groups.map(function (g, gi) {
+        geom.addGroup(3 * g[0], 3 * g[1], gi);
+        return new T.MeshStandardMaterial({
+          color: new T.Color(g[2] >= 0 ? 0xffffff : m.color), roughness: 0.62,
+          metalness: 0.0, side: T.DoubleSide, polygonOffset: true,
+          polygonOffsetFactor: k, polygonOffsetUnits: k,
+          map: g[2] >= 0 ? textures[g[2]] : null,
+        });
       });
-      const obj = new T.Mesh(geom, mat);
+      const obj = new T.Mesh(geom, mats);
       obj.visible = m.visible;
       obj.renderOrder = k;
       scene.add(obj);
-      layers[m.name] = { spec: m, obj: obj, mat: mat, geom: geom,
-                         base: pos.slice(), scalar: null };
+      const ids = m.vertex_ids ? decode(m.vertex_ids, Uint32Array) : null;
+      layers[m.name] = { spec: m, obj: obj, mats: mats, groups: groups, geom: geom,
+                         base: pos.slice(), normals: geom.getAttribute("normal").array.slice(),
+                         ids: ids, n: ids ? m.n_original : pos.length / 3, scalar: null };
     });
     state.meshes = data.meshes.length;
+    // for tests: a layer's geometry and materials
+    state.layerOf = function (name) { return layers[name]; };
 
     // ---- point sets (landmarks) and labels -----------------------------------
     const headSphere = new T.Box3();
@@ -271,10 +330,12 @@
       const l = layers[r.dataset.fwOpacity];
       r.addEventListener("input", function () {
         const a = parseFloat(r.value);
-        l.mat.opacity = a;
-        l.mat.transparent = a < 0.999;
-        l.mat.depthWrite = a >= 0.999;
-        l.mat.needsUpdate = true;
+        l.mats.forEach(function (mat) {
+          mat.opacity = a;
+          mat.transparent = a < 0.999;
+          mat.depthWrite = a >= 0.999;
+          mat.needsUpdate = true;
+        });
         requestRender();
       });
     });
@@ -291,8 +352,8 @@
     function paint(layer, s) {
       const c = layer.geom.getAttribute("color");
       const span = s.hi - s.lo || 1;
-      for (let i = 0; i < s.data.length; i++) {
-        const v = s.data[i];
+      for (let i = 0; i < c.count; i++) {
+        const v = s.data[layer.ids ? layer.ids[i] : i];
         const rgb = isNaN(v) ? NO_VALUE : colormap((v - s.lo) / span);
         c.array[3 * i] = srgbToLinear(rgb[0]);
         c.array[3 * i + 1] = srgbToLinear(rgb[1]);
@@ -301,23 +362,30 @@
       c.needsUpdate = true;
     }
 
-    function setHeatmap(index) {
-      Object.values(layers).forEach(function (l) {
-        if (l.scalar !== null) {
-          l.scalar = null;
-          l.mat.vertexColors = false;
-          l.mat.color.set(l.spec.color);
-          l.mat.needsUpdate = true;
-        }
+    // how a layer looks: "heat" (the heatmap's vertex colours), "plain" (its own
+    // colour, so the parts that follow stand apart from a heatmap) or "own" (its
+    // textures, as its glTF shows it, else its colour)
+    function showAs(l, look) {
+      l.mats.forEach(function (mat, gi) {
+        const t = look === "own" ? l.groups[gi][2] : -1;
+        mat.vertexColors = look === "heat";
+        mat.map = t >= 0 ? textures[t] : null;
+        mat.color.set(look === "heat" || t >= 0 ? 0xffffff : l.spec.color);
+        mat.needsUpdate = true;
       });
+    }
+
+    function setHeatmap(index) {
       active = index >= 0 ? scalars[index] : null;
+      Object.values(layers).forEach(function (l) {
+        l.scalar = null;
+        showAs(l, active ? "plain" : "own");
+      });
       $("fw-colorbar").hidden = active === null;
       if (active) {
         const l = layers[active.mesh];
         l.scalar = active;
-        l.mat.vertexColors = true;
-        l.mat.color.set(0xffffff);
-        l.mat.needsUpdate = true;
+        showAs(l, "heat");
         paint(l, active);
         if (!l.obj.visible) {
           l.obj.visible = true;
@@ -374,20 +442,36 @@
         return { name: s.name, idx: decode(s.indices, Uint32Array),
                  d: decode(s.deltas, Float32Array), w: 0 };
       });
+      const ids = layer.ids;
+      const offset = new Float32Array(3 * layer.n);  // per original vertex
       const apply = function () {
         const p = layer.geom.getAttribute("position");
+        const nrm = layer.geom.getAttribute("normal");
         p.array.set(layer.base);
+        offset.fill(0);
+        let moved = false;
         shapes.forEach(function (s) {
           if (s.w === 0) return;
+          moved = true;
           for (let j = 0; j < s.idx.length; j++) {
             const o = 3 * s.idx[j];
-            p.array[o] += s.w * s.d[3 * j];
-            p.array[o + 1] += s.w * s.d[3 * j + 1];
-            p.array[o + 2] += s.w * s.d[3 * j + 2];
+            offset[o] += s.w * s.d[3 * j];
+            offset[o + 1] += s.w * s.d[3 * j + 1];
+            offset[o + 2] += s.w * s.d[3 * j + 2];
           }
         });
+        for (let j = 0; j < p.count; j++) {
+          const o = 3 * (ids ? ids[j] : j);
+          p.array[3 * j] += offset[o];
+          p.array[3 * j + 1] += offset[o + 1];
+          p.array[3 * j + 2] += offset[o + 2];
+        }
         p.needsUpdate = true;
-        layer.geom.computeVertexNormals();
+        if (!moved) nrm.array.set(layer.normals);  // the neutral's own normals
+        else if (ids) smoothNormals(p.array, layer.geom.getIndex().array, ids, layer.n,
+                                    nrm.array);
+        else layer.geom.computeVertexNormals();
+        nrm.needsUpdate = true;
         layer.geom.computeBoundingSphere();
         requestRender();
       };
@@ -437,6 +521,7 @@
               dz = p.getZ(i) - hit.point.z, d = dx * dx + dy * dy + dz * dz;
         if (d < bd) { bd = d; best = i; }
       });
+      if (l.ids) best = l.ids[best];  // the original vertex
       probe.textContent = "vertex " + best + ": " +
         fmtDistance(active.data[best], active.decimals) +
         (active.units ? " " + active.units : "");
@@ -457,6 +542,7 @@
     function requestRender() {
       if (!pending) { pending = true; requestAnimationFrame(render); }
     }
+    state.requestRender = requestRender;  // for tests that change a material
     function resize() {
       const w = Math.max(host.clientWidth, 1), h = Math.max(host.clientHeight, 1);
       renderer.setSize(w, h, true);
@@ -469,7 +555,12 @@
     setHeatmap(select ? parseInt(select.value, 10) : -1);
     lookFrom(views[data.view.initial] ? views[data.view.initial]() : front.clone());
     resize();
-    state.ready = true;
+    // ready once every texture is on the GPU and drawn
+    Promise.all(loads).then(function () {
+      state.textures = textures.length;
+      render();
+      state.ready = true;
+    }, function (e) { fail("a texture of this report did not load: " + e); });
   }
 
   try {
