@@ -44,6 +44,12 @@ def _modules_after(*argv) -> set[str]:
     return set(out["modules"])
 
 
+def _fresh(code: str) -> str:
+    """What ``python -c CODE`` prints, in a fresh process."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip()
+
+
 def _loaded(modules: set[str], names) -> list[str]:
     """Those of ``names`` (packages included with their submodules) in ``modules``."""
     return sorted(n for n in names if any(m == n or m.startswith(n + ".") for m in modules))
@@ -91,24 +97,19 @@ def test_a_command_prints_the_same_help_alone_or_with_every_command(name, capsys
 @pytest.mark.parametrize("package", ["facewrap.geometry", "facewrap.wrapping",
                                      "facewrap.jobs"])
 def test_lazy_packages_give_every_public_name(package):
-    code = (f"import {package} as p, sys; "
-            "missing = [n for n in p.__all__ if n not in dir(p)]; "
-            "values = [getattr(p, n) for n in p.__all__]; "
-            "print(missing, all(not isinstance(v, type(sys)) for v in values))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout.strip()
-    assert out == "[] True"
+    assert _fresh(f"import {package} as p, sys; "
+                  "missing = [n for n in p.__all__ if n not in dir(p)]; "
+                  "values = [getattr(p, n) for n in p.__all__]; "
+                  "print(missing, all(not isinstance(v, type(sys)) for v in values))"
+                  ) == "[] True"
 
 
 def test_a_public_name_that_is_also_a_submodule_stays_the_public_object():
     # wrapping.track is the function even after its module, wrapping/track.py, loads
-    code = ("import facewrap.wrapping.track, facewrap.wrapping as w, facewrap; "
-            "from facewrap.wrapping import track; "
-            "print(callable(track), track is w.track is facewrap.track, "
-            "type(track).__name__)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout.strip()
-    assert out == "True True function"
+    assert _fresh("import facewrap.wrapping.track, facewrap.wrapping as w, facewrap; "
+                  "from facewrap.wrapping import track; "
+                  "print(callable(track), track is w.track is facewrap.track, "
+                  "type(track).__name__)") == "True True function"
 
 
 def test_an_unknown_name_of_a_lazy_package_is_an_attribute_error():
