@@ -159,10 +159,10 @@ def build_fast_rnrr() -> tuple[Path | None, str, dict]:
             defaults_file.write_text(json.dumps(defaults))
     except (OSError, subprocess.CalledProcessError, RuntimeError) as exc:
         return None, f"skipped: could not prepare the sources ({exc})", {}
-    at = "" if (Path(source) / "CMakeLists.txt").is_file() else " at " + subprocess.run(
-        ["git", "--git-dir", source, "rev-parse", "--short", "HEAD"], capture_output=True,
-        text=True).stdout.strip()
-    return binary, f"built from {source}{at}", json.loads(defaults_file.read_text())
+    at = source if (Path(source) / "CMakeLists.txt").is_file() else "Juyong/Fast_RNRR at " + \
+        subprocess.run(["git", "--git-dir", source, "rev-parse", "--short", "HEAD"],
+                       capture_output=True, text=True).stdout.strip()
+    return binary, f"built from {at}", json.loads(defaults_file.read_text())
 
 
 # -- whole-process timing ---------------------------------------------------------
@@ -494,8 +494,9 @@ def _cell(r: dict, key: str, spec: str = ".2f", suffix: str = "") -> str:
 
 def _summary_table(result: dict) -> list[str]:
     """Ratios first: facewrap's hybrid (or graph) ÷ Fast_RNRR α = β = 30 per case."""
-    L = ["| case | facewrap ÷ Fast_RNRR, wall (2 cores) | one core | facewrap mean / p95 "
-         "(mm) | Fast_RNRR mean / p95 (mm) |", "|---|---:|---:|---:|---:|"]
+    L = ["| case | facewrap ÷ Fast_RNRR, wall (2 cores) | one core | CPU seconds | "
+         "facewrap mean / p95 (mm) | Fast_RNRR mean / p95 (mm) |",
+         "|---|---:|---:|---:|---:|---:|"]
     tuned = f"Fast_RNRR, α = β = {TUNED:g}"
     for c in result["cases"]:
         fw = next((r for r in c["rows"] if r["method"].startswith("facewrap")
@@ -503,8 +504,9 @@ def _summary_table(result: dict) -> list[str]:
         rn = next((r for r in c["rows"] if r["method"] == tuned and "error" not in r), None)
         if fw is None or rn is None:
             continue
+        cpu = (f"{fw['cpu'] / rn['cpu']:.2f}×" if fw.get("cpu") and rn.get("cpu") else "–")
         L.append(f"| {c['name']} ({fw['method'].split()[-1]}) | {_cell(fw, 'ratio', '.2f', '×')}"
-                 f" | {_cell(fw, 'one_core_ratio', '.2f', '×')} | {fw['mean']:.2f} / "
+                 f" | {_cell(fw, 'one_core_ratio', '.2f', '×')} | {cpu} | {fw['mean']:.2f} / "
                  f"{fw['p95']:.2f} | {rn['mean']:.2f} / {rn['p95']:.2f} |")
     return L + [""]
 
@@ -517,6 +519,11 @@ def _case_table(c: dict) -> list[str]:
          f"| system | {what} | wall (s) | ÷ Fast_RNRR α = β = {TUNED:g} | one core (s) "
          "| one core ÷ | CPU (s) | peak memory (MB) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    if not c["ground_truth"]:
+        L[1:1] = ["", "No truth here: fit = distance to the scan away from its borders "
+                  "(`bench_realscan.measures`). facewrap projects onto the scan at the "
+                  "end, so its fit is ~0 wherever the scan is clean; "
+                  "`bench_realscan.py` has its landmark errors and folds."]
     for r in c["rows"]:
         if "error" in r:
             L.append(f"| {r['method']} | failed: {r['error']} | | | | | | |")
@@ -556,7 +563,9 @@ def markdown(result: dict) -> str:
          "MeshMonk and trimesh run once, in a Python child that also imports "
          "`bench_nicp.py`'s facewrap helpers (that start-up alone: "
          f"{result.get('python_start', float('nan')):.2f} s). facewrap's disk cache "
-         "(hidden surfaces, shape folders) is warm: a user's second run.", ""]
+         "(hidden surfaces, shape folders) is warm: a user's second run. On a loaded "
+         "machine wall times stretch with the load (see the load average at the end): "
+         "the CPU seconds are the steadier figure.", ""]
     L += [n + "\n" for n in result.get("notes", [])]
     L += _summary_table(result)
     for c in result["cases"]:
