@@ -40,6 +40,16 @@ def _modules(argv: list[str]) -> tuple[int, int]:
     return int(own), int(every)
 
 
+def _median_seconds(argv: list[str], runs: int = RUNS) -> float:
+    subprocess.run(argv, check=True, capture_output=True)          # warm-up (disk cache)
+    times = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        subprocess.run(argv, check=True, capture_output=True)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
 def run() -> dict:
     from facewrap.sample import make_scan, make_template, write_sample
     py = [sys.executable]
