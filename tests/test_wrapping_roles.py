@@ -14,9 +14,10 @@ from facewrap.wrapping import WrapSettings, wrap
 from facewrap.wrapping.follow import follow_skin, side_changes
 from facewrap.geometry import folded_in
 from facewrap.wrapping.projection import relax_flips
+from facewrap.wrapping import roles
 from facewrap.wrapping.roles import (CAVITY, EXCLUDED, FITTED, PART, PINNED, VERTEX_ROLES,
-                                     find_hidden_surface, role_counts, role_ranges,
-                                     vertex_roles)
+                                     cached_hidden_surface, find_hidden_surface,
+                                     role_counts, role_ranges, vertex_roles)
 
 ICT = DATA / "ict-facekit" / "FaceXModel"
 
@@ -76,6 +77,94 @@ def test_hidden_surface_of_the_sample_eyeballs_are_parts():
     eyes = np.concatenate([t.parts["eyeball_left"], t.parts["eyeball_right"]])
     assert h.part[eyes].all() and h.part.sum() == len(eyes)
     assert h.cavity.mean() < 0.05
+
+
+@pytest.fixture
+def counted_views(tmp_path, monkeypatch):
+    """A private disk cache, an empty in-process cache, and a count of the calls of
+    the line-casting function (:func:`outside_views`) that finding a hidden surface
+    makes."""
+    monkeypatch.setenv("FACEWRAP_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("FACEWRAP_CACHE", raising=False)
+    calls = []
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return outside_views(*args, **kwargs)
+
+    monkeypatch.setattr(roles, "outside_views", counting)
+    cached_hidden_surface.clear()
+    yield calls
+    cached_hidden_surface.clear()
+
+
+def _head_with_eye():
+    return _with(_ball(subdivisions=3), _ball(0.2, subdivisions=1))
+
+
+def _same(a, b) -> bool:
+    return (np.array_equal(a.part, b.part) and np.array_equal(a.cavity, b.cavity)
+            and a.skin_pieces == b.skin_pieces)
+
+
+def test_hidden_surface_is_found_once_per_template_content_on_disk(counted_views, tmp_path):
+    V, T = _head_with_eye()
+    first = cached_hidden_surface(V, T)
+    cast = len(counted_views)
+    assert cast > 0 and list((tmp_path / "cache").glob("hidden-surface-*.npz"))
+    cached_hidden_surface.clear()          # as a fresh process: only the disk remembers
+    again = cached_hidden_surface(V, T)
+    assert len(counted_views) == cast and _same(again, first)
+    assert _same(again, find_hidden_surface(V, T))
+    # another template (one vertex moved) is found anew, and kept beside the first
+    moved = V.copy()
+    moved[0] *= 1.01
+    cached_hidden_surface(moved, T)
+    assert len(counted_views) > cast
+    assert len(list((tmp_path / "cache").glob("hidden-surface-*.npz"))) == 2
+
+
+def test_hidden_surface_corrupt_entry_is_found_again(counted_views, tmp_path):
+    V, T = _head_with_eye()
+    first = cached_hidden_surface(V, T)
+    cast = len(counted_views)
+    for entry in (tmp_path / "cache").glob("hidden-surface-*.npz"):
+        entry.write_bytes(entry.read_bytes()[:40])        # truncated
+    cached_hidden_surface.clear()
+    again = cached_hidden_surface(V, T)
+    assert len(counted_views) > cast and _same(again, first)
+    # ... and stored whole again: the next process reads it
+    cached_hidden_surface.clear()
+    cast = len(counted_views)
+    assert _same(cached_hidden_surface(V, T), first) and len(counted_views) == cast
+
+
+def test_hidden_surface_entry_of_another_size_is_not_used(counted_views, tmp_path):
+    V, T = _head_with_eye()
+    cached_hidden_surface(V, T)
+    import zipfile
+    (entry,) = (tmp_path / "cache").glob("hidden-surface-*.npz")
+    with np.load(entry) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["part"] = arrays["part"][:-1]                 # an entry that cannot be this one
+    with open(entry, "wb") as f:
+        np.savez(f, **arrays)
+    assert zipfile.is_zipfile(entry)
+    cached_hidden_surface.clear()
+    cast = len(counted_views)
+    assert len(cached_hidden_surface(V, T).part) == len(V) and len(counted_views) > cast
+
+
+def test_hidden_surface_cache_off_computes_and_writes_nothing(counted_views, tmp_path,
+                                                              monkeypatch):
+    monkeypatch.setenv("FACEWRAP_CACHE", "0")
+    V, T = _head_with_eye()
+    first = cached_hidden_surface(V, T)
+    cast = len(counted_views)
+    cached_hidden_surface.clear()
+    assert _same(cached_hidden_surface(V, T), first)
+    assert len(counted_views) == 2 * cast
+    assert not (tmp_path / "cache").exists()
 
 
 def test_vertex_roles_priorities_and_ranges():

@@ -14,8 +14,6 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.evaluate import VERTEX_ROLE_NAMES, evaluate, role_codes
-from facewrap.geometry import similarity_transform
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
@@ -75,6 +73,7 @@ def _read_mask(path, n):
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    from facewrap.geometry.similarity import similarity_transform
     from facewrap.report import frame_from_axes
     try:
         F = frame_from_axes(args.up, args.front)
@@ -120,6 +119,7 @@ def _ratio(v) -> str:
 
 def _run_roles(path, n: int):
     """Fitted vertices (n,) bool and the unit ``(unit, source)`` of a run's report."""
+    from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
     try:
         run = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -154,7 +154,8 @@ def _caption(key: str, s: dict, unit: str):
 
 def cmd_evaluate(args) -> int:
     """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
-    # deferred: the other commands (and `facewrap --help`) do not pay for this import
+    # deferred: `facewrap evaluate --help` (and the other commands) do not pay for these
+    from facewrap.evaluate import evaluate
     from facewrap.report import heatmap_figure, save_png
 
     if (args.result_landmarks is None) != (args.scan_landmarks is None):

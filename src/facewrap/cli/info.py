@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 
-from facewrap.geometry import boundary_loops, connected_components
 from facewrap.io import read_mesh
 
 __all__ = ["register", "cmd_info"]
@@ -14,6 +13,8 @@ __all__ = ["register", "cmd_info"]
 
 def cmd_info(args) -> int:
     """Print a summary of a mesh (as text, or JSON with ``--json``)."""
+    # deferred: `facewrap info --help` does not load the geometry
+    from facewrap.geometry.adjacency import boundary_loops, connected_components
     mesh = read_mesh(args.mesh)
     sizes, counts = np.unique(mesh.face_sizes, return_counts=True)
     lo, hi = mesh.bounding_box()

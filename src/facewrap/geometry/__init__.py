@@ -38,23 +38,51 @@ primitives behind it (:mod:`.arrays`; ``trusted_*`` kernels in :mod:`.normals`,
 :func:`~.adjacency.adjacency_matrix`, :func:`~.adjacency.unique_edges`).
 """
 
-from facewrap.geometry.closest import ClosestPoints, ClosestPointTree, RayHits, closest_points
-from facewrap.geometry.normals import face_areas, face_normals, vertex_normals
-from facewrap.geometry.adjacency import (
-    boundary_edges, boundary_loops, boundary_vertices, connected_components, edges,
-    edges_of_polygons, triangle_adjacency, vertex_adjacency,
-)
-from facewrap.geometry.laplacian import cotangent_laplacian, mass_matrix, uniform_laplacian
-from facewrap.geometry.frames import NormalisedFrame
-from facewrap.geometry.matching import Matches, closest_compatible_points, compatible
-from facewrap.geometry.quality import (TriangleQuality, flipped_triangles, folded_in,
-                                       triangle_normals,
-                                       triangle_quality, triangle_to_vertex, turned,
-                                       turned_from, turned_triangles)
-from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.geometry.sampling import (farthest_point_sampling, poisson_disk_vertices,
-                                        sample_surface)
-from facewrap.geometry.visibility import outside_views, sphere_directions
+from facewrap.lazy import lazy_exports
+
+#: public name -> the module that defines it, imported on first use (a command that
+#: needs the connectivity does not load the closest-point trees)
+_PUBLIC = {
+    "ClosestPoints": "facewrap.geometry.closest",
+    "ClosestPointTree": "facewrap.geometry.closest",
+    "RayHits": "facewrap.geometry.closest",
+    "closest_points": "facewrap.geometry.closest",
+    "face_areas": "facewrap.geometry.normals",
+    "face_normals": "facewrap.geometry.normals",
+    "vertex_normals": "facewrap.geometry.normals",
+    "boundary_edges": "facewrap.geometry.adjacency",
+    "boundary_loops": "facewrap.geometry.adjacency",
+    "boundary_vertices": "facewrap.geometry.adjacency",
+    "connected_components": "facewrap.geometry.adjacency",
+    "edges": "facewrap.geometry.adjacency",
+    "edges_of_polygons": "facewrap.geometry.adjacency",
+    "triangle_adjacency": "facewrap.geometry.adjacency",
+    "vertex_adjacency": "facewrap.geometry.adjacency",
+    "cotangent_laplacian": "facewrap.geometry.laplacian",
+    "mass_matrix": "facewrap.geometry.laplacian",
+    "uniform_laplacian": "facewrap.geometry.laplacian",
+    "NormalisedFrame": "facewrap.geometry.frames",
+    "Matches": "facewrap.geometry.matching",
+    "closest_compatible_points": "facewrap.geometry.matching",
+    "compatible": "facewrap.geometry.matching",
+    "TriangleQuality": "facewrap.geometry.quality",
+    "flipped_triangles": "facewrap.geometry.quality",
+    "folded_in": "facewrap.geometry.quality",
+    "triangle_normals": "facewrap.geometry.quality",
+    "triangle_quality": "facewrap.geometry.quality",
+    "triangle_to_vertex": "facewrap.geometry.quality",
+    "turned": "facewrap.geometry.quality",
+    "turned_from": "facewrap.geometry.quality",
+    "turned_triangles": "facewrap.geometry.quality",
+    "Similarity": "facewrap.geometry.similarity",
+    "similarity_transform": "facewrap.geometry.similarity",
+    "farthest_point_sampling": "facewrap.geometry.sampling",
+    "poisson_disk_vertices": "facewrap.geometry.sampling",
+    "sample_surface": "facewrap.geometry.sampling",
+    "outside_views": "facewrap.geometry.visibility",
+    "sphere_directions": "facewrap.geometry.visibility",
+}
+lazy_exports(__name__, _PUBLIC)
 
 __all__ = [
     # closest points and rays

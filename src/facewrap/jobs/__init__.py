@@ -7,14 +7,34 @@
 * :mod:`.values` — checking and converting values; :mod:`.toml_text` — TOML text.
 """
 
-from facewrap.jobs.jobfile import load_job, read_job_tables
-from facewrap.jobs.jobfile_writer import job_to_toml, write_job
-from facewrap.jobs.kinds import JOB_KINDS, TRANSFER, WRAP, JobKind, kind_of
-from facewrap.jobs.transfer_job import (TransferJob, TransferJobSettings,
-                                        check_transfer_job_paths, run_transfer_job,
-                                        transfer_job_inputs, transfer_job_outputs)
-from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
-                                    job_outputs, read_mesh_landmarks, run_wrap_job)
+from facewrap.lazy import lazy_exports
+
+#: public name -> the module that defines it, imported on first use
+_PUBLIC = {
+    "load_job": "facewrap.jobs.jobfile",
+    "read_job_tables": "facewrap.jobs.jobfile",
+    "job_to_toml": "facewrap.jobs.jobfile_writer",
+    "write_job": "facewrap.jobs.jobfile_writer",
+    "JOB_KINDS": "facewrap.jobs.kinds",
+    "TRANSFER": "facewrap.jobs.kinds",
+    "WRAP": "facewrap.jobs.kinds",
+    "JobKind": "facewrap.jobs.kinds",
+    "kind_of": "facewrap.jobs.kinds",
+    "TransferJob": "facewrap.jobs.transfer_job",
+    "TransferJobSettings": "facewrap.jobs.transfer_job",
+    "check_transfer_job_paths": "facewrap.jobs.transfer_job",
+    "run_transfer_job": "facewrap.jobs.transfer_job",
+    "transfer_job_inputs": "facewrap.jobs.transfer_job",
+    "transfer_job_outputs": "facewrap.jobs.transfer_job",
+    "InputWarning": "facewrap.jobs.wrap_job",
+    "WrapJob": "facewrap.jobs.wrap_job",
+    "check_job_paths": "facewrap.jobs.wrap_job",
+    "job_inputs": "facewrap.jobs.wrap_job",
+    "job_outputs": "facewrap.jobs.wrap_job",
+    "read_mesh_landmarks": "facewrap.jobs.wrap_job",
+    "run_wrap_job": "facewrap.jobs.wrap_job",
+}
+lazy_exports(__name__, _PUBLIC)
 
 __all__ = [
     # wrap jobs

@@ -17,13 +17,27 @@ The modules, in the order data flows through them:
 * :mod:`.track` — 4D sequences, each frame warm-started from the previous one.
 """
 
-from facewrap.wrapping.icp.schedule import Stage
-from facewrap.wrapping.models import MODEL_REGISTRY, default_schedule
-from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
-from facewrap.wrapping.roles import VERTEX_ROLES, find_hidden_surface, role_ranges
-from facewrap.wrapping.settings import MODELS, WrapSettings
-from facewrap.wrapping.stages import WrapResult, fit_metrics, wrap
-from facewrap.wrapping.track import track, write_track_outputs
+from facewrap.lazy import lazy_exports
+
+#: public name -> the module that defines it, imported on first use
+_PUBLIC = {
+    "Stage": "facewrap.wrapping.icp.schedule",
+    "MODEL_REGISTRY": "facewrap.wrapping.models",
+    "default_schedule": "facewrap.wrapping.models",
+    "DEFAULT_GRAPH_CACHE": "facewrap.wrapping.models.graph",
+    "GraphCache": "facewrap.wrapping.models.graph",
+    "VERTEX_ROLES": "facewrap.wrapping.roles",
+    "find_hidden_surface": "facewrap.wrapping.roles",
+    "role_ranges": "facewrap.wrapping.roles",
+    "MODELS": "facewrap.wrapping.settings",
+    "WrapSettings": "facewrap.wrapping.settings",
+    "WrapResult": "facewrap.wrapping.stages",
+    "fit_metrics": "facewrap.wrapping.stages",
+    "wrap": "facewrap.wrapping.stages",
+    "track": "facewrap.wrapping.track",
+    "write_track_outputs": "facewrap.wrapping.track",
+}
+lazy_exports(__name__, _PUBLIC)
 
 __all__ = ["wrap", "WrapSettings", "WrapResult", "MODELS", "MODEL_REGISTRY",
            "track", "write_track_outputs", "Stage", "default_schedule", "fit_metrics",

@@ -23,7 +23,6 @@ True
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -33,6 +32,7 @@ from facewrap.evaluate import VERTEX_ROLE_NAMES
 from facewrap.geometry import boundary_edges, connected_components, face_areas
 from facewrap.geometry.checks import as_vertex_mask
 from facewrap.geometry.visibility import outside_views
+from facewrap.io.cache import content_key, load_arrays, save_arrays
 
 __all__ = ["VERTEX_ROLES", "FITTED", "PART", "CAVITY", "EXCLUDED", "PINNED",
            "HiddenSurface", "find_hidden_surface", "vertex_roles", "role_ranges",
@@ -47,6 +47,15 @@ FITTED, PART, CAVITY, EXCLUDED, PINNED = range(len(VERTEX_ROLES))
 #: largest's area and most of it is seen (a face template split at the ears)
 _SKIN_AREA_SHARE = 0.1
 _SKIN_SEEN_SHARE = 0.5
+#: a skin vertex is seen when this many of that many directions around the head see it
+_VIEWS_NEEDED = 2
+_VIEW_DIRECTIONS = 64
+
+#: the on-disk entries of :func:`find_hidden_surface` (:mod:`facewrap.io.cache`); bump
+#: the version whenever the result of the same template would change (the rules here
+#: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
+_CACHE_KIND = "hidden-surface"
+_CACHE_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -88,7 +97,8 @@ def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
     vertices = np.flatnonzero(candidate[labels])
     occluders = (candidate | closed)[labels[T[:, 0]]]
     return outside_views(V, T if normals_out else T[:, ::-1], vertices=vertices,
-                         occluders=occluders)
+                         occluders=occluders, needed=_VIEWS_NEEDED,
+                         directions=_VIEW_DIRECTIONS)
 
 
 def find_hidden_surface(V, T) -> HiddenSurface:
@@ -149,31 +159,61 @@ def find_hidden_surface(V, T) -> HiddenSurface:
                          skin_pieces=int(skin.sum()))
 
 
+def _hidden_surface_key(V, T) -> str:
+    """The content key of a template's hidden surface: its arrays and every setting
+    the result depends on."""
+    return content_key(np.ascontiguousarray(V, np.float64),
+                       np.ascontiguousarray(T, np.int64), _SKIN_AREA_SHARE,
+                       _SKIN_SEEN_SHARE, _VIEWS_NEEDED, _VIEW_DIRECTIONS)
+
+
+def _load_hidden_surface(key: str, n: int) -> HiddenSurface | None:
+    """The stored hidden surface of ``key`` for ``n`` vertices, or None (absent,
+    corrupt, or not of this template's size)."""
+    found = load_arrays(_CACHE_KIND, key, ("part", "cavity", "skin_pieces"),
+                        version=_CACHE_VERSION)
+    if found is None:
+        return None
+    part, cavity, pieces = found["part"], found["cavity"], found["skin_pieces"]
+    if not (part.shape == cavity.shape == (n,) and part.dtype == cavity.dtype == bool
+            and pieces.shape == () and pieces.dtype.kind == "i"):
+        return None
+    return HiddenSurface(part, cavity, int(pieces))
+
+
 class _HiddenSurfaceCache:
-    """The last few templates' hidden surfaces, keyed by their content (a batch or
-    a sequence wraps one template many times; finding them casts ~10⁶ lines)."""
+    """Hidden surfaces by template content: the last few in this process, and every
+    one found before on disk (:mod:`facewrap.io.cache`; finding one casts ~10⁶ lines,
+    0.2–0.9 s for a production head, and a batch, a sequence or the next
+    ``facewrap wrap`` uses the same template again)."""
 
     def __init__(self, size: int = 4):
         self.size = size
         self._items: OrderedDict = OrderedDict()
 
     def __call__(self, V, T) -> HiddenSurface:
-        h = hashlib.blake2b(digest_size=16)
-        for a in (np.ascontiguousarray(V, np.float64), np.ascontiguousarray(T, np.int64)):
-            h.update(str(a.shape).encode())
-            h.update(a.tobytes())
-        key = h.digest()
+        key = _hidden_surface_key(V, T)
         if key in self._items:
             self._items.move_to_end(key)
             return self._items[key]
-        found = find_hidden_surface(V, T)
+        found = _load_hidden_surface(key, len(V))
+        if found is None:
+            found = find_hidden_surface(V, T)
+            save_arrays(_CACHE_KIND, key, {"part": found.part, "cavity": found.cavity,
+                                           "skin_pieces": np.int64(found.skin_pieces)},
+                        version=_CACHE_VERSION)
         self._items[key] = found
         while len(self._items) > self.size:
             self._items.popitem(last=False)
         return found
 
+    def clear(self) -> None:
+        """Forget the hidden surfaces held in this process (those on disk stay)."""
+        self._items.clear()
 
-#: the hidden surfaces of the last templates wrapped in this process
+
+#: the hidden surface of a template, from this process's last templates, the disk
+#: cache, or found (and stored); ``cached_hidden_surface.clear()`` empties the first
 cached_hidden_surface = _HiddenSurfaceCache()
 
 
