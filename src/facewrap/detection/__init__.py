@@ -8,10 +8,18 @@ surface and fuses the views with a confidence per point (:mod:`.fuse`).
 :func:`mesh_texture` finds the image a mesh file refers to.
 """
 
-from facewrap.detection.backend import EXTRA_HINT
-from facewrap.detection.detect import DetectedLandmarks, detect_landmarks
-from facewrap.detection.settings import DetectionSettings
-from facewrap.detection.texture import mesh_texture
+from facewrap.lazy import lazy_exports
+
+#: public name -> the module that defines it, imported on first use (a wrap that is
+#: given its landmarks never loads the renderer)
+_PUBLIC = {
+    "EXTRA_HINT": "facewrap.detection.backend",
+    "DetectedLandmarks": "facewrap.detection.detect",
+    "detect_landmarks": "facewrap.detection.detect",
+    "DetectionSettings": "facewrap.detection.settings",
+    "mesh_texture": "facewrap.detection.texture",
+}
+lazy_exports(__name__, _PUBLIC)
 
 __all__ = ["detect_landmarks", "DetectedLandmarks", "DetectionSettings", "mesh_texture",
            "EXTRA_HINT"]
