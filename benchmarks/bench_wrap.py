@@ -7,8 +7,9 @@ minimum of several runs, and a cProfile split of the fit into closest points,
 Jacobians, Gram matrices, factorisations, energies), on the first ICT case of
 bench_nicp (or the built-in sample without ../shared/data).
 
-``python benchmarks/bench_wrap.py --profile [graph|hybrid ...]`` prints the
-profile tables alone."""
+``python benchmarks/bench_wrap.py --profile [--one-core] [graph|hybrid ...]``
+prints the profile tables alone (``--one-core``: with a row per model whose
+closest-point queries and BLAS run on one thread)."""
 
 from __future__ import annotations
 
@@ -76,7 +77,7 @@ def run() -> dict:
                      **{k: v for k, v in res.timings.items() if k != "total"},
                      "gt": "n/a"})
     return {"title": "wrap: align + RBF warp + projection", "rows": rows,
-            "profile": profile_fit()}
+            "profile": profile_fit(one_core=True)}
 
 
 #: the fit's parts in the profile: (label, module file, function names); the
@@ -116,7 +117,8 @@ def _part_seconds(stats: pstats.Stats) -> dict:
     return out
 
 
-def profile_fit(models=("graph", "hybrid"), repeats: int = 5) -> dict:
+def profile_fit(models=("graph", "hybrid"), repeats: int = 5, split: bool = True,
+                one_core: bool = False) -> dict:
     """Where the seconds of an ICP wrap go: per model, the wrap's stage timings
     (minimum of ``repeats`` runs after a warm-up) and a cProfile split of one more
     run (:data:`PROFILE_PARTS`; cProfile's own overhead inflates many small calls,
@@ -145,19 +147,41 @@ def profile_fit(models=("graph", "hybrid"), repeats: int = 5) -> dict:
             best["cpu"] = min(best.get("cpu", np.inf), time.process_time() - cpu)
             for k, v in res.timings.items():
                 best[k] = min(best.get(k, np.inf), v)
-        # processor time, not the wall clock: on a shared machine the split then
-        # says what the fit costs, not how long it waited for a core
-        prof = cProfile.Profile(time.process_time)
-        prof.enable()
-        run_once()
-        prof.disable()
-        parts = _part_seconds(pstats.Stats(prof))
+        parts = {}
+        if split:
+            # processor time, not the wall clock: on a shared machine the split
+            # then says what the fit costs, not how long it waited for a core
+            prof = cProfile.Profile(time.process_time)
+            prof.enable()
+            run_once()
+            prof.disable()
+            parts = _part_seconds(pstats.Stats(prof))
         err = np.linalg.norm(res.vertices - case.truth, axis=1)[case.mask]
         rows.append({"model": model, "timings": best, "parts": parts,
                      "iterations": len(res.history),
                      "gt": f"{err.mean():.3f} / {np.percentile(err, 95):.3f}"})
     return {"case": case.name, "scan_triangles": len(case.scan.triangles),
-            "template_vertices": case.template.n_vertices, "rows": rows}
+            "template_vertices": case.template.n_vertices, "rows": rows,
+            "repeats": repeats,
+            "one_core": one_core_timings(models) if one_core else {}}
+
+
+def one_core_timings(models=("graph", "hybrid"), repeats: int = 3) -> dict:
+    """The stage timings of :func:`profile_fit` with libigl's closest-point queries
+    and BLAS held to one thread (``IGL_NUM_THREADS=1``: a fresh process, as the
+    thread pools read it once), per model."""
+    import json
+    import os
+    import subprocess
+    code = ("import json, sys; sys.path.insert(0, %r); import bench_wrap as b; "
+            "print(json.dumps({r['model']: r['timings'] for r in "
+            "b.profile_fit(%r, %d, split=False)['rows']}))"
+            % (str(Path(__file__).resolve().parent), tuple(models), repeats))
+    env = dict(os.environ, IGL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               OMP_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def profile_markdown(result: dict) -> str:
@@ -166,8 +190,9 @@ def profile_markdown(result: dict) -> str:
             f"({result['template_vertices']:,}-vertex template onto "
             f"{result['scan_triangles']:,} triangles)")
     rows = result["rows"]
-    lines = [head, "", "Stage timings of `wrap()` (wall clock, minimum of 5 runs, s) and "
-             "its processor time (all threads):", "",
+    lines = [head, "", f"Stage timings of `wrap()` (wall clock, minimum of "
+             f"{result.get('repeats', 5)} runs after a warm-up, s) and its processor "
+             "time (all threads):", "",
              "| model | model set-up | ICP | landmark pull | projection | total | "
              "processor s | GT error mean / p95 (mm) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|"]
@@ -177,11 +202,19 @@ def profile_markdown(result: dict) -> str:
                      f"{t.get('icp', 0):.3f} | {t.get('landmark_pull', 0):.3f} | "
                      f"{t.get('project', 0):.3f} | {t.get('total', 0):.3f} | "
                      f"{t.get('cpu', 0):.3f} | {r['gt']} |")
-    lines += ["", "Split of the fit under cProfile (processor s, one run):", "",
+        t = result.get("one_core", {}).get(r["model"])
+        if t:
+            lines.append(f"| {r['model']}, one core | {t.get('model_setup', 0):.3f} | "
+                         f"{t.get('icp', 0):.3f} | {t.get('landmark_pull', 0):.3f} | "
+                         f"{t.get('project', 0):.3f} | {t.get('total', 0):.3f} | "
+                         f"{t.get('cpu', 0):.3f} | (same fit) |")
+    lines += ["", "The closest-point queries run on libigl's thread pool (both cores); "
+              "'one core' is the same wrap with it and BLAS held to one thread.",
+              "", "Split of the fit under cProfile (processor s, one run):", "",
               "| part | " + " | ".join(r["model"] for r in rows) + " |",
               "|---|" + "---:|" * len(rows)]
     for label, _, _ in PROFILE_PARTS:
-        lines.append(f"| {label} | " + " | ".join(f"{r['parts'][label]:.3f}"
+        lines.append(f"| {label} | " + " | ".join(f"{r['parts'].get(label, float('nan')):.3f}"
                                                  for r in rows) + " |")
     return "\n".join(lines) + "\n"
 
@@ -207,6 +240,7 @@ def markdown(result: dict) -> str:
 if __name__ == "__main__":
     if "--profile" in sys.argv:
         chosen = [a for a in sys.argv[1:] if not a.startswith("--")]
-        print(profile_markdown(profile_fit(tuple(chosen) or ("graph", "hybrid"))))
+        print(profile_markdown(profile_fit(tuple(chosen) or ("graph", "hybrid"),
+                                           one_core="--one-core" in sys.argv)))
     else:
         print(markdown(run()))
