@@ -1,10 +1,21 @@
 """Benchmark: the §1 pipeline (align + RBF warp + projection, ``model="rbf"``) of a
 ~10k-vertex template onto a ~200k-triangle scan (issue target: <= 2 s), built-in
 sample; and ICT face onto menpo's james scan when ../shared/data is present.  The
-non-rigid ICP models are measured in bench_nicp.py."""
+non-rigid ICP models' accuracy is measured in bench_nicp.py; here, where each
+second of their fit goes (:func:`profile_fit`: the wrap's own stage timings, the
+minimum of several runs, and a cProfile split of the fit into closest points,
+Jacobians, Gram matrices, factorisations, energies), on the first ICT case of
+bench_nicp (or the built-in sample without ../shared/data).
+
+``python benchmarks/bench_wrap.py --profile [--one-core] [graph|hybrid ...]``
+prints the profile tables alone (``--one-core``: with a row per model whose
+closest-point queries and BLAS run on one thread)."""
 
 from __future__ import annotations
 
+import cProfile
+import pstats
+import sys
 import time
 from pathlib import Path
 
@@ -65,7 +76,147 @@ def run() -> dict:
                      "total": total,
                      **{k: v for k, v in res.timings.items() if k != "total"},
                      "gt": "n/a"})
-    return {"title": "wrap: align + RBF warp + projection", "rows": rows}
+    return {"title": "wrap: align + RBF warp + projection", "rows": rows,
+            "profile": profile_fit(one_core=True)}
+
+
+#: the fit's parts in the profile: (label, module file, function names); the
+#: cumulative time of each is the sum over its functions (they do not nest)
+PROFILE_PARTS = [
+    ("closest compatible points", ("icp/engine.py",), ("scan_pairs",)),
+    ("model vertex Jacobians", ("models/",), ("jacobian",)),
+    ("terms: residuals, regularisers", ("icp/engine.py",), ("step_terms",)),
+    ("normal equations: assembly and solves (every retry)", ("solve/gauss_newton.py",),
+     ("gauss_newton_step", "normal_equations", "step")),
+    ("… of which Gram blocks", ("solve/gauss_newton.py",),
+     ("sparse_gram_matrix", "gram_matrix")),
+    ("… of which factorisations and solves", ("solve/", "linalg/"),
+     ("factorize", "refactorize", "cho_factor", "cho_solve", "solve",
+      "conjugate_gradients")),
+    ("energies (step acceptance)", ("icp/engine.py",), ("energy",)),
+    ("model vertices", ("models/",), ("vertices",)),
+    ("deformation graphs (build or read)", ("models/graph.py",), ("graph",)),
+]
+
+
+def _part_seconds(stats: pstats.Stats) -> dict:
+    """Seconds per :data:`PROFILE_PARTS` entry (cumulative; a function called
+    from another of its own part counts once: only the outermost is summed)."""
+    def inside(path, name, where, names):
+        path = path.replace("\\", "/")
+        return name in names and any(w in path for w in where)
+    out = {}
+    for label, where, names in PROFILE_PARTS:
+        total = 0.0
+        for (path, _, name), (_, _, _, cum, callers) in stats.stats.items():
+            if inside(path, name, where, names):
+                nested = sum(c[3] for (cp, _, cn), c in callers.items()
+                             if inside(cp, cn, where, names))
+                total += cum - nested
+        out[label] = total
+    return out
+
+
+def profile_fit(models=("graph", "hybrid"), repeats: int = 5, split: bool = True,
+                one_core: bool = False) -> dict:
+    """Where the seconds of an ICP wrap go: per model, the wrap's stage timings
+    (minimum of ``repeats`` runs after a warm-up) and a cProfile split of one more
+    run (:data:`PROFILE_PARTS`; cProfile's own overhead inflates many small calls,
+    so read it as a split, the stage timings as the times)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _nicp_cases as cases
+    if cases.ict_available():
+        from bench_nicp import ICT_CASES
+        case = cases.ict_case(*ICT_CASES[0])
+    else:
+        case = cases.sample_case()
+    rows = []
+    for model in models:
+        shapes = case.blendshapes if model == "hybrid" else None
+        if model == "hybrid" and shapes is None:
+            continue
+
+        def run_once():
+            return wrap(case.template, case.scan, case.landmarks, case.scan_landmarks,
+                        WrapSettings(model=model), blendshapes=shapes)
+        res = run_once()                       # warm-up: graphs, caches, imports
+        best: dict = {}
+        for _ in range(repeats):
+            cpu = time.process_time()
+            res = run_once()
+            best["cpu"] = min(best.get("cpu", np.inf), time.process_time() - cpu)
+            for k, v in res.timings.items():
+                best[k] = min(best.get(k, np.inf), v)
+        parts = {}
+        if split:
+            # processor time, not the wall clock: on a shared machine the split
+            # then says what the fit costs, not how long it waited for a core
+            prof = cProfile.Profile(time.process_time)
+            prof.enable()
+            run_once()
+            prof.disable()
+            parts = _part_seconds(pstats.Stats(prof))
+        err = np.linalg.norm(res.vertices - case.truth, axis=1)[case.mask]
+        rows.append({"model": model, "timings": best, "parts": parts,
+                     "iterations": len(res.history),
+                     "gt": f"{err.mean():.3f} / {np.percentile(err, 95):.3f}"})
+    return {"case": case.name, "scan_triangles": len(case.scan.triangles),
+            "template_vertices": case.template.n_vertices, "rows": rows,
+            "repeats": repeats,
+            "one_core": one_core_timings(models) if one_core else {}}
+
+
+def one_core_timings(models=("graph", "hybrid"), repeats: int = 3) -> dict:
+    """The stage timings of :func:`profile_fit` with libigl's closest-point queries
+    and BLAS held to one thread (``IGL_NUM_THREADS=1``: a fresh process, as the
+    thread pools read it once), per model."""
+    import json
+    import os
+    import subprocess
+    code = ("import json, sys; sys.path.insert(0, %r); import bench_wrap as b; "
+            "print(json.dumps({r['model']: r['timings'] for r in "
+            "b.profile_fit(%r, %d, split=False)['rows']}))"
+            % (str(Path(__file__).resolve().parent), tuple(models), repeats))
+    env = dict(os.environ, IGL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               OMP_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def profile_markdown(result: dict) -> str:
+    """The profile tables of :func:`profile_fit`."""
+    head = (f"### where the seconds of an ICP wrap go: {result['case']} "
+            f"({result['template_vertices']:,}-vertex template onto "
+            f"{result['scan_triangles']:,} triangles)")
+    rows = result["rows"]
+    lines = [head, "", f"Stage timings of `wrap()` (wall clock, minimum of "
+             f"{result.get('repeats', 5)} runs after a warm-up, s) and its processor "
+             "time (all threads):", "",
+             "| model | model set-up | ICP | landmark pull | projection | total | "
+             "processor s | GT error mean / p95 (mm) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        t = r["timings"]
+        lines.append(f"| {r['model']} | {t.get('model_setup', 0):.3f} | "
+                     f"{t.get('icp', 0):.3f} | {t.get('landmark_pull', 0):.3f} | "
+                     f"{t.get('project', 0):.3f} | {t.get('total', 0):.3f} | "
+                     f"{t.get('cpu', 0):.3f} | {r['gt']} |")
+        t = result.get("one_core", {}).get(r["model"])
+        if t:
+            lines.append(f"| {r['model']}, one core | {t.get('model_setup', 0):.3f} | "
+                         f"{t.get('icp', 0):.3f} | {t.get('landmark_pull', 0):.3f} | "
+                         f"{t.get('project', 0):.3f} | {t.get('total', 0):.3f} | "
+                         f"{t.get('cpu', 0):.3f} | (same fit) |")
+    lines += ["", "The closest-point queries run on libigl's thread pool (both cores); "
+              "'one core' is the same wrap with it and BLAS held to one thread.",
+              "", "Split of the fit under cProfile (processor s, one run):", "",
+              "| part | " + " | ".join(r["model"] for r in rows) + " |",
+              "|---|" + "---:|" * len(rows)]
+    for label, _, _ in PROFILE_PARTS:
+        lines.append(f"| {label} | " + " | ".join(f"{r['parts'].get(label, float('nan')):.3f}"
+                                                 for r in rows) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def markdown(result: dict) -> str:
@@ -81,8 +232,15 @@ def markdown(result: dict) -> str:
               "open, eyes shut) uncorrected; that is the non-rigid ICP's job (issue 4). "
               "Targets: align + RBF + projection of a 10k template onto a 200k-triangle "
               "scan <= 2 s."]
+    if result.get("profile"):
+        lines += ["", profile_markdown(result["profile"])]
     return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":
-    print(markdown(run()))
+    if "--profile" in sys.argv:
+        chosen = [a for a in sys.argv[1:] if not a.startswith("--")]
+        print(profile_markdown(profile_fit(tuple(chosen) or ("graph", "hybrid"),
+                                           one_core="--one-core" in sys.argv)))
+    else:
+        print(markdown(run()))

@@ -83,3 +83,43 @@ def test_no_terms_give_a_zero_step():
     assert gauss_newton_step([], n_params=4).tolist() == [0.0] * 4
     J = sp.csr_matrix(np.eye(3))
     assert not gauss_newton_step([(0.0, np.ones(3), J, None)], n_params=3).any()
+
+
+@pytest.mark.parametrize("n_nodes, n_blend", [(20, 5), (110, 5), (110, 0)])
+def test_normal_equations_solve_again_for_every_damping(n_nodes, n_blend):
+    """One assembly answers every damping of a Levenberg–Marquardt retry as the
+    dense oracle does, in any order (the bordered path reuses its factor's
+    pattern); its energy is the weighted squared residual."""
+    from facewrap.solve import normal_equations
+    rng = np.random.default_rng(7 * n_nodes + n_blend)
+    terms = _terms(rng, 2 * n_nodes, n_nodes, n_blend)
+    system = normal_equations(terms, block=6)
+    assert system.path == ("bordered" if 6 * n_nodes >= BORDERED_FROM else "dense")
+    want_energy = sum(w * float(((np.ones(len(r)) if rw is None else rw) * r) @ r)
+                      for w, r, _, rw in terms)
+    assert system.energy == pytest.approx(want_energy, rel=1e-12)
+    for damping in (1e-4, 1e-3, 1e-2, 1e-1, 1e-4):
+        want = _oracle(terms, damping)
+        np.testing.assert_allclose(system.step(damping), want, rtol=0,
+                                   atol=1e-6 * np.abs(want).max())
+    # more damping, a shorter step in the damping's metric
+    d = np.diag(_oracle_hessian(terms))
+    norms = [float(np.sqrt(d @ system.step(mu) ** 2)) for mu in (1e-3, 1e-1, 10.0)]
+    assert norms[0] > norms[1] > norms[2]
+
+
+def _oracle_hessian(terms):
+    rows = []
+    for weight, r, J, rw in terms:
+        J = BlockJacobian.of(J)
+        w = weight * (np.ones(len(r)) if rw is None else np.asarray(rw))
+        rows.append(np.sqrt(w)[:, None] * np.hstack([J.sparse.toarray(), J.dense]))
+    A = np.vstack(rows)
+    return A.T @ A
+
+
+def test_normal_equations_of_no_terms_give_zero_steps():
+    from facewrap.solve import normal_equations
+    system = normal_equations([], n_params=4)
+    assert system.path == "zero" and system.energy == 0.0
+    assert system.step(1.0).tolist() == [0.0] * 4

@@ -295,3 +295,45 @@ def test_weight_bounds_penalty_and_its_jacobian(face):
     assert "bounds" not in HybridModel(base, D, graph).regularizers(p)
     inside = HybridParams(p.graph, np.full(D.shape[1], 0.5))
     assert not hm.regularizer_residuals(inside)["bounds"].any()
+
+
+def test_graph_cache_keeps_graphs_on_disk_by_content(face, tmp_path, monkeypatch):
+    """A new GraphCache (a new process) reads the graph back from disk, equal to a
+    fresh build; an entry that does not fit the template is built again; with the
+    cache off nothing is written."""
+    import facewrap.wrapping.models.graph as graph_module
+    from facewrap.geometry.frames import NormalisedFrame
+    from facewrap.wrapping.models.graph import GraphCache
+    monkeypatch.setenv("FACEWRAP_CACHE_DIR", str(tmp_path))
+    t = face[0]
+    V, T = t.mesh.vertices, t.mesh.triangles
+    first = GraphCache().graph(V, T, 0.1)
+    assert len(list(tmp_path.glob("deformation-graph-*.npz"))) == 1
+    built = []
+    monkeypatch.setattr(graph_module, "build_graph",
+                        lambda *a, **k: built.append(1) or build_graph(*a, **k))
+    again = GraphCache().graph(V, T, 0.1)
+    assert not built                                   # read, not built
+    want = build_graph(NormalisedFrame.of(V).to_frame(V), T, spacing=0.1)
+    for field in ("nodes", "vertex_nodes", "edges"):
+        assert np.array_equal(getattr(again, field), getattr(want, field))
+    np.testing.assert_allclose(again.vertex_weights, want.vertex_weights, rtol=0,
+                               atol=1e-15)
+    assert np.array_equal(again.nodes, first.nodes)
+    # another template of the same size: another key, built
+    GraphCache().graph(V + 1e-3, T, 0.1)
+    assert len(built) == 1
+    # a damaged entry (skinning rows that do not match the template) is rebuilt
+    entry = next(tmp_path.glob("deformation-graph-*.npz"))
+    with np.load(entry) as z:
+        arrays = dict(z)
+    arrays["vertex_nodes"] = arrays["vertex_nodes"][:-1]
+    for e in tmp_path.glob("deformation-graph-*.npz"):
+        np.savez(e, **arrays)
+    assert np.array_equal(GraphCache().graph(V, T, 0.1).nodes, want.nodes)
+    assert len(built) == 2
+    monkeypatch.setenv("FACEWRAP_CACHE", "0")
+    for e in tmp_path.glob("*.npz"):
+        e.unlink()
+    GraphCache().graph(V, T, 0.1)
+    assert not list(tmp_path.glob("*.npz"))

@@ -9,6 +9,8 @@ columns) and picks a solve by size.  Small systems are assembled densely from
 columns take a sparse Cholesky of the graph block and a dense Schur complement of
 the rest; large systems are one sparse product, solved by preconditioned
 conjugate gradients (:mod:`.krylov`) or a factorisation (:mod:`.factor`).
+:func:`normal_equations` assembles a system once so that a Levenberg–Marquardt
+retry with more damping only solves it again.
 """
 
 from __future__ import annotations
@@ -18,11 +20,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from facewrap.solve.block_jacobian import BlockJacobian
-from facewrap.solve.factor import factorize
+from facewrap.solve.factor import factorize, refactorize
 from facewrap.solve.krylov import block_jacobi, conjugate_gradients
 
-__all__ = ["gauss_newton_step", "gram_matrix", "sparse_gram_matrix", "DENSE_LIMIT",
-           "BORDERED_FROM"]
+__all__ = ["gauss_newton_step", "normal_equations", "NormalEquations", "gram_matrix",
+           "sparse_gram_matrix", "DENSE_LIMIT", "BORDERED_FROM"]
 
 
 #: systems with at most this many unknowns are solved directly: assembled
@@ -134,12 +136,106 @@ def sparse_gram_matrix(S) -> sp.csr_matrix:
     return (S.T.tocsr() @ S).tocsr()
 
 
-def _bordered_step(S_rows, D, b, damping: float) -> np.ndarray:
-    """Gauss–Newton step of a sparse system with a few dense columns (blend
-    weights): ``[A B; Bᵀ C]`` solved by one sparse Cholesky of ``A`` and the
-    Schur complement ``C − Bᵀ A⁻¹ B`` (K×K, dense).  For graphs of a few hundred
-    nodes ``A`` is only a few per cent full, so this beats assembling and
-    factoring densely."""
+class NormalEquations:
+    """The damped normal equations of stacked weighted terms, assembled once.
+
+    ``JᵀWJ`` and ``JᵀWr`` do not depend on the damping: a Levenberg–Marquardt
+    iteration that retries a rejected step with more damping only changes the
+    diagonal, so it solves these again (:meth:`step`) instead of re-assembling
+    them.  Build with :func:`normal_equations`.
+
+    Attributes
+    ----------
+    n_params : int
+        Unknowns P.
+    energy : float
+        ``Σ_t Σ_r w_r r_r²`` at the linearisation point (the objective before the
+        step, from the very residuals the step uses).
+    path : {"zero", "dense", "bordered", "sparse"}
+        How the system is solved (see :func:`gauss_newton_step`).
+    """
+
+    def __init__(self, n_params: int, energy: float, path: str, parts: dict,
+                 method: str = "cg", block: int = 1, max_cg: int = 400,
+                 cg_rtol: float = 1e-3):
+        self.n_params = n_params
+        self.energy = energy
+        self.path = path
+        self._parts = parts
+        self._method = method
+        self._block = block
+        self._max_cg = max_cg
+        self._cg_rtol = cg_rtol
+        self._factor = None          # the bordered path's last factor (its pattern)
+
+    def step(self, damping: float = 0.0, x0=None) -> np.ndarray:
+        """The step ``δ`` (P,) minimising the linearised energy plus
+        ``damping · δᵀ diag(JᵀWJ) δ``.
+
+        Parameters
+        ----------
+        damping : float
+        x0 : (P,) float, optional
+            Starting guess for conjugate gradients (the sparse path).
+        """
+        if self.path == "zero":
+            return np.zeros(self.n_params)
+        if self.path == "dense":
+            return _dense_solve(self._parts["H"], self._parts["g"], damping)
+        if self.path == "bordered":
+            return self._bordered_solve(damping)
+        return self._sparse_solve(damping, x0)
+
+    def _bordered_solve(self, damping: float) -> np.ndarray:
+        """``[A B; Bᵀ C]`` by one sparse Cholesky of ``A`` and the Schur complement
+        ``C − Bᵀ A⁻¹ B`` (K×K, dense).  For graphs of a few hundred nodes ``A`` is
+        only a few per cent full, so this beats assembling and factoring densely.
+        A second damping has the pattern of the first: its symbolic analysis is
+        reused."""
+        A, g1, Bm, C, g2 = (self._parts[k] for k in ("A", "g1", "B", "C", "g2"))
+        K = C.shape[0]
+        dA, dC = A.diagonal(), np.diag(C).copy()
+        floor = 1e-9 * max(float(dA.max(initial=0.0)), float(dC.max(initial=0.0)), 1e-300)
+        Ad = (A + sp.diags(damping * dA + floor)).tocsr()
+        Cd = C.copy()
+        Cd[np.diag_indices(K)] += damping * dC + floor
+        self._factor = (factorize(Ad, check=False, solves="few") if self._factor is None
+                        else refactorize(self._factor, Ad, check=False))
+        X = self._factor.solve(np.column_stack([g1, Bm]))
+        Ainv_g, Ainv_B = X[:, 0], X[:, 1:]
+        if K:
+            Sc, rhs = Cd - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g
+            try:
+                x2 = np.linalg.solve(Sc, rhs)
+            except np.linalg.LinAlgError:
+                x2 = np.linalg.lstsq(Sc, rhs, rcond=None)[0]
+            x1 = Ainv_g - Ainv_B @ x2
+        else:
+            x1, x2 = Ainv_g, np.zeros(0)
+        return -np.concatenate([x1, x2])
+
+    def _sparse_solve(self, damping: float, x0) -> np.ndarray:
+        """One sparse system: conjugate gradients or a factorisation."""
+        H, g = self._parts["H"], self._parts["g"]
+        d = H.diagonal()
+        # damping keeps the system definite where a parameter sees no data (a node
+        # in a hole): its diagonal floor is relative to the largest diagonal entry
+        floor = 1e-9 * max(float(d.max(initial=0.0)), 1e-300)
+        Hd = (H + sp.diags(damping * d + floor)).tocsr()
+        if self._method in ("cg", "inexact"):
+            n_sparse = self._parts["n_sparse"]
+            M = block_jacobi(Hd, self._block,
+                             n_blocked=n_sparse - n_sparse % self._block)
+            x, _, converged = conjugate_gradients(Hd, -g, x0, M, rtol=self._cg_rtol,
+                                                  max_iterations=self._max_cg)
+            if np.all(np.isfinite(x)) and (converged or self._method == "inexact"):
+                return x
+        return -factorize(Hd, check=False, solves="few").solve(g)
+
+
+def _bordered_parts(S_rows, D, b) -> dict:
+    """The blocks of the bordered system: sparse ``A = SᵀS``, ``B = SᵀD``,
+    dense ``C = DᵀD`` and the gradients ``g1 = Sᵀb``, ``g2 = Dᵀb``."""
     n_sparse, K = S_rows[0].shape[1], D.shape[1]
     A = sp.csr_matrix((n_sparse, n_sparse))
     g1 = np.zeros(n_sparse)
@@ -154,27 +250,11 @@ def _bordered_step(S_rows, D, b, damping: float) -> np.ndarray:
             g1 += St @ b[rows]
             if K:
                 Bm += St @ D[rows]
-    C, g2 = D.T @ D, D.T @ b
-    dA, dC = A.diagonal(), np.diag(C).copy()
-    floor = 1e-9 * max(float(dA.max(initial=0.0)), float(dC.max(initial=0.0)), 1e-300)
-    A = (A + sp.diags(damping * dA + floor)).tocsr()
-    C[np.diag_indices(K)] += damping * dC + floor
-    X = factorize(A, check=False, solves="few").solve(np.column_stack([g1, Bm]))
-    Ainv_g, Ainv_B = X[:, 0], X[:, 1:]
-    if K:
-        Sc, rhs = C - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g
-        try:
-            x2 = np.linalg.solve(Sc, rhs)
-        except np.linalg.LinAlgError:
-            x2 = np.linalg.lstsq(Sc, rhs, rcond=None)[0]
-        x1 = Ainv_g - Ainv_B @ x2
-    else:
-        x1, x2 = Ainv_g, np.zeros(0)
-    return -np.concatenate([x1, x2])
+    return {"A": A, "g1": g1, "B": Bm, "C": D.T @ D, "g2": D.T @ b}
 
 
-def _dense_step(S_rows, D, b, damping: float) -> np.ndarray:
-    """Gauss–Newton step assembled and solved densely (small parameter counts)."""
+def _dense_parts(S_rows, D, b) -> dict:
+    """``H = JᵀJ`` and ``g = Jᵀb`` assembled densely (small parameter counts)."""
     n_sparse = S_rows[0].shape[1]
     P = n_sparse + D.shape[1]
     H = np.zeros((P, P))
@@ -192,56 +272,57 @@ def _dense_step(S_rows, D, b, damping: float) -> np.ndarray:
         H[n_sparse:, :n_sparse] = H[:n_sparse, n_sparse:].T
         H[n_sparse:, n_sparse:] = D.T @ D
         g[n_sparse:] = D.T @ b
+    return {"H": H, "g": g}
+
+
+def _dense_solve(H, g, damping: float) -> np.ndarray:
+    """The damped dense system by Cholesky (least squares if it is singular)."""
+    P = len(g)
     d = np.diag(H).copy()
     floor = 1e-9 * max(float(d.max(initial=0.0)), 1e-300)
-    H[np.diag_indices(P)] += damping * d + floor
+    Hd = H.copy()
+    Hd[np.diag_indices(P)] += damping * d + floor
     try:
-        return -sla.cho_solve(sla.cho_factor(H, lower=True, check_finite=False), g,
+        return -sla.cho_solve(sla.cho_factor(Hd, lower=True, check_finite=False), g,
                               check_finite=False)
     except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(H, g, rcond=None)[0]
+        return -np.linalg.lstsq(Hd, g, rcond=None)[0]
 
 
-def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
-                      method: str = "cg", x0=None, block: int = 1,
-                      max_cg: int = 400, cg_rtol: float = 1e-3):
-    """One damped Gauss–Newton (Levenberg–Marquardt) step for weighted terms.
+def _sparse_parts(S_rows, D, b) -> dict:
+    """One stacked least-squares system: a single sparse product for the sparse
+    block, BLAS for the dense (blend) block."""
+    S = sp.vstack(S_rows, format="csr")
+    St = S.T.tocsr()
+    H = (St @ S).tocsr()
+    g = St @ b
+    if D.shape[1]:
+        Hsd = sp.csr_matrix(St @ D)
+        H = sp.bmat([[H, Hsd], [Hsd.T, sp.csr_matrix(D.T @ D)]], format="csr")
+        g = np.concatenate([g, D.T @ b])
+    return {"H": H, "g": np.asarray(g, dtype=np.float64), "n_sparse": S.shape[1]}
 
-    Minimises ``Σ_t Σ_r w_r (r_r + J_r δ)²`` plus ``damping · δᵀ diag(H) δ``.
 
-    Parameters
-    ----------
-    terms : iterable of (weight, r, J, row_weights)
-        ``weight`` a float, ``r`` (k,), ``J`` (k, P) sparse, ``row_weights`` (k,)
-        or None (IRLS weights).
-    damping : float
-        Levenberg–Marquardt factor on the diagonal of ``JᵀWJ``.
-    Systems of at most :data:`DENSE_LIMIT` unknowns (graphs of a few hundred
-    nodes, blendshapes, poses) are solved directly by Cholesky, whatever
-    ``method`` says: dense for small ones, sparse + Schur complement
-    (:data:`BORDERED_FROM`) for graphs of 100+ nodes.
+def normal_equations(terms, n_params: int | None = None, method: str = "cg",
+                     block: int = 1, max_cg: int = 400,
+                     cg_rtol: float = 1e-3) -> NormalEquations:
+    """Assemble the normal equations of weighted terms once, for any damping.
 
-    method : {"cg", "inexact", "direct"}
-        "cg": conjugate gradients with a block-Jacobi preconditioner, falling
-        back to a direct factorisation if they do not converge — a Gauss–Newton
-        step does not need a solve to machine precision, and on deformation-graph
-        systems CG is several times faster than a fresh sparse Cholesky (whose
-        symbolic analysis cannot be reused through cholespy).  "inexact": CG capped at
-        ``max_cg`` iterations, its result used as it is (the caller's
-        Levenberg–Marquardt test rejects a bad step); for large, Laplacian-like
-        systems where a factorisation is slow.  "direct": always factor.
-    block : int
-        Block size of the preconditioner (unknowns per node / vertex).
-    max_cg, cg_rtol : int, float
-        CG iteration cap and relative residual tolerance.  An inexact
-        Gauss–Newton step (residual reduced 1000×) is as good as an exact one
-        for ICP, whose correspondences change after every step anyway.
-    x0 : (P,) float, optional
-        Starting guess for CG (e.g. the previous step).
+    Parameters are those of :func:`gauss_newton_step` (less ``damping`` and
+    ``x0``, which go to :meth:`NormalEquations.step`).
 
     Returns
     -------
-    delta : (P,) float64
+    NormalEquations
+
+    Examples
+    --------
+    >>> J = sp.csr_matrix(np.eye(2))
+    >>> system = normal_equations([(1.0, np.array([1.0, -2.0]), J, None)])
+    >>> system.energy, system.step(0.0).round(6).tolist()
+    (5.0, [-1.0, 2.0])
+    >>> bool(np.abs(system.step(1.0)).max() < 1.01)   # more damping, a shorter step
+    True
     """
     S_rows, D_rows, b_rows = [], [], []
     for weight, r, J, rw in terms:
@@ -254,36 +335,69 @@ def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
         S_rows.append(Jw.sparse)
         D_rows.append(Jw.dense)
         b_rows.append(sw * np.asarray(r, dtype=np.float64))
+    options = dict(method=method, block=block, max_cg=max_cg, cg_rtol=cg_rtol)
     if not S_rows:
-        return np.zeros(n_params or 0)
+        return NormalEquations(n_params or 0, 0.0, "zero", {}, **options)
     n_sparse = S_rows[0].shape[1]
     D = np.vstack(D_rows)
     b = np.concatenate(b_rows)
-    if n_sparse + D.shape[1] <= DENSE_LIMIT:
-        if n_sparse >= BORDERED_FROM:
-            return _bordered_step(S_rows, D, b, damping)
-        return _dense_step(S_rows, D, b, damping)
-    # one stacked least-squares system: a single sparse product for the sparse
-    # block, BLAS for the dense (blend) block
-    S = sp.vstack(S_rows, format="csr")
-    St = S.T.tocsr()
-    H = (St @ S).tocsr()
-    g = St @ b
-    if D.shape[1]:
-        Hsd = sp.csr_matrix(St @ D)
-        H = sp.bmat([[H, Hsd], [Hsd.T, sp.csr_matrix(D.T @ D)]], format="csr")
-        g = np.concatenate([g, D.T @ b])
-    d = H.diagonal()
-    # damping keeps the system definite where a parameter sees no data (a node in
-    # a hole): its diagonal floor is relative to the largest diagonal entry
-    floor = 1e-9 * max(float(d.max(initial=0.0)), 1e-300)
-    H = (H + sp.diags(damping * d + floor)).tocsr()
-    g = np.asarray(g, dtype=np.float64)
-    if method in ("cg", "inexact"):
-        n_sparse = S.shape[1]
-        M = block_jacobi(H, block, n_blocked=n_sparse - n_sparse % block)
-        x, _, converged = conjugate_gradients(H, -g, x0, M, rtol=cg_rtol,
-                                              max_iterations=max_cg)
-        if np.all(np.isfinite(x)) and (converged or method == "inexact"):
-            return x
-    return -factorize(H, check=False, solves="few").solve(g)
+    P = n_sparse + D.shape[1]
+    if P <= DENSE_LIMIT:
+        path = "bordered" if n_sparse >= BORDERED_FROM else "dense"
+        parts = (_bordered_parts if path == "bordered" else _dense_parts)(S_rows, D, b)
+    else:
+        path, parts = "sparse", _sparse_parts(S_rows, D, b)
+    return NormalEquations(P, float(b @ b), path, parts, **options)
+
+
+def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
+                      method: str = "cg", x0=None, block: int = 1,
+                      max_cg: int = 400, cg_rtol: float = 1e-3):
+    """One damped Gauss–Newton (Levenberg–Marquardt) step for weighted terms.
+
+    Minimises ``Σ_t Σ_r w_r (r_r + J_r δ)²`` plus ``damping · δᵀ diag(H) δ``
+    (one-shot :func:`normal_equations` then :meth:`NormalEquations.step`; keep
+    the system to retry with other dampings).
+
+    Parameters
+    ----------
+    terms : iterable of (weight, r, J, row_weights)
+        ``weight`` a float, ``r`` (k,), ``J`` (k, P) sparse, ``row_weights`` (k,)
+        or None (IRLS weights).
+    damping : float
+        Levenberg–Marquardt factor on the diagonal of ``JᵀWJ``.
+    n_params : int, optional
+        P, for the zero step when no term has rows.
+    method : {"cg", "inexact", "direct"}
+        For systems of more than :data:`DENSE_LIMIT` unknowns (smaller ones are
+        solved directly by Cholesky, whatever ``method`` says: dense for small
+        ones, sparse + Schur complement (:data:`BORDERED_FROM`) for graphs of
+        100+ nodes).  "cg": conjugate gradients with a block-Jacobi
+        preconditioner, falling back to a direct factorisation if they do not
+        converge — a Gauss–Newton step does not need a solve to machine
+        precision, and on deformation-graph systems CG is several times faster
+        than a fresh sparse Cholesky.  "inexact": CG capped at ``max_cg``
+        iterations, its result used as it is (the caller's Levenberg–Marquardt
+        test rejects a bad step); for large, Laplacian-like systems where a
+        factorisation is slow.  "direct": always factor.
+    block : int
+        Block size of the preconditioner (unknowns per node / vertex).
+    max_cg, cg_rtol : int, float
+        CG iteration cap and relative residual tolerance.  An inexact
+        Gauss–Newton step (residual reduced 1000×) is as good as an exact one
+        for ICP, whose correspondences change after every step anyway.
+    x0 : (P,) float, optional
+        Starting guess for CG (e.g. the previous step).
+
+    Returns
+    -------
+    delta : (P,) float64
+
+    Examples
+    --------
+    >>> J = sp.csr_matrix(np.eye(2))
+    >>> gauss_newton_step([(1.0, np.array([1.0, -2.0]), J, None)]).round(6).tolist()
+    [-1.0, 2.0]
+    """
+    return normal_equations(terms, n_params, method=method, block=block, max_cg=max_cg,
+                            cg_rtol=cg_rtol).step(damping, x0)

@@ -21,7 +21,7 @@ Non-rigid ICP (SPEC §2.1) for any :class:`~facewrap.wrapping.models.base.Deform
 The engine works in a :class:`~facewrap.geometry.frames.NormalisedFrame` (template
 centred, unit bounding-box diagonal), so weights and tolerances mean the same on a
 face in mm, cm or m; the scan's :class:`~facewrap.geometry.ClosestPointTree` stays in
-the scan's units.  The linear algebra is :func:`facewrap.solve.gauss_newton_step`.
+the scan's units.  The linear algebra is :func:`facewrap.solve.normal_equations`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from facewrap.geometry import ClosestPointTree, vertex_normals
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.geometry.matching import Matches, closest_compatible_points
 from facewrap.progress import progress
-from facewrap.solve import gauss_newton_step
+from facewrap.solve import normal_equations
 from facewrap.wrapping.icp.schedule import Stage, graph_schedule
 from facewrap.wrapping.icp.terms import (landmark_residual, landmark_term,
                                          point_and_plane, point_and_plane_residual,
@@ -292,10 +292,13 @@ class NonRigidICP:
                   else np.union1d(pairs.vertices, problem.landmark_vertices))
         Jv = model.jacobian(p, active)
         terms = self.step_terms(problem, stage, pairs, p, V, Jv, active)
-        e0 = self.energy(problem, stage, pairs, p, V)
+        # assembled once: a retry with more damping only solves it again, and its
+        # energy (the same residuals) is the one the step must lower
+        system = normal_equations(terms, n_params=model.n_params, method=model.solver,
+                                  block=model.param_block)
+        e0 = system.energy
         for _ in range(_RETRIES):
-            delta = gauss_newton_step(terms, damping=mu, n_params=model.n_params,
-                                      method=model.solver, block=model.param_block)
+            delta = system.step(mu)
             p_new = model.update(p, delta)
             V_new = model.vertices(p_new)
             e1 = self.energy(problem, stage, pairs, p_new, V_new)

@@ -166,9 +166,10 @@ def default_schedule(model: str) -> list[Stage]:
     Stiff to loose: a landmark-only stage pulls the template into the scan's
     expression, then the data term comes in and the regulariser relaxes while
     the landmarks' weight drops (they are less accurate than the scan surface).
-    Stiff stages fit a third of the vertices (``sample``), the last stage of the
-    graph models half: their few hundred nodes are still overdetermined many
-    times and the final projection puts every vertex on the scan.  Graph models
+    Stiff stages fit a third of the vertices (``sample``; the hybrid's first, on
+    its coarse graph, 15 %), the last stage of the graph models half: their few
+    hundred nodes are still overdetermined many times and the final projection
+    puts every vertex on the scan.  Graph models
     also go coarse to fine in node count: the stiffest stages run on a graph with
     twice the node spacing (a quarter of the nodes), whose motion the fine graph
     continues, for the same error in less time (docs/benchmarks.md).
