@@ -209,3 +209,16 @@ def test_cli_refuses_a_mirrored_scan_and_warns_about_a_flipped_one(sample, tmp_p
     assert line.startswith(f"facewrap: warning: {flipped}: ")
     assert any("flipped" in w for w in json.loads(report.read_text())["warnings"])
     assert _digest(tmp_path / "in") == before
+
+
+def test_unique_faces_same_answer_for_small_and_huge_vertex_ids():
+    from facewrap.wrapping.plausibility import unique_faces
+    rng = np.random.default_rng(5)
+    T = rng.integers(0, 40, size=(400, 3))
+    T[::3] = T[::3][:, ::-1]                      # the same faces, wound the other way
+    T = np.r_[T, T[:50]]
+    small = unique_faces(T)
+    huge = unique_faces(T + 2 ** 22)              # past the packed-key range
+    assert np.array_equal(small, huge)
+    S = np.sort(T, axis=1)
+    assert len(np.unique(S[small], axis=0)) == small.sum() == len(np.unique(S, axis=0))
