@@ -68,9 +68,9 @@ def test_writer_is_atomic_and_leaves_no_temp(tmp_path, mixed_mesh):
     p = tmp_path / "out.obj"
     p.write_text("old")
 
-    class Boom(Mesh):
+    class Boom(Mesh):   # fails after the vertices are formatted, before the faces
         @property
-        def face_sizes(self):
+        def face_indices(self):
             raise RuntimeError("disk on fire")
     broken = Boom.__new__(Boom)
     broken.__dict__.update(mixed_mesh.__dict__)
