@@ -48,13 +48,15 @@ class _Lazy:
         return self._value
 
 
-def _read_lines(path) -> "_Lines":
-    """The file's bytes indexed by line, its rare forms made plain first.
+def _read_lines(path, data: bytes | None = None) -> "_Lines":
+    """The file's bytes (``data`` when already read) indexed by line, its rare forms
+    made plain first.
 
     The checks for those forms read the line index (first byte of each line, byte
     before each newline) instead of searching the whole file once per form.
     """
-    data = read_file_bytes(path, text=True)
+    if data is None:
+        data = read_file_bytes(path, text=True)
     if b"\r" in data and b"\n" not in data:  # classic Mac line ends (CR only)
         data = data.replace(b"\r", b"\n")
     lines = _Lines(data)
@@ -562,20 +564,31 @@ def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -
             fh.writelines(parts)
 
 
-def read_obj_vertices(path, n_vertices: int | None = None) -> np.ndarray:
+def read_obj_vertices(path, n_vertices: int | None = None, *,
+                      data: bytes | None = None) -> np.ndarray:
     """Read only the ``v`` lines of an OBJ: fast loading of shapes in one topology.
 
     Parameters
     ----------
     path : str or os.PathLike
+        The file (named in errors).
     n_vertices : int, optional
         Expected vertex count (a blendshape must match its neutral).
+    data : bytes, optional
+        The file's bytes when the caller has read them already (to hash them, say,
+        with :func:`facewrap.io.files.read_file_bytes`); the file is then not read
+        again.
 
     Returns
     -------
     (n, 3) float64
+
+    Examples
+    --------
+    >>> read_obj_vertices("shape.obj", 2, data=b"v 0 0 0\\nv 1 2 3.5\\n").tolist()
+    [[0.0, 0.0, 0.0], [1.0, 2.0, 3.5]]
     """
-    rows = _read_lines(path).rows(b"v")
+    rows = _read_lines(path, data).rows(b"v")
     if not len(rows):
         raise InputError("no vertices ('v' lines)", path)
     vertices, _ = _vertex_rows(rows, path)
