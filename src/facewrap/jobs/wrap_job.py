@@ -42,7 +42,7 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.jobs.input_checks import (check_landmark_spread, check_landmarks_on_scan,
-                                        survey_mesh, weld_duplicates)
+                                        doubled_areas, survey_mesh, weld_duplicates)
 from facewrap.mesh import Mesh
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
@@ -302,9 +302,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
             raise InputError("coordinates are too large (the bounding box overflows)",
                              where)
     scan_size = scan.scale()
-    V, T = scan.vertices, scan.triangles
-    area2 = np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
-                           axis=1)
+    area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
     if scan_size == 0 or not np.any(area2 > 1e-12 * scan_size * scan_size):
         raise InputError("scan is degenerate: every triangle has zero area", job.scan)
     if template.scale() == 0:
@@ -313,7 +311,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     notes += survey_mesh(template, job.template, "template", pieces=False)
     scan, sl, welded = weld_duplicates(scan, sl, job.scan)
     notes += [welded] if welded else []
-    notes += survey_mesh(scan, job.scan, "scan")
+    notes += survey_mesh(scan, job.scan, "scan", areas=area2)
     if len(scan.triangles) < 100:
         notes.append(f"{job.scan}: scan has only {len(scan.triangles)} triangle(s)")
     check_landmark_spread(tl.positions(template), job.template_landmarks)
