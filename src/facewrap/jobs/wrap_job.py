@@ -297,15 +297,15 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({tl_source}) have {len(tl)}", job.scan_landmarks)
 
-    for mesh, where in ((template, job.template), (scan, job.scan)):
-        if not np.isfinite(mesh.scale()):
+    template_size, scan_size = template.scale(), scan.scale()
+    for size, where in ((template_size, job.template), (scan_size, job.scan)):
+        if not np.isfinite(size):
             raise InputError("coordinates are too large (the bounding box overflows)",
                              where)
-    scan_size = scan.scale()
     area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
     if scan_size == 0 or not np.any(area2 > 1e-12 * scan_size * scan_size):
         raise InputError("scan is degenerate: every triangle has zero area", job.scan)
-    if template.scale() == 0:
+    if template_size == 0:
         raise InputError("template is degenerate: all vertices at one point",
                          job.template)
     notes += survey_mesh(template, job.template, "template", pieces=False)
