@@ -92,18 +92,26 @@ def _accelerator(name: str):
         return None
 
 
-def _parse_floats(text: bytes) -> np.ndarray | None:
-    """White-space separated numbers as float64, correctly rounded; None when a token
-    is not a number.
+def _row_floats(rows: "_Rows") -> np.ndarray | None:
+    """All numbers of the rows (keywords dropped) as float64, correctly rounded; None
+    when a token is not a number.
 
     fastnumbers (fast_float) parses a token list about 3x faster than numpy's
     ``fromstring`` and both are correctly rounded, so the values are the same.
     """
     fast = _accelerator("fastnumbers")
     if fast is None:
-        return _fromstring(text)
+        return _fromstring(rows.numbers_text())
+    tokens = rows.joined().split()
+    n, keyword = len(rows), rows.keyword
+    step = len(tokens) // n if n else 0
+    if (step > 1 and len(tokens) == n * step and tokens[::step].count(keyword) == n
+            and tokens.count(keyword) == n):
+        del tokens[::step]   # every row has `step` tokens, the keyword first
+    else:
+        tokens = rows.numbers_text().split()
     try:
-        return fast.try_array(text.split(), dtype=np.float64)
+        return fast.try_array(tokens, dtype=np.float64)
     except (ValueError, TypeError, OverflowError):
         return None
 
@@ -122,8 +130,11 @@ class _Lines:
         self.data = data
         self.starts = np.concatenate([[0], newline + 1]).astype(np.int64)
         self.ends = np.concatenate([newline, [len(buf)]]).astype(np.int64)
-        padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
-        self.c = [padded[self.starts + k] for k in range(3)]
+        # first three bytes of each line (0 past the end), no padded copy of the file
+        last = len(buf) - 1
+        self.c = [np.where(self.starts + k <= last, buf[np.minimum(self.starts + k, last)],
+                           0).astype(np.uint8) if len(buf) else
+                  np.zeros(len(self.starts), np.uint8) for k in range(3)]
 
     def last_byte(self) -> np.ndarray:
         """The byte before each newline (0 for an empty line)."""
@@ -205,7 +216,7 @@ def _bulk_floats(rows: _Rows, width: int, what: str, path, flat=None) -> np.ndar
     if n == 0:
         return np.zeros((0, width))
     if flat is None:
-        flat = _parse_floats(rows.numbers_text())
+        flat = _row_floats(rows)
     if flat is not None and flat.size == n * width:
         out = flat.reshape(n, width)
     else:
@@ -232,30 +243,31 @@ def _bulk_floats(rows: _Rows, width: int, what: str, path, flat=None) -> np.ndar
 def _vertex_rows(rows: _Rows, path):
     """Positions, plus colours when every line carries ``x y z r g b``."""
     n = len(rows)
-    flat = _parse_floats(rows.numbers_text())
+    flat = _row_floats(rows)
     if n and flat is not None and flat.size == 6 * n and np.isfinite(flat).all():
         data = flat.reshape(n, 6)
         return data[:, :3].copy(), data[:, 3:].copy()
     return _bulk_floats(rows, 3, "vertex", path, flat), None
 
 
-# bytes a face row may hold besides its numbers: printable text and the line ends
-_PRINTABLE = bytes(range(32, 256)) + b"\n"
 # corner slashes -> spaces: what is left is the indices
 _SLASHES = bytes.maketrans(b"/", b" ")
+# and the face keyword, when it is the only "f" of each row
+_F_AND_SLASHES = bytes.maketrans(b"f/", b"  ")
 
 
 def _parse_corners(rows: _Rows, path):
     """Face rows -> sizes (m,), and (c, 3) int64 [v, vt, vn] (0 where absent)."""
     original = rows.joined()
-    # single spaces between corners and no control characters (which str.split and
-    # numpy's parser would treat differently)
+    raw = np.frombuffer(original, dtype=np.uint8)
+    # single spaces between corners and no control characters but the newlines
+    # joining the rows (str.split and numpy's parser treat those differently)
     fast = not (b"  " in original or b" \n" in original or original.endswith(b" ")
-                or original.translate(None, _PRINTABLE))
+                or np.count_nonzero(raw < 32) != len(rows) - 1)
     if fast:  # single spaces only: corners per face = spaces on the line
-        spaces = np.flatnonzero(np.frombuffer(original, dtype=np.uint8) == 32)
+        spaces = np.flatnonzero(raw == 32)
         sizes = np.diff(np.concatenate([[0], np.searchsorted(spaces, rows.eol())]))
-        text = rows.numbers_text()
+        text = original
         first = original[2:original.find(b" ", 2)] if len(rows) else b""
         corners = None
     else:
@@ -275,7 +287,13 @@ def _parse_corners(rows: _Rows, path):
     out = np.zeros((n, 3), dtype=np.int64)
     if uniform:
         cols = [0, 2] if double else list(range(n_slash + 1))
-        flat = _fromstring(text.translate(_SLASHES), np.int64)
+        if corners is None and original.count(b"f") == len(rows):
+            numbers = original.translate(_F_AND_SLASHES)   # one pass, keywords too
+        elif corners is None:
+            numbers = rows.numbers_text().translate(_SLASHES)
+        else:
+            numbers = text.translate(_SLASHES)
+        flat = _fromstring(numbers, np.int64)
         if flat is not None and flat.size == n * len(cols):
             out[:, cols] = flat.reshape(n, len(cols))
             return sizes, out
