@@ -9,11 +9,10 @@ name the line of an error.
 Writing prints floats in their shortest round-trip form, so a mesh read back is
 bit-identical, and replaces the destination atomically.
 
-Two small maintained C libraries do the text <-> float64 steps when installed, both
-exact: ``fastnumbers`` (fast_float: correctly rounded parsing, about 3x numpy's
-``fromstring``) and ``orjson`` (shortest round-trip formatting, about 6x Python's
-``repr``).  Without them the same values come from numpy's parser and ``repr``.
-Integers (face corners) are parsed by numpy and formatted by numpy digit arithmetic.
+Two maintained C libraries do the text <-> float64 steps when installed, both exact:
+``fastnumbers`` (fast_float, correctly rounded: ~3x numpy's ``fromstring``) and
+``orjson`` (shortest round trip: ~6x ``repr``); without them numpy's parser and
+``repr`` give the same values.  Face indices are parsed and laid out by numpy.
 """
 
 from __future__ import annotations
@@ -34,18 +33,6 @@ from facewrap.io.paths import new_folders_removed_on_failure
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 
 _NAMED = ("usemtl", "g", "o", "mtllib")
-
-
-class _Lazy:
-    """A value computed on first call (index arrays only errors need)."""
-
-    def __init__(self, make):
-        self._make, self._value = make, None
-
-    def __call__(self):
-        if self._value is None:
-            self._value = self._make()
-        return self._value
 
 
 def _read_lines(path, data: bytes | None = None) -> "_Lines":
@@ -82,10 +69,8 @@ def _fromstring(text, dtype=np.float64) -> np.ndarray | None:
 
 @functools.lru_cache(maxsize=None)
 def _accelerator(name: str):
-    """The optional C module ``name`` (fastnumbers, orjson), or None when absent.
-
-    Imported on first use, so commands that never touch an OBJ do not pay for it.
-    """
+    """The optional C module ``name`` (fastnumbers, orjson), or None when absent;
+    imported on first use, so commands that never touch an OBJ do not pay for it."""
     try:
         return importlib.import_module(name)
     except ImportError:
@@ -93,12 +78,8 @@ def _accelerator(name: str):
 
 
 def _row_floats(rows: "_Rows") -> np.ndarray | None:
-    """All numbers of the rows (keywords dropped) as float64, correctly rounded; None
-    when a token is not a number.
-
-    fastnumbers (fast_float) parses a token list about 3x faster than numpy's
-    ``fromstring`` and both are correctly rounded, so the values are the same.
-    """
+    """All numbers of the rows (keywords dropped) as float64, correctly rounded (by
+    fastnumbers or numpy: the same values); None when a token is not a number."""
     fast = _accelerator("fastnumbers")
     if fast is None:
         return _fromstring(rows.numbers_text())
@@ -185,9 +166,8 @@ class _Rows:
     def numbers_text(self) -> bytes:
         """All rows with the keyword that starts each blanked (offsets kept)."""
         joined, k = self.joined(), len(self.keyword)
-        if not joined:
-            return joined
-        return b" " * k + joined[k:].replace(b"\n" + self.keyword, b"\n" + b" " * k)
+        return joined and b" " * k + joined[k:].replace(b"\n" + self.keyword,
+                                                       b"\n" + b" " * k)
 
     def eol(self) -> np.ndarray:
         """Offsets of each row's end in :meth:`joined` (rows are one line each)."""
@@ -383,12 +363,16 @@ class _Corners:
     """The face corners of an OBJ file: ``(c, 3)`` raw v/vt/vn indices and their lines."""
 
     def __init__(self, corner: np.ndarray, sizes: np.ndarray, f: "_Rows", path):
-        self.corner, self.f, self.path = corner, f, path
-        self.face_of_corner = _Lazy(lambda: np.repeat(np.arange(len(sizes)), sizes))
+        self.corner, self.f, self.path, self.sizes = corner, f, path, sizes
+
+    @functools.cached_property
+    def face_of_corner(self) -> np.ndarray:
+        """Face of each corner (only errors and relative indices need it)."""
+        return np.repeat(np.arange(len(self.sizes)), self.sizes)
 
     def line(self, c) -> int:
         """File line of corner ``c`` (for error messages)."""
-        return self.f.line(self.face_of_corner()[c])
+        return self.f.line(self.face_of_corner[c])
 
     def resolve(self, col: int, rows: "_Rows", total: int, what: str) -> np.ndarray:
         """0-based indices of column ``col`` (0 v, 1 vt, 2 vn), relative ones resolved.
@@ -398,7 +382,7 @@ class _Corners:
         idx = self.corner[:, col]
         neg = idx < 0
         if neg.any():
-            line0 = self.f.numbers[self.face_of_corner()]
+            line0 = self.f.numbers[self.face_of_corner]
             out = np.where(neg, np.searchsorted(rows.numbers, line0) + idx, idx - 1)
         else:
             out = idx - 1
@@ -499,10 +483,9 @@ def _face_rows(columns: np.ndarray, within: bytes, offsets: np.ndarray) -> bytes
     offsets : (m + 1,) int64
         Corners of polygon ``i`` are ``offsets[i]:offsets[i + 1]``.
 
-    Each corner becomes one fixed-width row of bytes (``f`` if it opens its polygon,
-    a space, its indices from a table of digit strings, ``\\n`` if it closes the
-    polygon); NUL padding fills the unused places and is deleted from the whole
-    text in one pass.  No per-face Python, no per-digit arithmetic on the corners.
+    Each corner is one fixed-width row of bytes (``f`` if it opens its polygon, a
+    space, its indices from a table of digit strings, ``\\n`` if it closes it), NUL
+    padding deleted from the whole text in one pass: no per-face Python.
     """
     c, k = columns.shape
     if c == 0:
