@@ -75,3 +75,107 @@ def test_pickled_objects_are_never_loaded(folder):
         np.savez(f, x=np.array([{"a": 1}], dtype=object),
                  __facewrap_cache__=np.array([1, 1]))
     assert cache.load_arrays("demo", key, ["x"]) is None
+
+
+# -- shape folders read once per content (datasets.load_shape_folder) ------------------
+
+def _shape_folder(tmp_path, mesh, n_shapes=3):
+    from facewrap.io.obj import write_obj
+    folder = tmp_path / "shapes"
+    folder.mkdir()
+    rng = np.random.default_rng(1)
+    for k in range(n_shapes):
+        write_obj(folder / f"s{k}.obj", mesh.with_vertices(
+            mesh.vertices + rng.normal(size=mesh.vertices.shape)))
+    return folder
+
+
+def _entries(folder):
+    return sorted(folder.glob("obj-vertices-*.npz")) if folder.exists() else []
+
+
+def test_shape_folder_is_cached_outside_the_inputs(folder, tmp_path, mixed_mesh):
+    from facewrap.datasets import load_shape_folder
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh)
+    inputs_before = sorted(p.name for p in shapes_dir.iterdir())
+    first = load_shape_folder(shapes_dir, mixed_mesh)
+    assert len(_entries(folder)) == 3
+    stamps = [p.stat().st_mtime_ns for p in _entries(folder)]
+    again = load_shape_folder(shapes_dir, mixed_mesh)
+    assert list(again) == list(first)
+    for name in first:
+        assert again[name].dtype == np.float64
+        assert np.array_equal(again[name], first[name])
+    # answered from the entries, not rewritten; nothing written beside the inputs
+    assert [p.stat().st_mtime_ns for p in _entries(folder)] == stamps
+    assert sorted(p.name for p in shapes_dir.iterdir()) == inputs_before
+
+
+def test_edited_shape_with_same_size_and_time_is_read_again(folder, tmp_path, mixed_mesh):
+    from facewrap.datasets import load_shape_folder
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 1)
+    path = shapes_dir / "s0.obj"
+    load_shape_folder(shapes_dir, mixed_mesh)
+    text, st = path.read_bytes(), path.stat()
+    # swap two digits: same size, and the old modification time put back
+    i = text.index(b"v ") + 2
+    while not (text[i:i + 1].isdigit() and text[i + 1:i + 2].isdigit()
+               and text[i] != text[i + 1]):
+        i += 1
+    edited = text[:i] + text[i + 1:i + 2] + text[i:i + 1] + text[i + 2:]
+    path.write_bytes(edited)
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    from facewrap.io.obj import read_obj_vertices
+    assert np.array_equal(load_shape_folder(shapes_dir, mixed_mesh)["s0"],
+                          read_obj_vertices(path))
+    assert not np.array_equal(read_obj_vertices(path),
+                              read_obj_vertices(path, data=text))
+
+
+def _foreign(path, n, kind):
+    """Replace a cache entry by a well-formed one that is not what a parse gives."""
+    meta = np.array([1, 1], dtype=np.int64)
+    arrays = {"wrong count": np.zeros((n - 1, 3)), "float32": np.zeros((n, 3), np.float32),
+              "nan": np.full((n, 3), np.nan), "other version": np.zeros((n, 3)),
+              "flat": np.zeros(3 * n), "no vertices": None}
+    payload = {"__facewrap_cache__": np.array([1, 7]) if kind == "other version" else meta}
+    if arrays[kind] is not None:
+        payload["vertices"] = arrays[kind]
+    with open(path, "wb") as f:
+        np.savez(f, **payload)
+
+
+@pytest.mark.parametrize("kind", ["garbage", "truncated", "wrong count", "float32", "nan",
+                                  "other version", "flat", "no vertices"])
+def test_bad_shape_entries_are_ignored_and_rewritten(folder, tmp_path, mixed_mesh, kind):
+    from facewrap.datasets import load_shape_folder
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 1)
+    truth = load_shape_folder(shapes_dir, mixed_mesh)["s0"]
+    (entry,) = _entries(folder)
+    good = entry.read_bytes()
+    if kind == "garbage":
+        entry.write_bytes(os.urandom(len(good)))
+    elif kind == "truncated":
+        entry.write_bytes(good[: len(good) // 2])
+    else:
+        _foreign(entry, mixed_mesh.n_vertices, kind)
+    assert np.array_equal(load_shape_folder(shapes_dir, mixed_mesh)["s0"], truth)
+    # rewritten with the parse: the next read is a hit on a good entry
+    (entry,) = _entries(folder)
+    with np.load(entry) as data:
+        assert np.array_equal(data["vertices"], truth)
+
+
+def test_shape_cache_off_and_errors_unchanged(folder, tmp_path, mixed_mesh, monkeypatch):
+    from facewrap.datasets import load_shape_folder
+    from facewrap.errors import InputError
+    from facewrap.mesh import Mesh
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 2)
+    monkeypatch.setenv("FACEWRAP_CACHE", "0")
+    load_shape_folder(shapes_dir, mixed_mesh)
+    assert not folder.exists()
+    monkeypatch.delenv("FACEWRAP_CACHE")
+    load_shape_folder(shapes_dir, mixed_mesh)   # cached for 7 vertices ...
+    other = Mesh(np.eye(3), [[0, 1, 2]])
+    with pytest.raises(InputError, match=r"s0\.obj: has 7 vertices, expected 3"):
+        load_shape_folder(shapes_dir, other)    # ... which says nothing about 3

@@ -25,7 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.errors import InputError
+from facewrap.io.cache import content_key, load_arrays, save_arrays
 from facewrap.io.dispatch import read_mesh
+from facewrap.io.files import read_file_bytes
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj, read_obj_vertices
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
@@ -180,9 +182,40 @@ class ICTFaceKit:
         return sub
 
 
+#: layout of the "obj-vertices" cache entries (bump when it changes)
+_SHAPE_CACHE_VERSION = 1
+
+
+def _shape_vertices(path: Path, n_vertices: int | None) -> np.ndarray:
+    """The ``v`` lines of one shape OBJ, parsed once per content.
+
+    The file's bytes are read and hashed (BLAKE2b runs several times faster than
+    the parse) and the parsed array is kept in :mod:`facewrap.io.cache` under that
+    hash: an edited file is a new key, never a stale answer.  An entry is used only
+    when it holds what this parse would give (float64 (n, 3), the expected count,
+    finite); any other is ignored and written again.
+    """
+    data = read_file_bytes(path, text=True)
+    key = content_key(data, -1 if n_vertices is None else n_vertices)
+    hit = load_arrays("obj-vertices", key, ["vertices"], version=_SHAPE_CACHE_VERSION)
+    if hit is not None:
+        v = hit["vertices"]
+        if (v.dtype == np.float64 and v.ndim == 2 and v.shape[1] == 3 and len(v)
+                and (n_vertices is None or len(v) == n_vertices)
+                and np.isfinite(v).all()):
+            return v
+    v = read_obj_vertices(path, n_vertices, data=data)
+    save_arrays("obj-vertices", key, {"vertices": v}, version=_SHAPE_CACHE_VERSION)
+    return v
+
+
 def load_shape_folder(folder, reference: Mesh | None = None,
                       exclude=("neutral",)) -> dict[str, np.ndarray]:
     """Read every OBJ in a folder as a shape in one topology.
+
+    Each file is parsed once per content and machine: later reads of the same
+    bytes come from the on-disk cache (:mod:`facewrap.io.cache`; ``FACEWRAP_CACHE=0``
+    turns it off), with the same values.
 
     Parameters
     ----------
@@ -196,6 +229,21 @@ def load_shape_folder(folder, reference: Mesh | None = None,
     Returns
     -------
     dict name -> (n, 3) float64, sorted by name.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> _ = (folder / "smile.obj").write_text("v 0 0 0\\nv 1 0 0\\nv 0 1 1\\n")
+    >>> before = os.environ.get("FACEWRAP_CACHE_DIR")
+    >>> os.environ["FACEWRAP_CACHE_DIR"] = str(folder / "cache")  # not ~/.cache here
+    >>> load_shape_folder(folder)["smile"][2].tolist()
+    [0.0, 1.0, 1.0]
+    >>> load_shape_folder(folder)["smile"][2].tolist()   # from the cache
+    [0.0, 1.0, 1.0]
+    >>> _ = os.environ.pop("FACEWRAP_CACHE_DIR") if before is None else \\
+    ...     os.environ.update(FACEWRAP_CACHE_DIR=before)
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -206,7 +254,7 @@ def load_shape_folder(folder, reference: Mesh | None = None,
     for p in files:
         if any(e.lower() in p.stem.lower() for e in exclude):
             continue
-        v = read_obj_vertices(p, n)
+        v = _shape_vertices(p, n)
         if reference is not None and np.array_equal(v, reference.vertices):
             continue
         shapes[p.stem] = v

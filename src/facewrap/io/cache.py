@@ -41,10 +41,12 @@ def cache_dir() -> str | None:
     Examples
     --------
     >>> import os
+    >>> before = os.environ.get("FACEWRAP_CACHE")
     >>> os.environ["FACEWRAP_CACHE"] = "0"
     >>> cache_dir() is None
     True
-    >>> del os.environ["FACEWRAP_CACHE"]
+    >>> _ = os.environ.pop("FACEWRAP_CACHE") if before is None else \\
+    ...     os.environ.update(FACEWRAP_CACHE=before)
     """
     if os.environ.get("FACEWRAP_CACHE", "1").strip().lower() in ("0", "no", "off", "false"):
         return None
@@ -112,6 +114,7 @@ def load_arrays(kind: str, key: str, names, *, version: int = 1) -> dict | None:
     Examples
     --------
     >>> import os, tempfile, numpy as np
+    >>> before = os.environ.get("FACEWRAP_CACHE_DIR")
     >>> os.environ["FACEWRAP_CACHE_DIR"] = tempfile.mkdtemp()
     >>> key = content_key(b"some input")
     >>> load_arrays("example", key, ["x"]) is None
@@ -119,7 +122,8 @@ def load_arrays(kind: str, key: str, names, *, version: int = 1) -> dict | None:
     >>> save_arrays("example", key, {"x": np.arange(3)})
     >>> load_arrays("example", key, ["x"])["x"].tolist()
     [0, 1, 2]
-    >>> del os.environ["FACEWRAP_CACHE_DIR"]
+    >>> _ = os.environ.pop("FACEWRAP_CACHE_DIR") if before is None else \\
+    ...     os.environ.update(FACEWRAP_CACHE_DIR=before)
     """
     folder = cache_dir()
     if folder is None:

@@ -2,16 +2,23 @@
 
 Reading keeps the vertex count and order, polygons as they are (quads stay quads),
 per-corner ``vt``/``vn`` indices (UV seams), ``usemtl`` materials, ``g``/``o`` groups
-and ``mtllib`` references.  Numbers are parsed in bulk with numpy, so a
-1M-triangle file loads in a few seconds; lines are looked at one by one only to
+and ``mtllib`` references.  Lines are classified with numpy on the raw bytes and all
+rows of one keyword are parsed in one C call; lines are looked at one by one only to
 name the line of an error.
 
-Writing prints floats with Python's shortest round-trip representation, so a mesh
-read back is bit-identical, and replaces the destination atomically.
+Writing prints floats in their shortest round-trip form, so a mesh read back is
+bit-identical, and replaces the destination atomically.
+
+Two maintained C libraries do the text <-> float64 steps when installed, both exact:
+``fastnumbers`` (fast_float, correctly rounded: ~3x numpy's ``fromstring``) and
+``orjson`` (shortest round trip: ~6x ``repr``); without them numpy's parser and
+``repr`` give the same values.  Face indices are parsed and laid out by numpy.
 """
 
 from __future__ import annotations
 
+import functools
+import importlib
 import os
 import warnings
 
@@ -28,31 +35,29 @@ __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
 _NAMED = ("usemtl", "g", "o", "mtllib")
 
 
-class _Lazy:
-    """A value computed on first call (index arrays only errors need)."""
+def _read_lines(path, data: bytes | None = None) -> "_Lines":
+    """The file's bytes (``data`` when already read) indexed by line, its rare forms
+    made plain first.
 
-    def __init__(self, make):
-        self._make, self._value = make, None
-
-    def __call__(self):
-        if self._value is None:
-            self._value = self._make()
-        return self._value
-
-
-def _read_bytes(path) -> bytes:
-    data = read_file_bytes(path, text=True)
+    The checks for those forms read the line index (first byte of each line, byte
+    before each newline) instead of searching the whole file once per form.
+    """
+    if data is None:
+        data = read_file_bytes(path, text=True)
     if b"\r" in data and b"\n" not in data:  # classic Mac line ends (CR only)
         data = data.replace(b"\r", b"\n")
-    if b"\\\n" in data:  # line continuation (rare): join, keeping byte offsets
+    lines = _Lines(data)
+    if np.any(lines.last_byte() == 92):
+        # line continuation (rare): join, keeping byte offsets
         data = data.replace(b"\\\n", b"  ")
-    if b"\n " in data or b"\n\t" in data or data[:1] in (b" ", b"\t"):
+        lines = _Lines(data)
+    if np.any((lines.c[0] == 32) | (lines.c[0] == 9)):
         # indented lines (rare): strip them so keywords start each line
-        data = b"\n".join(line.strip() for line in data.split(b"\n"))
-    return data
+        lines = _Lines(b"\n".join(line.strip() for line in data.split(b"\n")))
+    return lines
 
 
-def _fromstring(text: str, dtype=np.float64) -> np.ndarray | None:
+def _fromstring(text, dtype=np.float64) -> np.ndarray | None:
     """Parse white-space separated numbers in C; None when a token is not a number."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -60,6 +65,36 @@ def _fromstring(text: str, dtype=np.float64) -> np.ndarray | None:
             return np.fromstring(text, dtype=dtype, sep=" ")
         except ValueError:
             return None
+
+
+@functools.lru_cache(maxsize=None)
+def _accelerator(name: str):
+    """The optional C module ``name`` (fastnumbers, orjson), or None when absent;
+    imported on first use, so commands that never touch an OBJ do not pay for it."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None
+
+
+def _row_floats(rows: "_Rows") -> np.ndarray | None:
+    """All numbers of the rows (keywords dropped) as float64, correctly rounded (by
+    fastnumbers or numpy: the same values); None when a token is not a number."""
+    fast = _accelerator("fastnumbers")
+    if fast is None:
+        return _fromstring(rows.numbers_text())
+    tokens = rows.joined().split()
+    n, keyword = len(rows), rows.keyword
+    step = len(tokens) // n if n else 0
+    if (step > 1 and len(tokens) == n * step and tokens[::step].count(keyword) == n
+            and tokens.count(keyword) == n):
+        del tokens[::step]   # every row has `step` tokens, the keyword first
+    else:
+        tokens = rows.numbers_text().split()
+    try:
+        return fast.try_array(tokens, dtype=np.float64)
+    except (ValueError, TypeError, OverflowError):
+        return None
 
 
 class _Lines:
@@ -76,11 +111,17 @@ class _Lines:
         self.data = data
         self.starts = np.concatenate([[0], newline + 1]).astype(np.int64)
         self.ends = np.concatenate([newline, [len(buf)]]).astype(np.int64)
-        padded = np.concatenate([buf, np.zeros(3, dtype=np.uint8)])
-        self.c = [padded[self.starts + k] for k in range(3)]
-        # blanked copy: keyword bytes become spaces so a block of rows is just numbers
-        self.blank = bytearray(data)
-        self._blank_view = np.frombuffer(self.blank, dtype=np.uint8)
+        # first three bytes of each line (0 past the end), no padded copy of the file
+        last = len(buf) - 1
+        self.c = [np.where(self.starts + k <= last, buf[np.minimum(self.starts + k, last)],
+                           0).astype(np.uint8) if len(buf) else
+                  np.zeros(len(self.starts), np.uint8) for k in range(3)]
+
+    def last_byte(self) -> np.ndarray:
+        """The byte before each newline (0 for an empty line)."""
+        before = self.ends[:-1] - 1
+        buf = np.frombuffer(self.data, dtype=np.uint8)
+        return np.where(before >= self.starts[:-1], buf[np.maximum(before, 0)], 0)
 
     @staticmethod
     def _space(c):
@@ -92,10 +133,7 @@ class _Lines:
             mask = (c0 == keyword[0]) & self._space(c1)
         else:
             mask = (c0 == keyword[0]) & (c1 == keyword[1]) & self._space(c2)
-        idx = np.flatnonzero(mask)
-        for k in range(len(keyword)):
-            self._blank_view[self.starts[idx] + k] = 32
-        return _Rows(self, idx, len(keyword) + 1)
+        return _Rows(self, np.flatnonzero(mask), keyword)
 
     def text(self, i: int) -> str:
         return self.data[self.starts[i]:self.ends[i]].decode("utf-8", "replace")
@@ -104,8 +142,9 @@ class _Lines:
 class _Rows:
     """The lines of one OBJ keyword, in file order."""
 
-    def __init__(self, lines: _Lines, idx: np.ndarray, skip: int):
-        self.lines, self.numbers, self.skip = lines, idx, skip
+    def __init__(self, lines: _Lines, idx: np.ndarray, keyword: bytes):
+        self.lines, self.numbers, self.keyword = lines, idx, keyword
+        self.skip = len(keyword) + 1
         # contiguous runs of rows -> few large byte slices
         cut = np.flatnonzero(np.diff(idx) != 1) + 1
         first = np.concatenate([[0], cut]) if len(idx) else np.zeros(0, np.int64)
@@ -116,10 +155,24 @@ class _Rows:
     def __len__(self) -> int:
         return len(self.numbers)
 
-    def joined(self, blank: bool = True) -> bytes:
-        """All rows as one byte string (keywords blanked), newline separated."""
-        src = self.lines.blank if blank else self.lines.data
-        return b"\n".join(bytes(src[a:b]) for a, b in self._spans)
+    def joined(self) -> bytes:
+        """All rows as one byte string, newline separated, keywords kept."""
+        data = self.lines.data
+        if len(self._spans) == 1:
+            a, b = self._spans[0]
+            return data[a:b]
+        return b"\n".join([data[a:b] for a, b in self._spans])
+
+    def numbers_text(self) -> bytes:
+        """All rows with the keyword that starts each blanked (offsets kept)."""
+        joined, k = self.joined(), len(self.keyword)
+        return joined and b" " * k + joined[k:].replace(b"\n" + self.keyword,
+                                                       b"\n" + b" " * k)
+
+    def eol(self) -> np.ndarray:
+        """Offsets of each row's end in :meth:`joined` (rows are one line each)."""
+        lines = self.lines
+        return np.cumsum(lines.ends[self.numbers] - lines.starts[self.numbers] + 1) - 1
 
     def row(self, k: int) -> str:
         """Text of row ``k`` after the keyword."""
@@ -134,12 +187,16 @@ class _Rows:
         return int(self.numbers[int(k)]) + 1
 
 
-def _bulk_floats(rows: _Rows, width: int, what: str, path) -> np.ndarray:
-    """Parse the rows into an (n, width) float array, or name the bad line."""
+def _bulk_floats(rows: _Rows, width: int, what: str, path, flat=None) -> np.ndarray:
+    """Parse the rows into an (n, width) float array, or name the bad line.
+
+    ``flat``: the rows' numbers when already parsed (None when a token was not).
+    """
     n = len(rows)
     if n == 0:
         return np.zeros((0, width))
-    flat = _fromstring(rows.joined())
+    if flat is None:
+        flat = _row_floats(rows)
     if flat is not None and flat.size == n * width:
         out = flat.reshape(n, width)
     else:
@@ -166,56 +223,63 @@ def _bulk_floats(rows: _Rows, width: int, what: str, path) -> np.ndarray:
 def _vertex_rows(rows: _Rows, path):
     """Positions, plus colours when every line carries ``x y z r g b``."""
     n = len(rows)
-    flat = _fromstring(rows.joined())
+    flat = _row_floats(rows)
     if n and flat is not None and flat.size == 6 * n and np.isfinite(flat).all():
         data = flat.reshape(n, 6)
         return data[:, :3].copy(), data[:, 3:].copy()
-    return _bulk_floats(rows, 3, "vertex", path), None
+    return _bulk_floats(rows, 3, "vertex", path, flat), None
+
+
+# corner slashes -> spaces: what is left is the indices
+_SLASHES = bytes.maketrans(b"/", b" ")
+# and the face keyword, when it is the only "f" of each row
+_F_AND_SLASHES = bytes.maketrans(b"f/", b"  ")
 
 
 def _parse_corners(rows: _Rows, path):
     """Face rows -> sizes (m,), and (c, 3) int64 [v, vt, vn] (0 where absent)."""
-    original = rows.joined(blank=False)
+    original = rows.joined()
     raw = np.frombuffer(original, dtype=np.uint8)
-    # single spaces between corners and no control characters (which str.split and
-    # numpy's parser would treat differently)
-    fast = not (b"  " in original or b" \n" in original
-                or np.any((raw < 32) & (raw != 10)))
-    fast = fast and not original.endswith(b" ")
+    # single spaces between corners and no control characters but the newlines
+    # joining the rows (str.split and numpy's parser treat those differently)
+    fast = not (b"  " in original or b" \n" in original or original.endswith(b" ")
+                or np.count_nonzero(raw < 32) != len(rows) - 1)
     if fast:  # single spaces only: corners per face = spaces on the line
-        spaces = np.flatnonzero(np.frombuffer(original, dtype=np.uint8) == 32)
-        eol = np.flatnonzero(np.frombuffer(original + b"\n", dtype=np.uint8) == 10)
-        sizes = np.diff(np.concatenate([[0], np.searchsorted(spaces, eol)]))
-        joined = rows.joined().decode("ascii", "replace")
+        spaces = np.flatnonzero(raw == 32)
+        sizes = np.diff(np.concatenate([[0], np.searchsorted(spaces, rows.eol())]))
+        text = original
+        first = original[2:original.find(b" ", 2)] if len(rows) else b""
         corners = None
     else:
         toks = [r.split() for r in rows.text]
         sizes = np.fromiter(map(len, toks), dtype=np.int64, count=len(toks))
         corners = [c for t in toks for c in t]
-        joined = " ".join(corners)
+        text = " ".join(corners).encode("utf-8", "replace")
+        first = text.split(None, 1)[0] if corners else b""
     small = np.flatnonzero(sizes < 3)
     if len(small):
         raise InputError(f"face needs at least 3 corners, found {sizes[small[0]]}",
                          path, rows.line(small[0]))
     n = int(sizes.sum())
-    first = joined.split(None, 1)[0]
-    n_slash, double = first.count("/"), "//" in first
-    uniform = (joined.count("/") == n * n_slash
-               and joined.count("//") == (n if double else 0) and n_slash <= 2)
+    n_slash, double = first.count(b"/"), b"//" in first
+    uniform = (text.count(b"/") == n * n_slash
+               and text.count(b"//") == (n if double else 0) and n_slash <= 2)
     out = np.zeros((n, 3), dtype=np.int64)
     if uniform:
-        if double:
-            cols = [0, 2]
-            flat = _fromstring(joined.replace("//", " "), np.int64)
+        cols = [0, 2] if double else list(range(n_slash + 1))
+        if corners is None and original.count(b"f") == len(rows):
+            numbers = original.translate(_F_AND_SLASHES)   # one pass, keywords too
+        elif corners is None:
+            numbers = rows.numbers_text().translate(_SLASHES)
         else:
-            cols = list(range(n_slash + 1))
-            flat = _fromstring(joined.replace("/", " ") if n_slash else joined, np.int64)
+            numbers = text.translate(_SLASHES)
+        flat = _fromstring(numbers, np.int64)
         if flat is not None and flat.size == n * len(cols):
             out[:, cols] = flat.reshape(n, len(cols))
             return sizes, out
     # Mixed corner formats or a bad token: parse corner by corner, naming the line.
     if corners is None:
-        corners = joined.split()
+        corners = [c for r in rows.text for c in r.split()]
     face_of_corner = np.repeat(np.arange(len(rows)), sizes)
     for c, tok in enumerate(corners):
         parts = tok.split("/")
@@ -259,7 +323,7 @@ def read_obj(path) -> Mesh:
         Naming the file and line: empty or binary file, a non-number, NaN/inf, a
         face with fewer than 3 corners, an index out of range or 0.
     """
-    lines = _Lines(_read_bytes(path))
+    lines = _read_lines(path)
     v, vt, vn, f = (lines.rows(k) for k in (b"v", b"vt", b"vn", b"f"))
     if not len(v):
         raise InputError("no vertices ('v' lines)", path)
@@ -299,12 +363,16 @@ class _Corners:
     """The face corners of an OBJ file: ``(c, 3)`` raw v/vt/vn indices and their lines."""
 
     def __init__(self, corner: np.ndarray, sizes: np.ndarray, f: "_Rows", path):
-        self.corner, self.f, self.path = corner, f, path
-        self.face_of_corner = _Lazy(lambda: np.repeat(np.arange(len(sizes)), sizes))
+        self.corner, self.f, self.path, self.sizes = corner, f, path, sizes
+
+    @functools.cached_property
+    def face_of_corner(self) -> np.ndarray:
+        """Face of each corner (only errors and relative indices need it)."""
+        return np.repeat(np.arange(len(self.sizes)), self.sizes)
 
     def line(self, c) -> int:
         """File line of corner ``c`` (for error messages)."""
-        return self.f.line(self.face_of_corner()[c])
+        return self.f.line(self.face_of_corner[c])
 
     def resolve(self, col: int, rows: "_Rows", total: int, what: str) -> np.ndarray:
         """0-based indices of column ``col`` (0 v, 1 vt, 2 vn), relative ones resolved.
@@ -314,7 +382,7 @@ class _Corners:
         idx = self.corner[:, col]
         neg = idx < 0
         if neg.any():
-            line0 = self.f.numbers[self.face_of_corner()]
+            line0 = self.f.numbers[self.face_of_corner]
             out = np.where(neg, np.searchsorted(rows.numbers, line0) + idx, idx - 1)
         else:
             out = idx - 1
@@ -372,15 +440,73 @@ def _per_face(named, keys, f: "_Rows"):
     return ev_id[pos], tuple(names)
 
 
-def _format_rows(prefix: str, values: np.ndarray) -> str:
+def _float_rows(keyword: bytes, values: np.ndarray) -> bytes:
+    """``keyword x y ...`` lines of (n, w) floats, each in its shortest round-trip form.
+
+    orjson (when installed) formats whole arrays about 6x faster than Python's
+    ``repr`` and is as exact; a non-finite value (which JSON cannot hold) keeps the
+    ``repr`` route, so it is written as ``nan``/``inf`` as always.
+    """
     if len(values) == 0:
-        return ""
-    width = values.shape[1]
-    fmt = prefix + " %r" * width + "\n"
-    return (fmt * len(values)) % tuple(values.ravel().tolist())
+        return b""
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    fast = _accelerator("orjson")
+    if fast is not None and np.isfinite(values).all():
+        text = fast.dumps(values, option=fast.OPT_SERIALIZE_NUMPY)   # [[x,y],[x,y]]
+        body = text[2:-2].replace(b"],[", b"\n" + keyword + b" ").replace(b",", b" ")
+        return keyword + b" " + body + b"\n"
+    fmt = keyword.decode() + " %r" * values.shape[1] + "\n"
+    return ((fmt * len(values)) % tuple(values.ravel().tolist())).encode()
 
 
-def _face_block(mesh: Mesh, start: int, stop: int) -> str:
+def _digit_table(largest: int) -> np.ndarray:
+    """(largest + 1, w) uint8: the decimal digits of 0..largest, right-aligned,
+    padded on the left with NUL bytes (removed once the text is laid out)."""
+    value = np.arange(largest + 1, dtype=np.int64)
+    width = len(str(largest))
+    table = np.zeros((largest + 1, width), dtype=np.uint8)
+    for d in range(width):
+        table[:, width - 1 - d] = np.where((value >= 10 ** d) | (d == 0),
+                                           48 + value // 10 ** d % 10, 0)
+    return table
+
+
+def _face_rows(columns: np.ndarray, within: bytes, offsets: np.ndarray) -> bytes:
+    """``f a/b c/d ...`` lines: one polygon per line, written with numpy.
+
+    Parameters
+    ----------
+    columns : (c, k) int64
+        Per corner, the k 1-based indices (v, then vt and/or vn), none negative.
+    within : bytes
+        What separates a corner's indices: ``b"/"`` or ``b"//"``.
+    offsets : (m + 1,) int64
+        Corners of polygon ``i`` are ``offsets[i]:offsets[i + 1]``.
+
+    Each corner is one fixed-width row of bytes (``f`` if it opens its polygon, a
+    space, its indices from a table of digit strings, ``\\n`` if it closes it), NUL
+    padding deleted from the whole text in one pass: no per-face Python.
+    """
+    c, k = columns.shape
+    if c == 0:
+        return b""
+    table = _digit_table(int(columns.max()))
+    w, sep = table.shape[1], np.frombuffer(within, dtype=np.uint8)
+    row = np.zeros((c, 3 + k * w + (k - 1) * len(sep)), dtype=np.uint8)
+    row[offsets[:-1], 0] = ord("f")
+    row[:, 1] = ord(" ")
+    row[offsets[1:] - 1, -1] = ord("\n")
+    at = 2
+    for j in range(k):
+        row[:, at:at + w] = table[columns[:, j]]
+        at += w
+        if j < k - 1:
+            row[:, at:at + len(sep)] = sep
+            at += len(sep)
+    return row.tobytes().translate(None, b"\0")
+
+
+def _face_block(mesh: Mesh, start: int, stop: int) -> bytes:
     off = mesh.face_offsets
     a, b = int(off[start]), int(off[stop])
     cols = [np.asarray(mesh.face_indices[a:b]) + 1]
@@ -388,21 +514,8 @@ def _face_block(mesh: Mesh, start: int, stop: int) -> str:
         cols.append(np.asarray(mesh.face_uvs[a:b]) + 1)
     if mesh.face_normals is not None:
         cols.append(np.asarray(mesh.face_normals[a:b]) + 1)
-    if len(cols) == 1:
-        corner = " %d"
-    elif len(cols) == 2 and mesh.face_uvs is not None:
-        corner = " %d/%d"
-    elif len(cols) == 2:
-        corner = " %d//%d"
-    else:
-        corner = " %d/%d/%d"
-    sizes = mesh.face_sizes[start:stop]
-    if np.all(sizes == sizes[0]):
-        fmt = ("f" + corner * int(sizes[0]) + "\n") * (stop - start)
-    else:
-        per = {int(s): "f" + corner * int(s) + "\n" for s in np.unique(sizes)}
-        fmt = "".join([per[s] for s in sizes.tolist()])
-    return fmt % tuple(np.stack(cols, axis=1).ravel().tolist())
+    within = b"//" if len(cols) == 2 and mesh.face_uvs is None else b"/"
+    return _face_rows(np.stack(cols, axis=1).astype(np.int64), within, off[start:stop + 1] - a)
 
 
 def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -> None:
@@ -418,16 +531,16 @@ def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -
     """
     parts = []
     if header:
-        parts.append(f"# {header}\n")
-    parts += [f"mtllib {m}\n" for m in mesh.mtllib]
+        parts.append(f"# {header}\n".encode())
+    parts += [f"mtllib {m}\n".encode() for m in mesh.mtllib]
     if mesh.vertex_colors is not None and mesh.vertex_colors.shape[1] == 3:
-        parts.append(_format_rows("v", np.hstack([mesh.vertices, mesh.vertex_colors])))
+        parts.append(_float_rows(b"v", np.hstack([mesh.vertices, mesh.vertex_colors])))
     else:
-        parts.append(_format_rows("v", mesh.vertices))
+        parts.append(_float_rows(b"v", mesh.vertices))
     if mesh.face_uvs is not None:
-        parts.append(_format_rows("vt", mesh.uvs))
+        parts.append(_float_rows(b"vt", mesh.uvs))
     if mesh.face_normals is not None:
-        parts.append(_format_rows("vn", mesh.normals))
+        parts.append(_float_rows(b"vn", mesh.normals))
     # Split faces into runs of constant (group, material) and announce each run.
     m = mesh.n_faces
     mat = mesh.face_materials if mesh.face_materials is not None else np.full(m, -1)
@@ -440,32 +553,43 @@ def write_obj(path, mesh: Mesh, *, header: str | None = "written by facewrap") -
             continue
         g, mt = int(grp[s]), int(mat[s])
         if g != prev_g and g >= 0:
-            parts.append(f"g {mesh.groups[g]}\n")
+            parts.append(f"g {mesh.groups[g]}\n".encode())
         if mt != prev_m and mt >= 0:
-            parts.append(f"usemtl {mesh.materials[mt]}\n")
+            parts.append(f"usemtl {mesh.materials[mt]}\n".encode())
         prev_g, prev_m = g, mt
         parts.append(_face_block(mesh, s, e))
     folder = os.path.dirname(os.path.abspath(path))
     with new_folders_removed_on_failure(folder):
         os.makedirs(folder, exist_ok=True)
-        with atomic_write(path, "w", encoding="utf-8", newline="\n") as fh:
+        with atomic_write(path, "wb") as fh:
             fh.writelines(parts)
 
 
-def read_obj_vertices(path, n_vertices: int | None = None) -> np.ndarray:
+def read_obj_vertices(path, n_vertices: int | None = None, *,
+                      data: bytes | None = None) -> np.ndarray:
     """Read only the ``v`` lines of an OBJ: fast loading of shapes in one topology.
 
     Parameters
     ----------
     path : str or os.PathLike
+        The file (named in errors).
     n_vertices : int, optional
         Expected vertex count (a blendshape must match its neutral).
+    data : bytes, optional
+        The file's bytes when the caller has read them already (to hash them, say,
+        with :func:`facewrap.io.files.read_file_bytes`); the file is then not read
+        again.
 
     Returns
     -------
     (n, 3) float64
+
+    Examples
+    --------
+    >>> read_obj_vertices("shape.obj", 2, data=b"v 0 0 0\\nv 1 2 3.5\\n").tolist()
+    [[0.0, 0.0, 0.0], [1.0, 2.0, 3.5]]
     """
-    rows = _Lines(_read_bytes(path)).rows(b"v")
+    rows = _read_lines(path, data).rows(b"v")
     if not len(rows):
         raise InputError("no vertices ('v' lines)", path)
     vertices, _ = _vertex_rows(rows, path)

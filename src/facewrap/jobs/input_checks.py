@@ -11,14 +11,19 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
-from facewrap.geometry import connected_components
+from facewrap.geometry.adjacency import adjacency_matrix
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
-__all__ = ["duplicate_map", "survey_mesh", "weld_duplicates", "check_landmark_spread",
-           "check_landmarks_on_scan"]
+__all__ = ["duplicate_map", "any_duplicate_positions", "doubled_areas", "survey_mesh", "weld_duplicates",
+           "check_landmark_spread", "check_landmarks_on_scan"]
+
+# odd 64-bit multipliers mixing a position's three bit patterns into one hash
+_MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9],
+                dtype=np.uint64)
 
 
 def duplicate_map(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -28,47 +33,100 @@ def duplicate_map(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, inverse.reshape(-1)
 
 
-def survey_mesh(mesh, path, what: str, pieces: bool = True) -> list[str]:
+def any_duplicate_positions(V: np.ndarray) -> bool:
+    """Whether two rows of ``V`` are bit for bit the same position.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+
+    Returns
+    -------
+    bool
+
+    Scans rarely have duplicates, so a hash of each row's bits and one sort of the
+    hashes (integers: several times cheaper than :func:`duplicate_map`'s sort of
+    24-byte rows) answers "none" first; only when two hashes meet are rows compared.
+
+    Examples
+    --------
+    >>> any_duplicate_positions(np.array([[0, 0, 1.0], [2, 0, 0], [0, 0, 1]]))
+    True
+    >>> any_duplicate_positions(np.array([[0, 0, 1.0], [0, 0, -1]]))
+    False
+    """
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    if len(V) < 2:
+        return False
+    bits = V.view(np.uint64)
+    with np.errstate(over="ignore"):
+        h = np.sort(bits[:, 0] * _MIX[0] ^ bits[:, 1] * _MIX[1] ^ bits[:, 2] * _MIX[2])
+    if not np.any(h[1:] == h[:-1]):   # no equal hashes: no equal rows
+        return False
+    return len(duplicate_map(V)[0]) < len(V)
+
+
+def doubled_areas(mesh) -> np.ndarray:
+    """(t,) float64: twice the area of each of ``mesh.triangles``."""
+    V, T = mesh.vertices, mesh.triangles
+    return np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
+                          axis=1)
+
+
+def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
+                areas: np.ndarray | None = None) -> list[str]:
     """One line per oddity of a mesh's triangles (counts; nothing is changed).
 
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
-    teeth are separate pieces by design).
+    teeth are separate pieces by design).  ``areas``: :func:`doubled_areas` of the
+    mesh when the caller has them.  Every step is a sort or linear: the edges are
+    built once, for the non-manifold count and the pieces alike.
     """
     out = []
     T = mesh.triangles
-    V = mesh.vertices
+    n = mesh.n_vertices
     repeated = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 0] == T[:, 2])
     if repeated.any():
         out.append(f"{path}: {what} has {int(repeated.sum())} triangle(s) with a "
                    "repeated vertex")
-    e1, e2 = V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]
-    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    area2 = doubled_areas(mesh) if areas is None else areas
     scale = mesh.scale()
     flat = (area2 <= 1e-12 * scale * scale) & ~repeated
     if flat.any():
         out.append(f"{path}: {what} has {int(flat.sum())} zero-area triangle(s)")
-    good = T[~repeated]
-    if len(good):
-        E = np.sort(np.concatenate([good[:, [0, 1]], good[:, [1, 2]], good[:, [2, 0]]]),
-                    axis=1)
-        key = E[:, 0] * np.int64(mesh.n_vertices) + E[:, 1]
-        _, counts = np.unique(key, return_counts=True)
-        nm = int((counts > 2).sum())
-        if nm:
-            out.append(f"{path}: {what} has {nm} non-manifold edge(s) (shared by more "
-                       "than two triangles)")
+    keys = _edge_keys(T[~repeated], n)
+    # sorted keys: an edge's triangles are a run; runs longer than two are non-manifold
+    cut = np.flatnonzero(keys[1:] != keys[:-1]) + 1
+    runs = np.diff(np.concatenate([[0], cut, [len(keys)]])) if len(keys) else keys
+    nm = int((runs > 2).sum())
+    if nm:
+        out.append(f"{path}: {what} has {nm} non-manifold edge(s) (shared by more "
+                   "than two triangles)")
     if not pieces:
         return out
-    used = np.zeros(mesh.n_vertices, dtype=bool)
+    unique = keys[np.concatenate([[0], cut])] if len(keys) else keys
+    if repeated.any():   # a triangle with a repeated vertex still joins the others
+        extra = _edge_keys(T[repeated], n)
+        unique = np.union1d(unique, extra[extra // n != extra % n])
+    E = np.stack([unique // n, unique % n], axis=1)
+    labels = csgraph.connected_components(adjacency_matrix(E, n), directed=False)[1]
+    used = np.zeros(n, dtype=bool)
     used[T.ravel()] = True
-    labels = connected_components(T, mesh.n_vertices)[used]
-    pieces = len(np.unique(labels))
-    if pieces > 1:
-        sizes = np.bincount(labels)
-        sizes = sizes[sizes > 0]
-        out.append(f"{path}: {what} has {pieces} disconnected pieces (the largest "
+    sizes = np.bincount(labels[used])
+    sizes = sizes[sizes > 0]
+    if len(sizes) > 1:
+        out.append(f"{path}: {what} has {len(sizes)} disconnected pieces (the largest "
                    f"has {int(sizes.max())} of {int(used.sum())} vertices)")
     return out
+
+
+def _edge_keys(T: np.ndarray, n: int) -> np.ndarray:
+    """Sorted int64 keys ``lo * n + hi`` of the three edges of every triangle."""
+    a = T.reshape(-1)
+    b = T[:, [1, 2, 0]].reshape(-1)
+    keys = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    keys.sort()
+    return keys
 
 
 def weld_duplicates(mesh, landmarks, path):
@@ -77,10 +135,10 @@ def weld_duplicates(mesh, landmarks, path):
     Triangle count and order, UVs and normals per corner are kept, so triangle ids
     of surface landmarks and texture baking are unaffected.
     """
+    if not any_duplicate_positions(mesh.vertices):
+        return mesh, landmarks, None
     first, inverse = duplicate_map(mesh.vertices)
     dupes = mesh.n_vertices - len(first)
-    if dupes == 0:
-        return mesh, landmarks, None
     offsets = mesh.face_offsets
     kw = mesh.corner_attributes()
     if mesh.vertex_colors is not None:

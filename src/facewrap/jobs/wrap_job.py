@@ -44,7 +44,7 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.jobs.input_checks import (check_landmark_spread, check_landmarks_on_scan,
-                                        survey_mesh, weld_duplicates)
+                                        doubled_areas, survey_mesh, weld_duplicates)
 from facewrap.mesh import Mesh
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
@@ -314,23 +314,21 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({tl_source}) have {len(tl)}", job.scan_landmarks)
 
-    for mesh, where in ((template, job.template), (scan, job.scan)):
-        if not np.isfinite(mesh.scale()):
+    template_size, scan_size = template.scale(), scan.scale()
+    for size, where in ((template_size, job.template), (scan_size, job.scan)):
+        if not np.isfinite(size):
             raise InputError("coordinates are too large (the bounding box overflows)",
                              where)
-    scan_size = scan.scale()
-    V, T = scan.vertices, scan.triangles
-    area2 = np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
-                           axis=1)
+    area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
     if scan_size == 0 or not np.any(area2 > 1e-12 * scan_size * scan_size):
         raise InputError("scan is degenerate: every triangle has zero area", job.scan)
-    if template.scale() == 0:
+    if template_size == 0:
         raise InputError("template is degenerate: all vertices at one point",
                          job.template)
     notes += survey_mesh(template, job.template, "template", pieces=False)
     scan, sl, welded = weld_duplicates(scan, sl, job.scan)
     notes += [welded] if welded else []
-    notes += survey_mesh(scan, job.scan, "scan")
+    notes += survey_mesh(scan, job.scan, "scan", areas=area2)
     if len(scan.triangles) < 100:
         notes.append(f"{job.scan}: scan has only {len(scan.triangles)} triangle(s)")
     check_landmark_spread(tl.positions(template), job.template_landmarks)
