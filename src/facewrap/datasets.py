@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.errors import InputError
+from facewrap.io.cache import cache_dir as shared_cache_dir
 from facewrap.io.cache import content_key, load_arrays, save_arrays
 from facewrap.io.dispatch import read_mesh
 from facewrap.io.files import read_file_bytes
@@ -54,9 +55,12 @@ ICT_PARTS: dict[str, tuple[int, int, int, int]] = {
 
 
 def cache_dir(*parts: str) -> Path:
-    """A cache folder for expanded/converted data: ``$FACEWRAP_CACHE`` or
-    ``~/.cache/facewrap``, created on demand."""
-    root = Path(os.environ.get("FACEWRAP_CACHE", Path.home() / ".cache" / "facewrap"))
+    """A folder for expanded/converted data, created on demand: inside the one cache
+    folder (:func:`facewrap.io.cache.cache_dir`: ``$FACEWRAP_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/facewrap`` or ``~/.cache/facewrap``); with the cache turned
+    off (``FACEWRAP_CACHE=0``), in the system's temporary folder."""
+    root = shared_cache_dir()
+    root = Path(root) if root is not None else Path(tempfile.gettempdir()) / "facewrap-data"
     path = root.joinpath(*parts)
     path.mkdir(parents=True, exist_ok=True)
     return path
