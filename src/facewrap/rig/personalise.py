@@ -54,7 +54,7 @@ class PersonalisedShapes:
 
 @dataclass(frozen=True)
 class _Method:
-    method: str
+    method: str = "deformation"
     constraints = {"method": Options(*PERSONALISE_METHODS)}
 
     def __post_init__(self):
