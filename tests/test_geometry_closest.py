@@ -245,3 +245,15 @@ def test_ray_validation():
         tree.ray_hits(np.zeros((2, 4)), np.ones((2, 3)))
     empty = tree.ray_hits(np.zeros((0, 3)), np.zeros((0, 3)))
     assert empty.hit.shape == (0,)
+
+
+def test_a_collinear_triangle_is_measured_as_its_longest_edge():
+    """libigl's closest point on a zero-area triangle was 7e-4 too far here (found by
+    test_query_random_soups, seed 66135060): such triangles are measured as segments."""
+    V, T = soup(23, seed=66135060, degenerate=True)
+    P = near_points(V, 50, spread=1.0, seed=66135060)
+    cp = geo.closest_points(V, T, P)
+    ref = np.sqrt(brute_force_sq_dist(V, T, P).min(axis=1))
+    np.testing.assert_allclose(cp.distances, ref, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(cp.points - P, axis=1), cp.distances,
+                               atol=1e-9)

@@ -209,6 +209,34 @@ class ClosestPointTree:
         self._tree.init(self.vertices, self.triangles)
 
     @cached_property
+    def _flat_triangles(self) -> np.ndarray:
+        """(t,) bool: triangles that are segments (see ``_FLAT``), computed once."""
+        C = self.vertices[self.triangles]
+        n = cross_rows(C[:, 1] - C[:, 0], C[:, 2] - C[:, 0])
+        longest_sq = np.max([np.einsum("ij,ij->i", e, e)
+                             for e in (C[:, 1] - C[:, 0], C[:, 2] - C[:, 1],
+                                       C[:, 0] - C[:, 2])], axis=0)
+        return np.einsum("ij,ij->i", n, n) <= (_FLAT * longest_sq) ** 2
+
+    def _onto_flat(self, P, sq_dist, tri, closest) -> None:
+        """Answers on segment-like triangles measured to their longest edge (in
+        place): libigl's closest point on a triangle of zero area can be off by
+        1e-3 of its size (seen on a collinear triangle)."""
+        rows = np.flatnonzero(self._flat_triangles[tri])
+        if not len(rows):
+            return
+        corners = self.vertices[self.triangles[tri[rows]]]
+        edge_sq = np.stack([np.einsum("ij,ij->i", e, e) for e in
+                            (corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 1],
+                             corners[:, 0] - corners[:, 2])], axis=1)
+        bary = _barycentric_on_longest_edge(P[rows], corners, edge_sq)
+        on_edge = np.einsum("kc,kcd->kd", bary, corners)
+        d = np.einsum("ij,ij->i", on_edge - P[rows], on_edge - P[rows])
+        better = d < sq_dist[rows]
+        sq_dist[rows[better]] = d[better]
+        closest[rows[better]] = on_edge[better]
+
+    @cached_property
     def triangle_neighbours(self) -> np.ndarray:
         """(t, 3) int64 edge-neighbour triangles (-1 on the border), computed once."""
         return _readonly(triangle_adjacency(self.triangles))
@@ -250,6 +278,8 @@ class ClosestPointTree:
                                  np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
         sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
                                                             self.triangles, P)
+        sq_dist, closest = np.array(sq_dist, dtype=np.float64), np.array(closest)
+        self._onto_flat(P, sq_dist, tri, closest)
         ids = self.triangles[tri]
         bary = _barycentric(closest, self.vertices[ids])
         normals = self._interpolate_normals(ids, bary)
