@@ -118,9 +118,8 @@ def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
     # points in the plane, and well conditioned (no Gram-determinant cancellation)
     l1 = np.einsum("ij,ij->i", cross_rows(p, e1), n)
     l2 = np.einsum("ij,ij->i", cross_rows(e0, p), n)
-    edge_sq = np.stack([np.einsum("ij,ij->i", e, e) for e in (e0, c - b, e1)], axis=1)
-    longest_sq = edge_sq.max(axis=1)
-    flat = nn <= (_FLAT * longest_sq) ** 2
+    edge_sq = _edge_lengths_sq(corners)
+    flat = _is_flat(nn, edge_sq)
     inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=~flat)
     bary = np.stack([nn - l1 - l2, l1, l2], axis=1) * inv[:, None]
     if np.any(flat):
@@ -129,6 +128,19 @@ def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
     bary[bary < _SNAP] = 0.0
     bary /= bary.sum(axis=1, keepdims=True)
     return bary
+
+
+def _edge_lengths_sq(corners: np.ndarray) -> np.ndarray:
+    """(k, 3) squared lengths of edge ``j`` (corner ``j`` to ``(j + 1) % 3``) of the
+    triangles ``corners`` (k, 3, 3)."""
+    e = corners[:, [1, 2, 0]] - corners
+    return np.einsum("kjd,kjd->kj", e, e)
+
+
+def _is_flat(cross_sq: np.ndarray, edge_sq: np.ndarray) -> np.ndarray:
+    """(k,) bool: triangles that are segments (see ``_FLAT``), from their squared
+    cross products and squared edge lengths."""
+    return cross_sq <= (_FLAT * edge_sq.max(axis=1)) ** 2
 
 
 def _barycentric_on_longest_edge(X: np.ndarray, corners: np.ndarray,
@@ -213,10 +225,7 @@ class ClosestPointTree:
         """(t,) bool: triangles that are segments (see ``_FLAT``), computed once."""
         C = self.vertices[self.triangles]
         n = cross_rows(C[:, 1] - C[:, 0], C[:, 2] - C[:, 0])
-        longest_sq = np.max([np.einsum("ij,ij->i", e, e)
-                             for e in (C[:, 1] - C[:, 0], C[:, 2] - C[:, 1],
-                                       C[:, 0] - C[:, 2])], axis=0)
-        return np.einsum("ij,ij->i", n, n) <= (_FLAT * longest_sq) ** 2
+        return _is_flat(np.einsum("ij,ij->i", n, n), _edge_lengths_sq(C))
 
     def _onto_flat(self, P, sq_dist, tri, closest) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
@@ -226,10 +235,7 @@ class ClosestPointTree:
         if not len(rows):
             return
         corners = self.vertices[self.triangles[tri[rows]]]
-        edge_sq = np.stack([np.einsum("ij,ij->i", e, e) for e in
-                            (corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 1],
-                             corners[:, 0] - corners[:, 2])], axis=1)
-        bary = _barycentric_on_longest_edge(P[rows], corners, edge_sq)
+        bary = _barycentric_on_longest_edge(P[rows], corners, _edge_lengths_sq(corners))
         on_edge = np.einsum("kc,kcd->kd", bary, corners)
         d = np.einsum("ij,ij->i", on_edge - P[rows], on_edge - P[rows])
         better = d < sq_dist[rows]
