@@ -135,12 +135,13 @@ def personalise_shapes(template: Mesh, shapes: dict, person: Mesh, similarity: S
         anchors = _least_moving(poses, aligned)
     anchors = np.asarray(anchors, dtype=np.int64)
     source = template.with_vertices(aligned)
-    transfer = DeformationTransfer(anchor="markers", fix_flips=False).fit(
+    # one anchor vertex fixes the solve's translation; the anchors' mean then sets it
+    transfer = DeformationTransfer(anchor=int(anchors[0]), fix_flips=False).fit(
         source, person, _same_topology(template, anchors))
     t1 = time.perf_counter()
     out = transfer.transfer(poses) if names else poses
-    # the markers' mean moves as the template's does, not scaled by the two meshes'
-    # spread: the same face-sized shapes, in the same frame
+    # the anchors' mean moves as the template's does: the same face-sized shapes, in
+    # the same frame
     drift = ((out[:, anchors] - person.vertices[anchors]).mean(axis=1)
              - (poses[:, anchors] - aligned[anchors]).mean(axis=1))
     out = out - drift[:, None, :]
