@@ -30,7 +30,7 @@ DOC = ROOT / "docs" / "architecture.md"
 #: (then every module inside it).
 LAYERS = [
     ["facewrap.errors", "facewrap.params", "facewrap.units", "facewrap.progress",
-     "facewrap.version", "facewrap.lazy"],
+     "facewrap.version", "facewrap.lazy", "facewrap.parallel"],
     ["facewrap.mesh", "facewrap.geometry", "facewrap.solve"],
     ["facewrap.landmarks"],
     ["facewrap.io"],

@@ -19,16 +19,14 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 
 from facewrap.batch.summary import FAILED, summary_row
+from facewrap.parallel import usable_cores
 
 __all__ = ["default_workers", "single_threaded_blas", "run_in_pool", "run_on_dask"]
 
 
 def default_workers() -> int:
-    """Cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+    """Cores this process may use (one job each)."""
+    return usable_cores()
 
 
 @contextlib.contextmanager

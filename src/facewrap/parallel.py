@@ -1,0 +1,101 @@
+"""Threads for the hot loops that release the GIL (closest-point queries, hashing).
+
+The work a wrap can split is row-independent: each closest-point query, each file
+hash, gives the same answer alone as in a batch.  :func:`thread_map` runs such work
+on the cores this process may use, in a small pool made once, and gives the answers
+in order, so results do not depend on the number of threads.
+
+How many threads: the cores of this process's affinity mask (what ``taskset`` or a
+container allows), capped by ``OMP_NUM_THREADS`` when it is set — the convention
+of BLAS and OpenMP, which batches (:mod:`facewrap.batch.engines`) and Dask workers
+set to 1 so that parallel jobs do not oversubscribe the machine.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+__all__ = ["usable_cores", "usable_threads", "thread_map"]
+
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+_lock = threading.Lock()
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its affinity mask; all of them off Linux).
+
+    Examples
+    --------
+    >>> usable_cores() >= 1
+    True
+    """
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def usable_threads() -> int:
+    """Threads worth starting for CPU work: :func:`usable_cores`, capped by a
+    positive integer ``OMP_NUM_THREADS``.
+
+    Examples
+    --------
+    >>> before = os.environ.get("OMP_NUM_THREADS")
+    >>> os.environ["OMP_NUM_THREADS"] = "1"
+    >>> usable_threads()
+    1
+    >>> _ = os.environ.pop("OMP_NUM_THREADS") if before is None else \\
+    ...     os.environ.update(OMP_NUM_THREADS=before)
+    """
+    cores = usable_cores()
+    cap = os.environ.get("OMP_NUM_THREADS", "").strip()
+    if cap.isdigit() and int(cap) > 0:
+        return min(cores, int(cap))
+    return cores
+
+
+def _executor(size: int) -> ThreadPoolExecutor:
+    global _pool, _pool_size
+    with _lock:
+        if _pool is None or _pool_size < size:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(max_workers=size, thread_name_prefix="facewrap")
+            _pool_size = size
+        return _pool
+
+
+def thread_map(func, items, threads: int | None = None) -> list:
+    """``[func(x) for x in items]``, on up to ``threads`` threads, in order.
+
+    Worth it only when ``func`` spends its time in code that releases the GIL
+    (libigl's tree queries, numpy on large arrays, hashlib on large buffers).  With
+    one thread, or one item, it is the plain loop in this thread.
+
+    Parameters
+    ----------
+    func : callable
+    items : sequence
+    threads : int, optional
+        Default :func:`usable_threads`.
+
+    Returns
+    -------
+    list
+        ``func(item)`` for each item, in the order of ``items``; the first exception
+        raised by a call is raised here.
+
+    Examples
+    --------
+    >>> thread_map(lambda x: x * x, [1, 2, 3], threads=2)
+    [1, 4, 9]
+    """
+    items = list(items)
+    threads = usable_threads() if threads is None else threads
+    if threads <= 1 or len(items) <= 1:
+        return [func(x) for x in items]
+    return list(_executor(min(threads, len(items))).map(func, items))
