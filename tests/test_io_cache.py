@@ -90,8 +90,8 @@ def _shape_folder(tmp_path, mesh, n_shapes=3):
     return folder
 
 
-def _entries(folder):
-    return sorted(folder.glob("obj-vertices-*.npz")) if folder.exists() else []
+def _entries(folder, kind="obj-vertices"):
+    return sorted(folder.glob(f"{kind}-*.npz")) if folder.exists() else []
 
 
 def test_shape_folder_is_cached_outside_the_inputs(folder, tmp_path, mixed_mesh):
@@ -132,12 +132,14 @@ def test_edited_shape_with_same_size_and_time_is_read_again(folder, tmp_path, mi
                               read_obj_vertices(path, data=text))
 
 
-def _foreign(path, n, kind):
-    """Replace a cache entry by a well-formed one that is not what a parse gives."""
+def _foreign(path, shape, kind):
+    """Replace a cache entry of arrays of ``shape`` by a well-formed one that is not
+    what a parse gives."""
     meta = np.array([1, 1], dtype=np.int64)
-    arrays = {"wrong count": np.zeros((n - 1, 3)), "float32": np.zeros((n, 3), np.float32),
-              "nan": np.full((n, 3), np.nan), "other version": np.zeros((n, 3)),
-              "flat": np.zeros(3 * n), "no vertices": None}
+    fewer = shape[:-2] + (shape[-2] - 1, 3)
+    arrays = {"wrong count": np.zeros(fewer), "float32": np.zeros(shape, np.float32),
+              "nan": np.full(shape, np.nan), "other version": np.zeros(shape),
+              "flat": np.zeros(int(np.prod(shape))), "no vertices": None}
     payload = {"__facewrap_cache__": np.array([1, 7]) if kind == "other version" else meta}
     if arrays[kind] is not None:
         payload["vertices"] = arrays[kind]
@@ -151,19 +153,48 @@ def test_bad_shape_entries_are_ignored_and_rewritten(folder, tmp_path, mixed_mes
     from facewrap.datasets import load_shape_folder
     shapes_dir = _shape_folder(tmp_path, mixed_mesh, 1)
     truth = load_shape_folder(shapes_dir, mixed_mesh)["s0"]
-    (entry,) = _entries(folder)
-    good = entry.read_bytes()
-    if kind == "garbage":
-        entry.write_bytes(os.urandom(len(good)))
-    elif kind == "truncated":
-        entry.write_bytes(good[: len(good) // 2])
-    else:
-        _foreign(entry, mixed_mesh.n_vertices, kind)
+    n = mixed_mesh.n_vertices
+    for entry, shape in ((_entries(folder)[0], (n, 3)),
+                         (_entries(folder, "shape-folder")[0], (1, n, 3))):
+        good = entry.read_bytes()
+        if kind == "garbage":
+            entry.write_bytes(os.urandom(len(good)))
+        elif kind == "truncated":
+            entry.write_bytes(good[: len(good) // 2])
+        else:
+            _foreign(entry, shape, kind)
     assert np.array_equal(load_shape_folder(shapes_dir, mixed_mesh)["s0"], truth)
-    # rewritten with the parse: the next read is a hit on a good entry
-    (entry,) = _entries(folder)
-    with np.load(entry) as data:
+    # both rewritten with the parse: the next read is a hit on good entries
+    with np.load(_entries(folder)[0]) as data:
         assert np.array_equal(data["vertices"], truth)
+    with np.load(_entries(folder, "shape-folder")[0]) as data:
+        assert np.array_equal(data["vertices"], truth[None])
+
+
+def test_a_folder_seen_before_is_one_entry_and_an_edit_reparses_one_file(
+        folder, tmp_path, mixed_mesh):
+    from facewrap.datasets import load_shape_folder
+    from facewrap.io.obj import read_obj_vertices, write_obj
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 3)
+    first = load_shape_folder(shapes_dir, mixed_mesh)
+    assert len(_entries(folder, "shape-folder")) == 1
+    for entry in _entries(folder):          # the folder's entry alone answers
+        entry.unlink()
+    again = load_shape_folder(shapes_dir, mixed_mesh)
+    assert all(np.array_equal(again[k], first[k]) for k in first)
+    assert _entries(folder) == []
+    load_shape_folder(shapes_dir, mixed_mesh, exclude=("s2",))   # another file set
+    stamps = {p.name: p.stat().st_mtime_ns for p in _entries(folder)}
+    assert len(stamps) == 2
+    moved = mixed_mesh.vertices + 1.0
+    write_obj(shapes_dir / "s1.obj", mixed_mesh.with_vertices(moved))
+    edited = load_shape_folder(shapes_dir, mixed_mesh)
+    assert np.array_equal(edited["s1"], read_obj_vertices(shapes_dir / "s1.obj"))
+    assert np.array_equal(edited["s0"], first["s0"])
+    # s0's entry was used as it was; s1's new content got an entry of its own
+    after = {p.name: p.stat().st_mtime_ns for p in _entries(folder)}
+    assert {k: v for k, v in after.items() if k in stamps} == stamps
+    assert len(after) == 4
 
 
 def test_shape_cache_off_and_errors_unchanged(folder, tmp_path, mixed_mesh, monkeypatch):

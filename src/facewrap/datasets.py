@@ -33,6 +33,7 @@ from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj, read_obj_vertices
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
+from facewrap.parallel import thread_map
 
 __all__ = ["ICTFaceKit", "ICT_PARTS", "load_shape_folder", "PoseSet", "load_pose_set",
            "load_sumner_pair", "expand_ict_facekit", "cache_dir"]
@@ -186,31 +187,58 @@ class ICTFaceKit:
         return sub
 
 
-#: layout of the "obj-vertices" cache entries (bump when it changes)
+#: layout of the "obj-vertices" (one file) and "shape-folder" (a folder's files,
+#: stacked) cache entries (bump when it changes)
 _SHAPE_CACHE_VERSION = 1
 
 
-def _shape_vertices(path: Path, n_vertices: int | None) -> np.ndarray:
-    """The ``v`` lines of one shape OBJ, parsed once per content.
+def _usable(v, n_vertices: int | None, count: int | None = None) -> bool:
+    """Whether a cached array is what a parse would give: float64, finite, (n, 3) —
+    or (count, n, 3) for a stacked folder."""
+    shape = v.shape[1:] if count is not None else v.shape
+    return (v.dtype == np.float64 and len(shape) == 2 and shape[1] == 3 and shape[0] > 0
+            and (count is None or len(v) == count)
+            and (n_vertices is None or shape[0] == n_vertices) and np.isfinite(v).all())
 
-    The file's bytes are read and hashed (BLAKE2b runs several times faster than
-    the parse) and the parsed array is kept in :mod:`facewrap.io.cache` under that
-    hash: an edited file is a new key, never a stale answer.  An entry is used only
-    when it holds what this parse would give (float64 (n, 3), the expected count,
-    finite); any other is ignored and written again.
+
+def _shape_vertices(path: Path, n_vertices: int | None, data: bytes, key: str
+                    ) -> np.ndarray:
+    """The ``v`` lines of one shape OBJ (``data``, its bytes; ``key``, their
+    :func:`content_key`), parsed once per content.
+
+    The parsed array is kept in :mod:`facewrap.io.cache` under the hash of the file's
+    bytes (hashing runs several times faster than the parse): an edited file is a new
+    key, never a stale answer.  An entry is used only when it holds what this parse
+    would give (:func:`_usable`); any other is ignored and written again.
     """
-    data = read_file_bytes(path, text=True)
-    key = content_key(data, -1 if n_vertices is None else n_vertices)
     hit = load_arrays("obj-vertices", key, ["vertices"], version=_SHAPE_CACHE_VERSION)
-    if hit is not None:
-        v = hit["vertices"]
-        if (v.dtype == np.float64 and v.ndim == 2 and v.shape[1] == 3 and len(v)
-                and (n_vertices is None or len(v) == n_vertices)
-                and np.isfinite(v).all()):
-            return v
+    if hit is not None and _usable(hit["vertices"], n_vertices):
+        return hit["vertices"]
     v = read_obj_vertices(path, n_vertices, data=data)
     save_arrays("obj-vertices", key, {"vertices": v}, version=_SHAPE_CACHE_VERSION)
     return v
+
+
+def _folder_vertices(files: list, n_vertices: int | None) -> list:
+    """The vertices of every file of a shape folder, in order.
+
+    The files are read and hashed on the usable cores (both release the GIL); a
+    folder seen before, byte for byte, is one cache entry of the stacked arrays;
+    otherwise each file comes from its own entry or its parse.
+    """
+    count = -1 if n_vertices is None else n_vertices
+    datas = thread_map(lambda p: read_file_bytes(p, text=True), files)
+    keys = thread_map(lambda d: content_key(d, count), datas)
+    folder_key = content_key("shape-folder", *keys)
+    hit = load_arrays("shape-folder", folder_key, ["vertices"],
+                      version=_SHAPE_CACHE_VERSION)
+    if hit is not None and _usable(hit["vertices"], n_vertices, len(files)):
+        return list(hit["vertices"])
+    out = [_shape_vertices(p, n_vertices, d, k) for p, d, k in zip(files, datas, keys)]
+    if len({len(v) for v in out}) == 1:          # one topology: kept stacked
+        save_arrays("shape-folder", folder_key, {"vertices": np.stack(out)},
+                    version=_SHAPE_CACHE_VERSION)
+    return out
 
 
 def load_shape_folder(folder, reference: Mesh | None = None,
@@ -219,7 +247,8 @@ def load_shape_folder(folder, reference: Mesh | None = None,
 
     Each file is parsed once per content and machine: later reads of the same
     bytes come from the on-disk cache (:mod:`facewrap.io.cache`; ``FACEWRAP_CACHE=0``
-    turns it off), with the same values.
+    turns it off), with the same values; the files are read and hashed on the
+    usable cores (:mod:`facewrap.parallel`).
 
     Parameters
     ----------
@@ -252,13 +281,12 @@ def load_shape_folder(folder, reference: Mesh | None = None,
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError("not a folder", folder)
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".obj")
+    files = [p for p in sorted(folder.iterdir())
+             if p.suffix.lower() == ".obj"
+             and not any(e.lower() in p.stem.lower() for e in exclude)]
     n = None if reference is None else reference.n_vertices
     shapes = {}
-    for p in files:
-        if any(e.lower() in p.stem.lower() for e in exclude):
-            continue
-        v = _shape_vertices(p, n)
+    for p, v in zip(files, _folder_vertices(files, n)):
         if reference is not None and np.array_equal(v, reference.vertices):
             continue
         shapes[p.stem] = v
