@@ -24,6 +24,8 @@ from typing import Sequence
 
 import numpy as np
 
+from facewrap.geometry.arrays import unique_integers
+
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
 
 
@@ -380,7 +382,7 @@ class Mesh:
         sizes = self.face_sizes[keep]
         corner_mask = np.repeat(keep, self.face_sizes)
         old = self.face_indices[corner_mask]
-        vertex_map = np.unique(old)
+        vertex_map = unique_integers(old)
         remap = np.full(self.n_vertices, -1, dtype=np.int64)
         remap[vertex_map] = np.arange(len(vertex_map))
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
@@ -388,7 +390,7 @@ class Mesh:
         kw = {}
         if self.uvs is not None:
             uv_old = self.face_uvs[corner_mask]
-            uv_map = np.unique(uv_old)
+            uv_map = unique_integers(uv_old)
             uv_remap = np.full(len(self.uvs), -1, dtype=np.int64)
             uv_remap[uv_map] = np.arange(len(uv_map))
             kw.update(uvs=self.uvs[uv_map], face_uvs=(offsets, uv_remap[uv_old]))

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from facewrap.geometry.arrays import unique_integers
 from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
 
 __all__ = [
@@ -38,7 +39,7 @@ def _unique_undirected(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if len(lo) == 0:
         return np.zeros((0, 2), dtype=np.int64)
     n = int(hi.max()) + 1
-    key = np.unique(lo * n + hi)   # one sort on int64 keys, faster than unique(axis=0)
+    key = unique_integers(lo * n + hi)   # one sort of int64 keys, not unique(axis=0)
     return np.stack([key // n, key % n], axis=1)
 
 
@@ -92,7 +93,8 @@ def _boundary_mask(T: np.ndarray) -> np.ndarray:
     a, b = _half_edges(T)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     n = int(T.max()) + 1
-    _, inverse, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
+    _, inverse, counts = unique_integers(lo * n + hi, return_inverse=True,
+                                        return_counts=True)
     return (counts[inverse] == 1) & (a != b)
 
 

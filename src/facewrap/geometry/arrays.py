@@ -14,7 +14,7 @@ from collections.abc import Iterator
 import numpy as np
 
 __all__ = ["cross_rows", "normalize_rows", "safe_inverse", "edge_vectors",
-           "cross_columns", "column_norms", "blocks_by_budget"]
+           "cross_columns", "column_norms", "blocks_by_budget", "unique_integers"]
 
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -188,3 +188,57 @@ def blocks_by_budget(counts: np.ndarray, budget: int) -> Iterator[np.ndarray]:
     for part in np.split(nz, np.unique(cuts)):
         if len(part):
             yield part
+
+
+def unique_integers(a, *, return_index: bool = False, return_inverse: bool = False,
+                    return_counts: bool = False):
+    """``np.unique`` of a 1-D integer array, always by sorting.
+
+    NumPy 2.3 and later answer a plain ``np.unique`` of integers from a hash table:
+    fast for a few distinct values, 20-60x slower than a sort when most values are
+    distinct (edge keys of a mesh: 4.4 s against 0.2 s for 3M keys, measured here
+    with numpy 2.4.6).  This sorts whatever the numpy version, and gives the same
+    arrays as ``np.unique`` (``return_index``: each value's first place).
+
+    Parameters
+    ----------
+    a : (k,) int array
+    return_index, return_inverse, return_counts : bool
+        As for ``np.unique``.
+
+    Returns
+    -------
+    unique : (u,) the sorted distinct values
+    index : (u,) int64, optional
+    inverse : (k,) int64, optional
+        ``unique[inverse] == a``.
+    counts : (u,) int64, optional
+
+    Examples
+    --------
+    >>> unique_integers(np.array([5, 1, 5, 3])).tolist()
+    [1, 3, 5]
+    >>> [x.tolist() for x in unique_integers(np.array([5, 1, 5, 3]), return_index=True,
+    ...                                      return_inverse=True, return_counts=True)]
+    [[1, 3, 5], [1, 3, 0], [2, 0, 2, 1], [1, 1, 2]]
+    """
+    a = np.asarray(a).reshape(-1)
+    extras = return_index or return_inverse or return_counts
+    # a stable sort keeps equal values in input order: the first of a run is the
+    # value's first place, as np.unique's return_index gives it
+    order = np.argsort(a, kind="stable") if extras else None
+    s = a[order] if extras else np.sort(a)
+    first = np.empty(len(s), dtype=bool)
+    first[:1] = True
+    np.not_equal(s[1:], s[:-1], out=first[1:])
+    out = [s[first]]
+    if return_index:
+        out.append(order[first].astype(np.int64))
+    if return_inverse:
+        inverse = np.empty(len(a), dtype=np.int64)
+        inverse[order] = np.cumsum(first) - 1
+        out.append(inverse)
+    if return_counts:
+        starts = np.flatnonzero(first)
+        out.append(np.diff(np.append(starts, len(s))).astype(np.int64))
+    return tuple(out) if extras else out[0]

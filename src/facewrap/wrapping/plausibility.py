@@ -30,6 +30,7 @@ import numpy as np
 from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
                                vertex_normals)
 from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.geometry.arrays import unique_integers
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
 
@@ -362,7 +363,7 @@ def unique_faces(triangles) -> np.ndarray:
         # one int64 key per sorted row: a 1-D unique, several times faster than
         # np.unique(axis=0) on a million triangles
         key = (T[:, 0] << 42) | (T[:, 1] << 21) | T[:, 2]
-        keep[np.unique(key, return_index=True)[1]] = True
+        keep[unique_integers(key, return_index=True)[1]] = True
     else:
         keep[np.unique(T, axis=0, return_index=True)[1]] = True
     return keep

@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 
 from facewrap.geometry import edges as mesh_edges
 from facewrap.geometry import poisson_disk_vertices
+from facewrap.geometry.arrays import unique_integers
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.io.cache import content_key, load_arrays, save_arrays
 from facewrap.wrapping.models.base import (DeformationModel, cross_matrix_blocks,
@@ -134,7 +135,7 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
 def _unique_pairs(a, b, m: int) -> np.ndarray:
     """(e, 2) unique ordered pairs, sorted; one sort of int64 keys (several times
     faster than ``np.unique(..., axis=0)``)."""
-    key = np.unique(np.asarray(a, np.int64) * m + np.asarray(b, np.int64))
+    key = unique_integers(np.asarray(a, np.int64) * m + np.asarray(b, np.int64))
     return np.stack([key // m, key % m], axis=1)
 
 
