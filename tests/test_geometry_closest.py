@@ -282,3 +282,27 @@ def test_query_split_over_threads_answers_as_one_call(monkeypatch, threads):
                                    rtol=0, atol=1e-12)
     ref = np.sqrt(brute_force_sq_dist(V, T, P).min(axis=1))
     np.testing.assert_allclose(split.distances, ref, rtol=0, atol=1e-9)
+
+
+def test_a_tree_built_in_the_background_answers_as_one_built_here():
+    V, T = icosphere(3, noise=0.05)
+    P = np.random.default_rng(4).normal(size=(300, 3))
+    here = geo.ClosestPointTree(V, T)
+    there = geo.ClosestPointTree(V, T, background=True)
+    a, b = here.query(P), there.query(P)
+    assert np.array_equal(a.triangles, b.triangles)
+    np.testing.assert_allclose(b.distances, a.distances, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(there.vertex_normals, here.vertex_normals, atol=1e-12)
+    assert not there.vertex_normals.flags.writeable
+
+
+def test_a_background_build_that_fails_fails_at_first_use(monkeypatch):
+    import facewrap.geometry.closest as closest
+    V, T = icosphere(1)
+
+    def broken(*args):
+        raise MemoryError("no room for the tree")
+    monkeypatch.setattr(closest.ClosestPointTree, "_build", broken)
+    tree = geo.ClosestPointTree(V, T, background=True)    # returns at once
+    with pytest.raises(MemoryError, match="no room"):
+        tree.query(V[:2])

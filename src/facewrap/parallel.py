@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
-__all__ = ["usable_cores", "usable_threads", "thread_map"]
+__all__ = ["usable_cores", "usable_threads", "thread_map", "in_background"]
 
 _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
@@ -99,3 +99,24 @@ def thread_map(func, items, threads: int | None = None) -> list:
     if threads <= 1 or len(items) <= 1:
         return [func(x) for x in items]
     return list(_executor(min(threads, len(items))).map(func, items))
+
+
+def in_background(func) -> Future:
+    """Start ``func()`` on another thread when a second core is usable; its Future.
+
+    With one usable thread it runs here and now, and the Future is already done:
+    the caller's ``result()`` is the same either way (exceptions included).
+
+    Examples
+    --------
+    >>> in_background(lambda: 6 * 7).result()
+    42
+    """
+    if usable_threads() <= 1:
+        done: Future = Future()
+        try:
+            done.set_result(func())
+        except Exception as exc:            # given back by result(), as a thread's
+            done.set_exception(exc)
+        return done
+    return _executor(2).submit(func)

@@ -22,7 +22,7 @@ barycentric coordinates in float64.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from typing import NamedTuple
 
 import igl
@@ -32,7 +32,7 @@ from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
 from facewrap.geometry.adjacency import triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows
 from facewrap.geometry.normals import trusted_vertex_normals
-from facewrap.parallel import thread_map, usable_threads
+from facewrap.parallel import in_background, thread_map, usable_threads
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -180,6 +180,10 @@ class ClosestPointTree:
     vertex_normals : (n, 3) float64, optional
         Normals to interpolate in :meth:`query`; by default the angle-weighted
         :func:`~facewrap.geometry.vertex_normals` of the mesh.
+    background : bool
+        Build the tree (and the normals) on another thread, when a second core is
+        usable (:func:`facewrap.parallel.in_background`): the constructor returns at
+        once and the first query waits for the build.  The answers are the same.
 
     Attributes
     ----------
@@ -207,40 +211,57 @@ class ClosestPointTree:
     ([True], [3.0], [[0.25, 0.5, 0.25]])
     """
 
-    def __init__(self, V, T, vertex_normals=None):
+    def __init__(self, V, T, vertex_normals=None, *, background: bool = False):
         V, T = as_mesh_arrays(V, T)
         if len(T) == 0:
             raise ValueError("T must hold at least one triangle")
         self.vertices = _readonly(V)
         self.triangles = _readonly(T)
-        if vertex_normals is None:
-            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
-        else:
+        normals = None
+        if vertex_normals is not None:
             normals = as_vertices(vertex_normals, "vertex_normals")
             if normals.shape != V.shape:
                 raise ValueError(f"vertex_normals must have shape {V.shape}, "
                                  f"got {normals.shape}")
-        self.vertex_normals = _readonly(normals)
-        self._tree = igl.AABB()
-        self._tree.init(self.vertices, self.triangles)
+        # the tree of a million triangles takes ~1 s to build (libigl, without the
+        # GIL): in the background, the caller reads its other inputs meanwhile
+        build = partial(self._build, normals)
+        self._built = in_background(build) if background else None
+        self._parts = None if background else build()
 
-    @cached_property
-    def _flat_triangles(self) -> np.ndarray:
-        """(t,) bool: triangles that are segments (see ``_FLAT``), computed once."""
-        C = self.vertices[self.triangles]
-        n = cross_rows(C[:, 1] - C[:, 0], C[:, 2] - C[:, 0])
-        return _is_flat(np.einsum("ij,ij->i", n, n), _edge_lengths_sq(C))
+    def _build(self, normals) -> tuple:
+        if normals is None:
+            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
+        tree = igl.AABB()
+        tree.init(self.vertices, self.triangles)
+        return _readonly(normals), tree
 
-    def _onto_flat(self, P, sq_dist, tri, closest) -> None:
+    def _ready(self) -> tuple:
+        """(vertex normals, libigl tree), waiting for a background build."""
+        if self._parts is None:
+            self._parts = self._built.result()
+        return self._parts
+
+    @property
+    def vertex_normals(self) -> np.ndarray:
+        return self._ready()[0]
+
+    @property
+    def _tree(self):
+        return self._ready()[1]
+
+    def _onto_flat(self, P, sq_dist, closest, corners) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
         place): libigl's closest point on a triangle of zero area can be off by
-        1e-3 of its size (seen on a collinear triangle)."""
-        rows = np.flatnonzero(self._flat_triangles[tri])
+        1e-3 of its size (seen on a collinear triangle).  ``corners`` (k, 3, 3) are
+        the triangles met; only they are tested, not the whole mesh."""
+        edge_sq = _edge_lengths_sq(corners)
+        n = cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        rows = np.flatnonzero(_is_flat(np.einsum("ij,ij->i", n, n), edge_sq))
         if not len(rows):
             return
-        corners = self.vertices[self.triangles[tri[rows]]]
-        bary = _barycentric_on_longest_edge(P[rows], corners, _edge_lengths_sq(corners))
-        on_edge = np.einsum("kc,kcd->kd", bary, corners)
+        bary = _barycentric_on_longest_edge(P[rows], corners[rows], edge_sq[rows])
+        on_edge = np.einsum("kc,kcd->kd", bary, corners[rows])
         d = np.einsum("ij,ij->i", on_edge - P[rows], on_edge - P[rows])
         better = d < sq_dist[rows]
         sq_dist[rows[better]] = d[better]
@@ -291,7 +312,6 @@ class ClosestPointTree:
         threads = min(usable_threads(), len(P) // _ROWS_PER_THREAD)
         if threads <= 1:
             return ClosestPoints(*self._query_rows(P))
-        self._flat_triangles            # made once, before the threads read it
         parts = thread_map(self._query_rows, np.array_split(P, threads), threads)
         return ClosestPoints(*(np.concatenate(a) for a in zip(*parts)))
 
@@ -300,9 +320,10 @@ class ClosestPointTree:
         sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
                                                             self.triangles, P)
         sq_dist, closest = np.array(sq_dist, dtype=np.float64), np.array(closest)
-        self._onto_flat(P, sq_dist, tri, closest)
         ids = self.triangles[tri]
-        bary = _barycentric(closest, self.vertices[ids])
+        corners = self.vertices[ids]
+        self._onto_flat(P, sq_dist, closest, corners)
+        bary = _barycentric(closest, corners)
         normals = self._interpolate_normals(ids, bary)
         return closest, tri, bary, normals, np.sqrt(np.maximum(sq_dist, 0.0))
 
