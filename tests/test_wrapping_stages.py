@@ -236,3 +236,37 @@ def test_wrap_result_carries_the_plausibility_warnings(sample):
              template.landmarks,
              Landmarks.from_points(scan.landmarks.points * [-1, 1, 1], names),
              WrapSettings(model="rbf"))
+
+
+def _grid(k=4):
+    g = np.stack(np.meshgrid(np.arange(float(k)), np.arange(float(k))), -1).reshape(-1, 2)
+    V = np.c_[g, np.zeros(k * k)]
+    cells = [i + k * j for j in range(k - 1) for i in range(k - 1)]
+    T = np.array([[c, c + 1, c + k + 1] for c in cells] + [[c, c + k + 1, c + k] for c in cells])
+    return V, T
+
+
+def test_folds_a_second_projection_makes_are_put_back_to_the_unfolded_pose():
+    from facewrap.geometry import turned_triangles
+    from facewrap.wrapping.stages import _revert_new_folds
+    V, T = _grid()
+    before = V + [0.0, 0.0, 0.1]                  # upright, moved
+    after = before.copy()
+    after[5] = [2.7, 2.6, 0.1]                    # pushed past its neighbours: folds
+    after[10] = [2.0, 2.0, 0.3]                   # moved, folds nothing on its own
+    assert turned_triangles(after, V, T).any()
+    out, back = _revert_new_folds(T, V, before, after, np.zeros(len(V), bool))
+    assert not turned_triangles(out, V, T).any()
+    # vertex 5 went back part of the way (no further than it takes), the rest kept
+    # the projection
+    assert back[5] and 0 < np.linalg.norm(out[5] - after[5]) < np.linalg.norm(
+        before[5] - after[5])
+    assert np.array_equal(out[~back], after[~back])
+    # a fixed vertex never moves, whatever it folds
+    fixed = np.zeros(len(V), bool)
+    fixed[5] = True
+    out, back = _revert_new_folds(T, V, before, after, fixed)
+    assert not back[5] and np.array_equal(out[5], after[5])
+    # nothing newly turned: nothing put back
+    out, back = _revert_new_folds(T, V, before, before + 0.01, np.zeros(len(V), bool))
+    assert not back.any()
