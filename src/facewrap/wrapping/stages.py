@@ -36,7 +36,8 @@ from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.projection import (Projection, project_to_surface, relax_flips,
-                                          settle_turned_corners, smooth_extension)
+                                          settle_turned_corners, smooth_extension,
+                                          step_back_new_folds)
 from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
                                      vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
@@ -304,9 +305,17 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
                    "mean": float(pulls.mean()), "max": float(pulls.max())}
 
 
-def project(problem: WrapProblem, vertices, upright=None) -> Projection | None:
+#: Smoothing order of unfolding and pinning (harmonic): a biharmonic relaxation
+#: overshoots and unfolds less (ICT's face region onto james: 12 triangles left
+#: flipped, against 0).
+_UNFOLD_ORDER = 1
+
+
+def project(problem: WrapProblem, vertices, upright=None, reference=None
+            ) -> Projection | None:
     """Projection onto the scan (None when ``settings.project`` is off); ``upright``:
-    positions whose triangle orientation it must keep (see
+    positions whose triangle orientation it must keep; ``reference``: the
+    orientation its biharmonic fill must keep (see
     :func:`~facewrap.wrapping.projection.project_to_surface`)."""
     s = problem.settings
     if not s.project:
@@ -314,7 +323,8 @@ def project(problem: WrapProblem, vertices, upright=None) -> Projection | None:
     return project_to_surface(problem.template, problem.tree, vertices=vertices,
                               mask=~problem.excluded, max_distance=s.max_distance,
                               max_normal_angle=s.max_normal_angle,
-                              blend_order=s.blend_order, upright=upright)
+                              blend_order=s.blend_order, upright=upright,
+                              reference=reference)
 
 
 def pin(problem: WrapProblem, vertices, similarity: Similarity,
@@ -322,9 +332,10 @@ def pin(problem: WrapProblem, vertices, similarity: Similarity,
     """Pinned vertices back where ``similarity`` puts them, the rest blended.
 
     Projected vertices stay on the scan; pinned ones move to their aligned
-    template positions exactly; every other vertex takes the smooth
-    (``settings.blend_order``) extension of those two displacements, so nothing
-    tears where pinned and fitted regions meet.
+    template positions exactly; every other vertex takes the harmonic
+    extension of those two displacements, so nothing tears where pinned and
+    fitted regions meet (a biharmonic one overshoots across the large regions
+    between them).
 
     Returns
     -------
@@ -341,7 +352,7 @@ def pin(problem: WrapProblem, vertices, similarity: Similarity,
     displacement = np.zeros_like(vertices)
     displacement[pinned] = similarity.apply(template.vertices[pinned]) - vertices[pinned]
     return vertices + smooth_extension(template, displacement, known,
-                                       order=problem.settings.blend_order)
+                                       order=_UNFOLD_ORDER)
 
 
 def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
@@ -369,7 +380,7 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     if problem.settings.unfold:
         upright = aligned if rest is None else rest
         out, relaxed = relax_flips(template, upright, out, fixed=roles == PINNED,
-                                   order=problem.settings.blend_order)
+                                   order=_UNFOLD_ORDER)
         if relaxed.any() and projection is not None:
             # onto the scan again from the unfolded pose, keeping its orientation: the
             # fit is as tight as before where that folds nothing
@@ -377,8 +388,8 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
             projection = project(problem, out, upright=upright)
             out = projection.vertices
             out, again = _unfold_blended(problem, upright, out, projection)
-            out, back = _revert_new_folds(template.triangles, upright, unfolded, out,
-                                          roles == PINNED)
+            out, back = step_back_new_folds(template.triangles, upright, unfolded, out,
+                                            roles == PINNED)
             relaxed |= again | back
         summary["unfolded"] = int(relaxed.sum())
         # what smoothing cannot unfold (slivers), one corner each
@@ -398,40 +409,13 @@ def _unfold_blended(problem: WrapProblem, upright, vertices, projection: Project
     template, roles = problem.template, problem.roles
     fixed = (roles == PINNED) | projection.projected
     out, again = relax_flips(template, upright, vertices, fixed=fixed,
-                             order=problem.settings.blend_order, fewest=True)
+                             order=_UNFOLD_ORDER, fewest=True)
     skin = (roles[template.triangles] != PART).all(axis=1)
     if not again.any() or (turned_triangles(out, upright, template.triangles)[skin].sum()
                            >= turned_triangles(vertices, upright,
                                                template.triangles)[skin].sum()):
         return vertices, np.zeros(len(vertices), dtype=bool)
     return out, again
-
-
-def _revert_new_folds(T, upright, before, after, fixed, *, step: float = 0.25,
-                      rounds: int = 30):
-    """``after`` with the triangles it turned over that ``before`` had upright
-    brought back: each round, the corners of those still turned move ``step`` of
-    the way back to their ``before`` positions (after ``rounds`` they are there to
-    within 0.75**30 ~ 2e-4 of the way).  A projection from an unfolded pose can fold
-    a few triangles that the blend of its unprojected vertices cannot unfold (a
-    crease where the scan itself folds); small steps move only as many vertices,
-    as little, as it takes (on ICT's head onto james: one fold, 15 vertices moved,
-    fit p95 1.907 -> 1.918 mm, where putting them back at once moved 53 and gave
-    2.030).  ``fixed`` (n,) bool vertices never move.  Returns the positions and
-    the vertices moved."""
-    was = turned_triangles(before, upright, T)
-    out = np.array(after, dtype=np.float64)
-    moved = np.zeros(len(out), dtype=bool)
-    for _ in range(rounds):
-        new = turned_triangles(out, upright, T) & ~was
-        corners = np.zeros(len(out), dtype=bool)
-        corners[T[new]] = True
-        corners &= ~fixed
-        if not corners.any():
-            break
-        moved |= corners
-        out[corners] += step * (before[corners] - out[corners])
-    return out, moved
 
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
@@ -516,7 +500,9 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         else:
             bar.advance()
         bar.update(description="wrap: projecting onto the scan")
-        projection = _timed(timings, "project", bar, project, problem, V)
+        rest = (similarity.apply(template.vertices) if fitted.rest is None
+                else fitted.rest)
+        projection = _timed(timings, "project", bar, project, problem, V, reference=rest)
         bar.update(description="wrap: unfolding, parts following")
         out, finish = _timed(timings, "finish", bar, finish_fit, problem,
                              V if projection is None else projection.vertices,
