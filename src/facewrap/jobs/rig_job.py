@@ -1,0 +1,314 @@
+"""A rig job from files to files: what ``facewrap rig``, job files and batches run.
+
+:class:`RigJob` names the files of one person's rig (paths only): their neutral
+scan, the template, the template's blendshapes and an output folder.
+:func:`run_rig_job` reads and checks the inputs with the wrap job's own reader
+(:func:`~facewrap.jobs.wrap_job.load_wrap_inputs`, so a rig refuses and warns
+about exactly what a wrap does), builds the rig (:func:`facewrap.rig.build_rig`:
+the neutral wrapped with the hybrid model, every template shape made the
+person's) and writes, inside the output folder ``OUT``:
+
+- ``OUT/neutral.obj``: the wrapped neutral in the template's topology, with
+  ``neutral.mtl`` and the baked images when a texture is given, exactly as
+  ``facewrap wrap`` writes them (:func:`~facewrap.jobs.wrap_job.write_wrap_outputs`);
+- ``OUT/shapes/<name>.obj``: every personalised shape (naming ``../neutral.mtl``);
+- ``OUT/rig.glb``: the neutral with every shape as a named morph target, normals,
+  material and the baked texture (else the template's own), in metres;
+- ``OUT/rig.json``: the report (units, timings, the neutral's fit metrics, the
+  method, the shapes).
+
+Everything is staged (:func:`facewrap.io.paths.staged_outputs`) and appears
+together or not at all; every input problem is an
+:class:`~facewrap.errors.InputError` naming the file, raised before anything is
+written.
+
+As for :class:`~facewrap.jobs.wrap_job.WrapJob`, each field says in its
+``metadata`` which job-file table it belongs to (:mod:`facewrap.jobs.fields`);
+the settings are the wrap's (:class:`~facewrap.wrapping.WrapSettings`), the
+``[rig]`` table of a job file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from facewrap.errors import InputError
+from facewrap.io import write_mesh
+from facewrap.io.atomic import atomic_write
+from facewrap.io.mtl import with_library
+from facewrap.io.paths import check_output_paths, staged_outputs
+from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
+                                    job_outputs, load_wrap_inputs, textureoutput_field,
+                                    write_wrap_outputs)
+from facewrap.rig import PERSONALISE_METHODS, build_rig
+from facewrap.texture.tiles import file_textures, material_images
+from facewrap.units import metres_per_unit, resolve_units
+from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
+
+__all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
+           "check_rig_job_paths", "neutral_wrap_job", "NEUTRAL", "SHAPES", "GLB", "REPORT"]
+
+#: The files and folder written inside a rig job's output folder.
+NEUTRAL, SHAPES, GLB, REPORT = "neutral.obj", "shapes", "rig.glb", "rig.json"
+
+
+@dataclass
+class RigJob:
+    """Files of one person's rig (settings live apart, in :class:`WrapSettings`).
+
+    Attributes
+    ----------
+    template : path
+        Template mesh (OBJ/PLY) whose topology the rig keeps.
+    scan : path
+        The person's neutral scan (OBJ/PLY).
+    blendshapes : path
+        Folder of the template's shapes (meshes in its topology): the hybrid model
+        fits with them, and each becomes one of the person's.
+    output : path
+        Output folder (see the module's description for what goes in it).
+    scan_landmarks : path, optional
+        The neutral scan's points (as for :attr:`WrapJob.scan_landmarks`); None:
+        detected on the scan.
+    template_landmarks, template_profile : path, optional
+        As for :class:`WrapJob`; the profile's rigid (skull) vertices, when it has
+        them, hold the personalised shapes in place.
+    texture : path, optional
+        The neutral scan's texture image, baked into the template's UV layout.
+    texture_size : int
+        Baked image size in pixels.
+    method : {"deformation", "delta"}
+        How the template's shapes are carried onto the person
+        (:func:`~facewrap.rig.personalise_shapes`).
+    units : str
+        Unit of the scan's coordinates: auto (inferred from the head's size), mm,
+        cm, m or in.
+    """
+    template: str = input_field()
+    scan: str = input_field()
+    blendshapes: str = input_field()
+    output: str = output_field()
+    scan_landmarks: str | None = input_field(default=None)
+    template_landmarks: str | None = input_field(default=None)
+    template_profile: str | None = input_field(default=None)
+    texture: str | None = input_field(default=None)
+    texture_size: int = output_field(path=False, default=1024)
+    # how the outputs are made, not a file: the [outputs] table, never resolved
+    method: str = output_field(path=False, default="deformation")
+    units: str = field(default="auto", metadata={"table": "inputs", "path": False})
+
+
+def neutral_wrap_job(job: RigJob, folder=None) -> WrapJob:
+    """The wrap of the neutral scan, writing ``neutral.obj`` (and its material and
+    images) into ``folder`` (default: the rig's output folder)."""
+    return WrapJob(template=job.template, scan=job.scan, scan_landmarks=job.scan_landmarks,
+                   output=os.path.join(os.fspath(folder or job.output), NEUTRAL),
+                   template_landmarks=job.template_landmarks,
+                   template_profile=job.template_profile, blendshapes=job.blendshapes,
+                   texture=job.texture, texture_size=job.texture_size, units=job.units)
+
+
+def rig_job_inputs(job: RigJob) -> list[str]:
+    """Input paths of ``job`` (files or folders), as for the neutral's wrap."""
+    return job_inputs(neutral_wrap_job(job))
+
+
+def _rig_files(job: RigJob) -> list[str]:
+    return [os.path.join(job.output, name) for name in (GLB, REPORT)]
+
+
+def rig_job_outputs(job: RigJob) -> list[str]:
+    """What :func:`run_rig_job` writes: the neutral (and its material library and
+    images), the shapes folder, the GLB and the report."""
+    return (job_outputs(neutral_wrap_job(job)) + [os.path.join(job.output, SHAPES)]
+            + _rig_files(job))
+
+
+def check_rig_job_paths(job: RigJob, source=None) -> None:
+    """Check the outputs and choices before any work.
+
+    The neutral's checks are a wrap job's (:func:`~facewrap.jobs.wrap_job.check_job_paths`:
+    texture size, units, writable, apart from the inputs); the output folder, its
+    shapes folder, GLB and report must be apart from every input too.
+
+    Parameters
+    ----------
+    job : RigJob
+    source : path, optional
+        The file the job came from (job file, manifest), named in errors.
+
+    Raises
+    ------
+    InputError
+    """
+    if job.method not in PERSONALISE_METHODS:
+        raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
+                         f"{job.method!r}", source or job.output)
+    check_job_paths(neutral_wrap_job(job), source)
+    check_output_paths(files=_rig_files(job),
+                       folders=[job.output, os.path.join(job.output, SHAPES)],
+                       inputs=rig_job_inputs(job), source=source)
+
+
+def _files(job: RigJob) -> dict:
+    """The file each of the wrap's refusals and warnings is about (they start
+    ``"scan landmarks: ..."``)."""
+    return {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
+            "template landmarks": job.template_landmarks}
+
+
+def _build(job: RigJob, settings: WrapSettings, inputs: dict, graph_cache):
+    """:func:`~facewrap.rig.build_rig` on the read inputs; the wrap's refusals name
+    the file they are about."""
+    files = _files(job)
+    profile = inputs["profile"]
+    try:
+        return build_rig(inputs["template"], inputs["scan"], inputs["template_landmarks"],
+                         inputs["scan_landmarks"], inputs["blendshapes"],
+                         settings=settings, method=job.method,
+                         anchors=None if profile is None else profile.rigid,
+                         exclude=inputs["exclude"], fit_mask=inputs["fit_mask"],
+                         pinned=inputs["pinned"], scan_tree=inputs["scan_tree"],
+                         graph_cache=graph_cache)
+    except ValueError as exc:
+        about, _, text = str(exc).partition(": ")
+        if about in files:
+            raise InputError(text, files[about]) from None
+        raise
+
+
+def _write_shapes(folder: Path, rig, images: dict, library: bool) -> None:
+    """One OBJ per shape, with the neutral's UVs and materials (``../neutral.mtl``)."""
+    face_materials, materials, _ = material_images(rig.neutral, images)
+    for name in rig.shapes:
+        mesh = with_library(rig.shape_mesh(name),
+                            "../" + Path(NEUTRAL).with_suffix(".mtl").name if library
+                            else None, face_materials, materials)
+        write_mesh(folder / f"{name}.obj", mesh)
+
+
+def _final(path, staged: Path, output: str) -> str:
+    """Where a file written under the staged folder ends up."""
+    return os.path.join(output, os.path.relpath(os.fspath(path), staged))
+
+
+def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict) -> None:
+    """Neutral, shapes, GLB and report, staged in one folder moved into place whole."""
+    t0 = time.perf_counter()
+    with staged_outputs() as stage:
+        staged = stage.folder(job.output)
+        wrap_job = neutral_wrap_job(job, staged)
+        neutral = {"timings": {}, "read_seconds": 0.0, "units": report["units"]}
+        write_wrap_outputs(wrap_job, rig.wrap, inputs, neutral)
+        images = textureoutput_field(wrap_job)
+        shapes = staged / SHAPES
+        shapes.mkdir()
+        _write_shapes(shapes, rig, images, "material_library" in neutral)
+        if images:   # the baked PNGs as they are, by texture set (as facewrap wrap)
+            textures = {(s.tile, s.materials): Path(p).read_bytes()
+                        for s, p in images.items()}
+        else:        # the template's own base colour, where its files name one
+            textures = file_textures(job.template, inputs["template"])
+        metres = metres_per_unit(report["units"])
+        rig.write_gltf(staged / GLB, scale=metres or 1.0, textures=textures)
+        if "texture" in neutral:
+            texture = neutral["texture"]
+            texture["image"] = _final(texture["image"], staged, job.output)
+            for item in texture["images"]:
+                item["image"] = _final(item["image"], staged, job.output)
+            report["texture"] = texture
+        report["outputs"] = {
+            "neutral": os.path.join(job.output, NEUTRAL),
+            "material_library": (_final(neutral["material_library"], staged, job.output)
+                                 if "material_library" in neutral else None),
+            "shapes": {k: os.path.join(job.output, SHAPES, f"{k}.obj") for k in rig.shapes},
+            "gltf": {"path": os.path.join(job.output, GLB), "scale": metres or 1.0,
+                     "units": "m" if metres else report["units"]},
+            "report": os.path.join(job.output, REPORT)}
+        timings = report["timings"]
+        timings["texture"] = neutral["timings"].get("bake", 0.0)
+        timings["writing"] = time.perf_counter() - t0 - timings["texture"]
+        timings["total"] = sum(v for k, v in timings.items() if k != "total")
+        with atomic_write(staged / REPORT, "w") as fh:
+            json.dump(report, fh, indent=1)
+
+
+def _report(job: RigJob, rig, inputs: dict, read_seconds: float, notes: list) -> dict:
+    """The rig's report before its outputs are written (they add paths and times)."""
+    result = rig.wrap
+    units, source = resolve_units(job.units, rig.neutral.vertices)
+    report = {"job": {k: v for k, v in asdict(job).items() if v is not None},
+              "settings": asdict(result.settings), "method": rig.method,
+              "units": units, "units_source": source,
+              "vertices": rig.neutral.n_vertices,
+              # distances in the report's units, as a wrap job's
+              "metrics": result.metrics, "iterations": result.history,
+              "transform": result.transform.matrix.tolist(),
+              "vertex_roles": role_ranges(result.roles),
+              "shapes": list(rig.shapes),
+              "timings": {"read": read_seconds,
+                          **{k: v for k, v in rig.timings.items() if k != "total"}},
+              "warnings": notes,
+              "scan_landmarks_source": "detected" if "scan" in inputs["detections"]
+              else "file"}
+    if inputs["profile"] is not None:
+        report["template_profile"] = {"path": inputs["profile"].path,
+                                      "gives": inputs["profile"].summary()}
+    if result.weights is not None:
+        report["blend_weights"] = dict(zip(result.shape_names,
+                                           np.round(result.weights, 6).tolist()))
+    return report
+
+
+def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
+                graph_cache: GraphCache | None = None) -> dict:
+    """Build one person's rig and write it; returns the report as a dict.
+
+    Parameters
+    ----------
+    job : RigJob
+    settings : WrapSettings, optional
+        The neutral's wrap (default: the defaults, which with blendshapes is the
+        hybrid model).
+    graph_cache : GraphCache, optional
+        The template's deformation graphs between jobs (a batch of people).
+
+    Returns
+    -------
+    dict
+        What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
+        ``shapes``, ``texture``, ``writing``, ``total``; seconds), ``metrics`` (the
+        neutral's fit, in ``units``), ``method``, ``shapes`` (names), ``outputs``,
+        ``warnings`` (each also issued as an :class:`InputWarning`).
+
+    Raises
+    ------
+    InputError
+        Naming the file, before anything is written.
+    """
+    settings = settings or WrapSettings()
+    check_rig_job_paths(job)
+    t0 = time.perf_counter()
+    inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
+    read_seconds = time.perf_counter() - t0
+    rig = _build(job, settings, inputs, graph_cache)
+    if not np.isfinite(rig.neutral.vertices).all() or not all(
+            np.isfinite(v).all() for v in rig.shapes.values()):
+        raise InputError("the rig has non-finite positions (degenerate input?)", job.scan)
+    files = _files(job)
+    notes = list(inputs["warnings"]) + [
+        f"{files[about]}: {text}" if about in files else f"{about}: {text}"
+        for about, _, text in (note.partition(": ") for note in rig.wrap.warnings)]
+    for note in notes:
+        warnings.warn(note, InputWarning, stacklevel=2)
+    report = _report(job, rig, inputs, read_seconds, notes)
+    _write_rig_outputs(job, rig, inputs, report)
+    return report
