@@ -10,7 +10,8 @@ from __future__ import annotations
 import sys
 import warnings
 
-from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
+from facewrap.cli.fit_options import (add_fit_options, add_wrap_file_options,
+                                      wrap_settings_from_args)
 from facewrap.jobs import InputWarning, WrapJob, run_wrap_job
 from facewrap.units import UNKNOWN, add_units_argument, format_distance, units_note
 
@@ -69,25 +70,8 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scan", help="scan mesh (OBJ/PLY)")
     p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")
-    p.add_argument("--template-landmarks",
-                   help="template vertex ids (text) or facewrap landmark JSON (default: "
-                        "the template profile's)")
-    p.add_argument("--scan-landmarks",
-                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON "
-                        "(default: the 68 iBUG points detected on the scan, and on the "
-                        "template when it has no landmarks; needs facewrap[landmarks])")
-    p.add_argument("--template-profile", metavar="FILE",
-                   help="the template's landmarks and fitting vertices: ICT-FaceKit's "
-                        "vertex_indices.json or a facewrap profile (default: one found "
-                        "beside the template; 'none' for none)")
-    p.add_argument("--fit-mask", metavar="FILE",
-                   help="template vertex ids to pull onto the scan, and only those")
-    p.add_argument("--pin", metavar="FILE",
-                   help="template vertex ids kept exactly where the landmark alignment "
-                        "puts them")
+    add_wrap_file_options(p)
     add_fit_options(p)
-    p.add_argument("--texture", help="scan texture image to bake into the template UVs")
-    p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
     p.add_argument("--report", help="write metrics and timings as JSON")
     p.add_argument("--gltf", metavar="OUT.glb|OUT.gltf",
                    help="also write the fitted mesh as glTF (binary .glb or JSON .gltf, "

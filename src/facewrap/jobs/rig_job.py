@@ -74,20 +74,32 @@ class RigJob:
         Folder of the template's shapes (meshes in its topology): the hybrid model
         fits with them, and each becomes one of the person's.
     output : path
-        Output folder (see the module's description for what goes in it).
+        Output folder: neutral.obj (+ .mtl, baked images), shapes/<name>.obj,
+        rig.glb and rig.json.
     scan_landmarks : path, optional
-        The neutral scan's points (as for :attr:`WrapJob.scan_landmarks`); None:
-        detected on the scan.
-    template_landmarks, template_profile : path, optional
-        As for :class:`WrapJob`; the profile's rigid (skull) vertices, when it has
-        them, hold the personalised shapes in place.
+        The neutral scan's points: 'x y z' text, menpo .ljson or facewrap JSON;
+        unset: the 68 iBUG points are detected on the scan.
+    template_landmarks : path, optional
+        Template vertex ids (text) or facewrap landmark JSON; default: the
+        template profile's landmarks.
+    template_profile : path, optional
+        The template's profile (ICT-FaceKit's vertex_indices.json or facewrap's
+        own): landmarks, fitting vertices and the skull-rigid vertices that hold
+        the personalised shapes in place.  Default: the one found beside the
+        template, if any; "none" uses none.
+    exclude : path, optional
+        Template vertex ids that follow but are not pulled to the scan.
+    fit_mask : path, optional
+        The only template vertex ids pulled onto the scan.
+    pin : path, optional
+        Template vertex ids kept exactly where the landmark similarity puts them.
     texture : path, optional
         The neutral scan's texture image, baked into the template's UV layout.
     texture_size : int
         Baked image size in pixels.
     method : {"deformation", "delta"}
-        How the template's shapes are carried onto the person
-        (:func:`~facewrap.rig.personalise_shapes`).
+        How the template's shapes are carried onto the person: deformation
+        transfer, or the displacements as they are.
     units : str
         Unit of the scan's coordinates: auto (inferred from the head's size), mm,
         cm, m or in.
@@ -99,6 +111,9 @@ class RigJob:
     scan_landmarks: str | None = input_field(default=None)
     template_landmarks: str | None = input_field(default=None)
     template_profile: str | None = input_field(default=None)
+    exclude: str | None = input_field(default=None)
+    fit_mask: str | None = input_field(default=None)
+    pin: str | None = input_field(default=None)
     texture: str | None = input_field(default=None)
     texture_size: int = output_field(path=False, default=1024)
     # how the outputs are made, not a file: the [outputs] table, never resolved
@@ -113,6 +128,7 @@ def neutral_wrap_job(job: RigJob, folder=None) -> WrapJob:
                    output=os.path.join(os.fspath(folder or job.output), NEUTRAL),
                    template_landmarks=job.template_landmarks,
                    template_profile=job.template_profile, blendshapes=job.blendshapes,
+                   exclude=job.exclude, fit_mask=job.fit_mask, pin=job.pin,
                    texture=job.texture, texture_size=job.texture_size, units=job.units)
 
 
