@@ -1,4 +1,6 @@
-"""``facewrap rig NEUTRAL_SCAN --template T --blendshapes DIR -o OUT/``: a person's rig.
+"""``facewrap rig NEUTRAL_SCAN [EXPRESSION_SCAN ...] --template T --blendshapes DIR -o OUT/``.
+
+A person's rig from their scans.
 
 Parsing and one call: the options become a :class:`~facewrap.jobs.RigJob` and the
 neutral's :class:`~facewrap.wrapping.WrapSettings` (the wrap's own options,
@@ -10,6 +12,8 @@ from __future__ import annotations
 
 import sys
 import warnings
+
+import numpy as np
 
 from facewrap.cli.fit_options import (add_fit_options, add_wrap_file_options,
                                       wrap_settings_from_args)
@@ -25,10 +29,20 @@ def rig_summary_line(job: RigJob, report: dict) -> str:
     m, t, unit = report["metrics"], report["timings"], report.get("units", UNKNOWN)
     flag = (f"; {len(report['warnings'])} warning(s) above: check the inputs"
             if report.get("warnings") else "")
+    examples = report.get("examples", [])
+    said = ""
+    if examples:   # how well the rig reproduces its examples, and the worst one
+        means = [e["error"]["mean"] for e in examples]
+        before = float(np.mean([e["neutral_only_error"]["mean"] for e in examples]))
+        said = (f", {len(examples)} expression scan(s) reproduced to mean "
+                f"{format_distance(float(np.mean(means)), unit)} (worst "
+                f"{format_distance(max(means), unit)}; neutral-only rig "
+                f"{format_distance(before, unit)})")
     return (f"wrote {job.output}: {report['vertices']} vertices, {len(report['shapes'])} "
             f"shapes ({report['method']}), fit mean {format_distance(m['fit_mean'], unit)}"
             f" p95 {format_distance(m['fit_p95'], unit)}, landmarks mean "
-            f"{format_distance(m.get('landmark_mean'), unit)}, {t['total']:.2f} s{flag}")
+            f"{format_distance(m.get('landmark_mean'), unit)}{said}, {t['total']:.2f} s"
+            f"{flag}")
 
 
 def run_rig_job_verbosely(job: RigJob, settings, quiet: bool = False) -> dict:
@@ -50,7 +64,9 @@ def run_rig_job_verbosely(job: RigJob, settings, quiet: bool = False) -> dict:
 def cmd_rig(args) -> int:
     """Wrap the neutral scan, make the template's shapes the person's, write the rig."""
     job = RigJob(template=args.template, scan=args.scan, blendshapes=args.blendshapes,
-                 output=args.output, scan_landmarks=args.scan_landmarks,
+                 output=args.output, expression_scans=list(args.expression_scans),
+                 expression_landmarks=list(args.expression_landmarks or ()),
+                 scan_landmarks=args.scan_landmarks,
                  template_landmarks=args.template_landmarks,
                  template_profile=args.template_profile, exclude=args.exclude,
                  fit_mask=args.fit_mask, pin=args.pin, texture=args.texture,
@@ -63,11 +79,15 @@ def register(subparsers, summary: str) -> None:
     """Add ``rig`` to the ``facewrap`` subcommands (``summary``: its line in ``--help``)."""
     p = subparsers.add_parser(
         "rig", help=summary,
-        description="A person's rig from their neutral scan: the template wrapped onto "
-                    "it (hybrid model), every template shape made theirs, written as "
-                    "OUT/neutral.obj, OUT/shapes/<name>.obj, OUT/rig.glb (morph "
-                    "targets, texture, metres) and OUT/rig.json (the report).")
+        description="A person's rig from their scans: the template wrapped onto the "
+                    "neutral scan (hybrid model), every template shape made theirs and, "
+                    "with expression scans, corrected so the rig reproduces them "
+                    "(example-based rigging); written as OUT/neutral.obj, "
+                    "OUT/shapes/<name>.obj, OUT/rig.glb (morph targets, texture, "
+                    "metres) and OUT/rig.json (the report).")
     p.add_argument("scan", metavar="NEUTRAL_SCAN", help="the person's neutral scan (OBJ/PLY)")
+    p.add_argument("expression_scans", metavar="EXPRESSION_SCAN", nargs="*",
+                   help="scans of the person's expressions (OBJ/PLY; any head pose)")
     p.add_argument("--template", required=True, help="template mesh (OBJ/PLY)")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output folder")
@@ -76,6 +96,9 @@ def register(subparsers, summary: str) -> None:
                         "deformation transfer, or the displacements as they are "
                         "(default %(default)s)")
     add_wrap_file_options(p)
+    p.add_argument("--expression-landmarks", nargs="+", metavar="FILE",
+                   help="one landmark file per expression scan, in their order (as "
+                        "--scan-landmarks; default: detected on each scan)")
     add_fit_options(p, blendshapes_required=True, output_frame=False)
     add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")

@@ -6,7 +6,9 @@ scan, the template, the template's blendshapes and an output folder.
 (:func:`~facewrap.jobs.wrap_job.load_wrap_inputs`, so a rig refuses and warns
 about exactly what a wrap does), builds the rig (:func:`facewrap.rig.build_rig`:
 the neutral wrapped with the hybrid model, every template shape made the
-person's) and writes, inside the output folder ``OUT``:
+person's; with expression scans, each wrapped from the neutral's result,
+stabilised, and the shapes corrected so the rig reproduces them) and writes,
+inside the output folder ``OUT``:
 
 - ``OUT/neutral.obj``: the wrapped neutral in the template's topology, with
   ``neutral.mtl`` and the baked images when a texture is given, exactly as
@@ -15,7 +17,8 @@ person's) and writes, inside the output folder ``OUT``:
 - ``OUT/rig.glb``: the neutral with every shape as a named morph target, normals,
   material and the baked texture (else the template's own), in metres;
 - ``OUT/rig.json``: the report (units, timings, the neutral's fit metrics, the
-  method, the shapes).
+  method, the shapes; per expression scan its blend weights, rigid pose and
+  reconstruction error, and the neutral-only rig's error for comparison).
 
 Everything is staged (:func:`facewrap.io.paths.staged_outputs`) and appears
 together or not at all; every input problem is an
@@ -54,7 +57,7 @@ from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
 
 __all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
-           "check_rig_job_paths", "neutral_wrap_job", "NEUTRAL", "SHAPES", "GLB", "REPORT"]
+           "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL", "SHAPES", "GLB", "REPORT"]
 
 #: The files and folder written inside a rig job's output folder.
 NEUTRAL, SHAPES, GLB, REPORT = "neutral.obj", "shapes", "rig.glb", "rig.json"
@@ -76,9 +79,15 @@ class RigJob:
     output : path
         Output folder: neutral.obj (+ .mtl, baked images), shapes/<name>.obj,
         rig.glb and rig.json.
+    expression_scans : list of path
+        Scans of the person's expressions (OBJ/PLY; any head pose): each corrects
+        the shapes (example-based rigging).  Empty: the neutral only.
     scan_landmarks : path, optional
         The neutral scan's points: 'x y z' text, menpo .ljson or facewrap JSON;
         unset: the 68 iBUG points are detected on the scan.
+    expression_landmarks : list of path
+        One landmark file per expression scan, in their order (as
+        ``scan_landmarks``); empty: detected on each scan.
     template_landmarks : path, optional
         Template vertex ids (text) or facewrap landmark JSON; default: the
         template profile's landmarks.
@@ -108,7 +117,9 @@ class RigJob:
     scan: str = input_field()
     blendshapes: str = input_field()
     output: str = output_field()
+    expression_scans: list[str] = input_field(default_factory=list)
     scan_landmarks: str | None = input_field(default=None)
+    expression_landmarks: list[str] = input_field(default_factory=list)
     template_landmarks: str | None = input_field(default=None)
     template_profile: str | None = input_field(default=None)
     exclude: str | None = input_field(default=None)
@@ -132,9 +143,21 @@ def neutral_wrap_job(job: RigJob, folder=None) -> WrapJob:
                    texture=job.texture, texture_size=job.texture_size, units=job.units)
 
 
+def expression_wrap_job(job: RigJob, k: int) -> WrapJob:
+    """The wrap of expression scan ``k``, for reading and checking its files (it
+    writes nothing; the template's shapes and texture are the neutral's)."""
+    landmarks = job.expression_landmarks[k] if job.expression_landmarks else None
+    return WrapJob(template=job.template, scan=job.expression_scans[k],
+                   scan_landmarks=landmarks, output=os.path.join(job.output, NEUTRAL),
+                   template_landmarks=job.template_landmarks,
+                   template_profile=job.template_profile, units=job.units)
+
+
 def rig_job_inputs(job: RigJob) -> list[str]:
-    """Input paths of ``job`` (files or folders), as for the neutral's wrap."""
-    return job_inputs(neutral_wrap_job(job))
+    """Input paths of ``job`` (files or folders): the neutral wrap's, then the
+    expression scans and their landmarks."""
+    return (job_inputs(neutral_wrap_job(job)) + list(job.expression_scans)
+            + list(job.expression_landmarks))
 
 
 def _rig_files(job: RigJob) -> list[str]:
@@ -168,37 +191,71 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
     if job.method not in PERSONALISE_METHODS:
         raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
                          f"{job.method!r}", source or job.output)
+    if job.expression_landmarks and len(job.expression_landmarks) != len(
+            job.expression_scans):
+        raise InputError(f"{len(job.expression_landmarks)} expression landmark file(s) "
+                         f"(--expression-landmarks) for {len(job.expression_scans)} "
+                         "expression scan(s); give one per scan, or none to detect them",
+                         source or job.expression_landmarks[0])
     check_job_paths(neutral_wrap_job(job), source)
     check_output_paths(files=_rig_files(job),
                        folders=[job.output, os.path.join(job.output, SHAPES)],
                        inputs=rig_job_inputs(job), source=source)
 
 
-def _files(job: RigJob) -> dict:
-    """The file each of the wrap's refusals and warnings is about (they start
+def _files(scan: str, landmarks: str | None, job: RigJob) -> dict:
+    """The file each of a wrap's refusals and warnings is about (they start
     ``"scan landmarks: ..."``)."""
-    return {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
+    return {"scan": scan, "scan landmarks": landmarks or scan,
             "template landmarks": job.template_landmarks}
 
 
-def _build(job: RigJob, settings: WrapSettings, inputs: dict, graph_cache):
+def _named(notes, files: dict) -> list[str]:
+    """A wrap's warnings, each naming the file it is about."""
+    return [f"{files[about]}: {text}" if about in files else f"{about}: {text}"
+            for about, _, text in (note.partition(": ") for note in notes)]
+
+
+def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
+           graph_cache):
     """:func:`~facewrap.rig.build_rig` on the read inputs; the wrap's refusals name
-    the file they are about."""
-    files = _files(job)
+    the file they are about (the neutral's, when there are no expression scans to
+    tell it from)."""
     profile = inputs["profile"]
+    options = {"exclude": inputs["exclude"], "fit_mask": inputs["fit_mask"],
+               "pinned": inputs["pinned"], "graph_cache": graph_cache}
+    if not expressions:   # the expression scans' wraps build trees of their own
+        options["scan_tree"] = inputs["scan_tree"]
     try:
         return build_rig(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                          inputs["scan_landmarks"], inputs["blendshapes"],
                          settings=settings, method=job.method,
-                         anchors=None if profile is None else profile.rigid,
-                         exclude=inputs["exclude"], fit_mask=inputs["fit_mask"],
-                         pinned=inputs["pinned"], scan_tree=inputs["scan_tree"],
-                         graph_cache=graph_cache)
+                         rigid_vertices=None if profile is None else profile.rigid,
+                         expression_scans=[e["scan"] for e in expressions],
+                         expression_landmarks=[e["scan_landmarks"] for e in expressions],
+                         **options)
     except ValueError as exc:
         about, _, text = str(exc).partition(": ")
-        if about in files:
+        files = _files(job.scan, job.scan_landmarks, job)
+        if about in files and not expressions:
             raise InputError(text, files[about]) from None
         raise
+
+
+def _examples_report(job: RigJob, rig, expressions: list) -> list[dict]:
+    """Per expression scan: its files, weights, rigid pose and the rig's error."""
+    fit = rig.examples
+    return [{"scan": scan,
+             "scan_landmarks_source": "detected" if "scan" in e["detections"] else "file",
+             "weights": {k: round(float(v), 6) for k, v in weights.items()},
+             "error": dict(error), "neutral_only_error": dict(prior),
+             "pose": None if pose is None else pose.matrix.tolist(),
+             "fit": {k: w.metrics[k] for k in ("fit_mean", "fit_p95", "landmark_mean")
+                     if k in w.metrics}}
+            for scan, e, weights, error, prior, pose, w in zip(
+                job.expression_scans, expressions, fit.weights, fit.errors,
+                fit.prior_errors, fit.poses or [None] * len(expressions),
+                rig.expression_wraps)]
 
 
 def _write_shapes(folder: Path, rig, images: dict, library: bool) -> None:
@@ -257,7 +314,8 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict) -> None:
             json.dump(report, fh, indent=1)
 
 
-def _report(job: RigJob, rig, inputs: dict, read_seconds: float, notes: list) -> dict:
+def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: float,
+            notes: list) -> dict:
     """The rig's report before its outputs are written (they add paths and times)."""
     result = rig.wrap
     units, source = resolve_units(job.units, rig.neutral.vertices)
@@ -281,6 +339,8 @@ def _report(job: RigJob, rig, inputs: dict, read_seconds: float, notes: list) ->
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
+    if rig.examples is not None:
+        report["examples"] = _examples_report(job, rig, expressions)
     return report
 
 
@@ -301,9 +361,15 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     -------
     dict
         What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
-        ``shapes``, ``texture``, ``writing``, ``total``; seconds), ``metrics`` (the
+        ``shapes``, ``texture``, ``writing``, ``total`` and, with expression scans,
+        ``expressions``, ``stabilise``, ``examples``; seconds), ``metrics`` (the
         neutral's fit, in ``units``), ``method``, ``shapes`` (names), ``outputs``,
-        ``warnings`` (each also issued as an :class:`InputWarning`).
+        ``warnings`` (each also issued as an :class:`InputWarning`) and, with
+        expression scans, ``examples``: per scan its ``weights`` (name → [0, 1]),
+        ``error`` (``mean``, ``p95``: the rig at those weights against the scan's
+        wrap, in ``units``), ``neutral_only_error`` (the same for the shapes
+        before the examples corrected them), ``pose`` (the 4 x 4 rigid motion
+        that stabilised it) and ``fit`` (its wrap's distances).
 
     Raises
     ------
@@ -314,17 +380,21 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     check_rig_job_paths(job)
     t0 = time.perf_counter()
     inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
+    expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
+                   for k in range(len(job.expression_scans))]
     read_seconds = time.perf_counter() - t0
-    rig = _build(job, settings, inputs, graph_cache)
+    rig = _build(job, settings, inputs, expressions, graph_cache)
     if not np.isfinite(rig.neutral.vertices).all() or not all(
             np.isfinite(v).all() for v in rig.shapes.values()):
         raise InputError("the rig has non-finite positions (degenerate input?)", job.scan)
-    files = _files(job)
-    notes = list(inputs["warnings"]) + [
-        f"{files[about]}: {text}" if about in files else f"{about}: {text}"
-        for about, _, text in (note.partition(": ") for note in rig.wrap.warnings)]
+    notes = list(inputs["warnings"]) + _named(
+        rig.wrap.warnings, _files(job.scan, job.scan_landmarks, job))
+    for k, (e, w) in enumerate(zip(expressions, rig.expression_wraps)):
+        wrap_job = expression_wrap_job(job, k)
+        notes += e["warnings"] + _named(w.warnings, _files(
+            wrap_job.scan, wrap_job.scan_landmarks, job))
     for note in notes:
         warnings.warn(note, InputWarning, stacklevel=2)
-    report = _report(job, rig, inputs, read_seconds, notes)
+    report = _report(job, rig, inputs, expressions, read_seconds, notes)
     _write_rig_outputs(job, rig, inputs, report)
     return report
