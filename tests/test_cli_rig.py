@@ -134,3 +134,29 @@ def test_the_glb_passes_the_khronos_validator(textured, plain, which):
                        text=True, check=True)
     issues = json.loads(r.stdout)
     assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), issues["messages"]
+
+
+def test_expression_scans_on_the_command_line(tmp_path, capsys):
+    from facewrap.sample import make_scan, make_template, write_sample
+    tpl = make_template(24)
+    n = write_sample(tmp_path / "neutral", tpl, make_scan(tpl, weights={}, resolution=40,
+                                                           texture_size=16, seed=1))
+    x = write_sample(tmp_path / "smile", tpl, make_scan(tpl, weights={"smile": 1.0},
+                                                         resolution=40, texture_size=16,
+                                                         seed=2))
+    base = ["rig", n["scan"], x["scan"], "--template", n["template"], "--blendshapes",
+            tmp_path / "neutral" / "blendshapes", "--template-landmarks",
+            n["template_landmarks"], "--scan-landmarks", n["scan_landmarks"]]
+    out = tmp_path / "rig"
+    # two landmark files for one expression scan: one line, exit 2, nothing written
+    assert facewrap(*base, "--expression-landmarks", x["scan_landmarks"],
+                    n["scan_landmarks"], "-o", out) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "2 expression landmark file(s)" in err
+    assert not out.exists()
+    assert facewrap(*base, "--expression-landmarks", x["scan_landmarks"], "-o", out,
+                    "--units", "mm") == 0
+    line = capsys.readouterr().out.strip()
+    assert "1 expression scan(s) reproduced to mean " in line and "neutral-only rig" in line
+    examples = json.loads((out / "rig.json").read_text())["examples"]
+    assert examples[0]["weights"]["smile"] == pytest.approx(1.0, abs=0.1)

@@ -192,3 +192,85 @@ def test_a_failure_while_writing_leaves_nothing(sample, tmp_path, monkeypatch):
     with pytest.raises(OSError):
         run_rig_job(rig_job(sample, tmp_path / "people" / "anna"))
     assert list(tmp_path.iterdir()) == []
+
+
+# -- expression scans ------------------------------------------------------------------
+#: the expressions scanned: one shape each, at full and partial strength
+EXPRESSIONS = ({"smile": 1.0}, {"jaw_open": 0.7})
+
+
+@pytest.fixture(scope="module")
+def person(tmp_path_factory) -> dict:
+    """A neutral scan and scans of two of the same face's expressions (each in a head
+    pose of its own), with landmarks; the template and its shapes."""
+    tpl = make_template(24)
+    d = tmp_path_factory.mktemp("rig_person")
+    neutral = write_sample(d / "neutral", tpl, make_scan(
+        tpl, weights={}, resolution=40, texture_size=16, seed=1))
+    scans = [write_sample(d / f"x{k}", tpl, make_scan(
+        tpl, weights=w, resolution=40, texture_size=16, seed=2 + k))
+        for k, w in enumerate(EXPRESSIONS)]
+    return {"dir": d, "neutral": neutral, "scans": scans}
+
+
+def person_job(person, out, **kw) -> RigJob:
+    n = person["neutral"]
+    return RigJob(template=str(n["template"]), scan=str(n["scan"]),
+                  blendshapes=str(person["dir"] / "neutral" / "blendshapes"),
+                  output=str(out), scan_landmarks=str(n["scan_landmarks"]),
+                  template_landmarks=str(n["template_landmarks"]),
+                  expression_scans=[str(s["scan"]) for s in person["scans"]],
+                  expression_landmarks=[str(s["scan_landmarks"]) for s in person["scans"]],
+                  **kw)
+
+
+def test_expression_scans_correct_the_shapes_and_are_reported(person, tmp_path):
+    report = run_rig_job(person_job(person, tmp_path / "rig"))
+    examples = report["examples"]
+    assert [e["scan"] for e in examples] == [str(s["scan"]) for s in person["scans"]]
+    for meant, e in zip(EXPRESSIONS, examples):
+        (name, strength), = meant.items()
+        w = e["weights"]
+        assert set(w) == set(report["shapes"]) and all(0 <= v <= 1 for v in w.values())
+        # the scanned expression is found at about its strength, the others stay small
+        assert w[name] == pytest.approx(strength, abs=0.1)
+        assert max(v for k, v in w.items() if k != name) < 0.2
+        # the corrected rig reproduces its example better than the neutral-only one
+        assert e["error"]["mean"] < e["neutral_only_error"]["mean"]
+        assert e["error"]["mean"] <= e["error"]["p95"]
+        pose = np.asarray(e["pose"])
+        assert pose.shape == (4, 4)
+        np.testing.assert_allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-9)
+    t = report["timings"]
+    assert {"expressions", "stabilise", "examples"} <= set(t)
+    assert t["total"] == pytest.approx(sum(v for k, v in t.items() if k != "total"))
+    # the shapes written are the corrected ones, and the GLB's targets are they
+    glb = read_gltf_morphs(tmp_path / "rig" / "rig.glb")
+    smile = read_mesh(tmp_path / "rig" / "shapes" / "smile.obj").vertices
+    np.testing.assert_allclose(glb.shapes["smile"], smile * 1e-3, atol=1e-6)
+
+
+def test_expression_scans_in_a_job_file_are_a_list_of_paths(person, tmp_path):
+    job = person_job(person, "out")
+    (tmp_path / "rig.toml").write_text(
+        "[inputs]\n" + "".join(f'{k} = "{getattr(job, k)}"\n' for k in (
+            "template", "scan", "blendshapes", "scan_landmarks", "template_landmarks"))
+        + f"expression_scans = {json.dumps(job.expression_scans)}\n"
+        + f"expression_landmarks = {json.dumps(job.expression_landmarks)}\n"
+        + '[outputs]\noutput = "rig"\n[rig]\n')
+    loaded, _ = load_job(tmp_path / "rig.toml")
+    assert loaded.expression_scans == job.expression_scans
+    assert loaded.expression_landmarks == job.expression_landmarks
+    assert loaded.output == str(tmp_path / "rig")
+    # one landmark file for two scans is refused before anything runs
+    with pytest.raises(InputError, match="1 expression landmark file.* for 2 expression"):
+        run_rig_job(replace(loaded, expression_landmarks=loaded.expression_landmarks[:1]))
+    assert not (tmp_path / "rig").exists()
+    # an expression scan where a shape would be written is never overwritten
+    kept = tmp_path / "rig" / "shapes" / "smile.obj"
+    kept.parent.mkdir(parents=True)
+    kept.write_bytes(Path(job.expression_scans[0]).read_bytes())
+    with pytest.raises(InputError, match="is also an input"):
+        run_rig_job(replace(loaded, expression_scans=[str(kept)] + job.expression_scans[1:]))
+    assert kept.read_bytes() == Path(job.expression_scans[0]).read_bytes()
+    assert sorted(p.name for p in (tmp_path / "rig").iterdir()) == ["shapes"]

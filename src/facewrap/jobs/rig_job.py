@@ -161,12 +161,18 @@ def rig_job_inputs(job: RigJob) -> list[str]:
 
 
 def _rig_files(job: RigJob) -> list[str]:
-    return [os.path.join(job.output, name) for name in (GLB, REPORT)]
+    """The GLB, the report and a shape file per OBJ of the blendshapes folder (the
+    shapes are named after their files), known before anything is read."""
+    folder = Path(job.blendshapes)
+    names = sorted(p.stem for p in folder.iterdir()
+                   if p.suffix.lower() == ".obj") if folder.is_dir() else []
+    return ([os.path.join(job.output, name) for name in (GLB, REPORT)]
+            + [os.path.join(job.output, SHAPES, f"{name}.obj") for name in names])
 
 
 def rig_job_outputs(job: RigJob) -> list[str]:
     """What :func:`run_rig_job` writes: the neutral (and its material library and
-    images), the shapes folder, the GLB and the report."""
+    images), the shapes folder and its files, the GLB and the report."""
     return (job_outputs(neutral_wrap_job(job)) + [os.path.join(job.output, SHAPES)]
             + _rig_files(job))
 
