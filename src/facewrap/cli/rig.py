@@ -10,16 +10,14 @@ neutral's :class:`~facewrap.wrapping.WrapSettings` (the wrap's own options,
 
 from __future__ import annotations
 
-import sys
-import warnings
-
 import numpy as np
 
 from facewrap.cli.fit_options import (add_fit_options, add_wrap_file_options,
                                       wrap_settings_from_args)
-from facewrap.jobs import InputWarning, RigJob, run_rig_job
+from facewrap.cli.wrap import run_job_verbosely
+from facewrap.jobs import RigJob, run_rig_job
 from facewrap.rig import PERSONALISE_METHODS
-from facewrap.units import UNKNOWN, add_units_argument, format_distance, units_note
+from facewrap.units import UNKNOWN, add_units_argument, format_distance
 
 __all__ = ["register", "cmd_rig", "run_rig_job_verbosely", "rig_summary_line"]
 
@@ -46,19 +44,9 @@ def rig_summary_line(job: RigJob, report: dict) -> str:
 
 
 def run_rig_job_verbosely(job: RigJob, settings, quiet: bool = False) -> dict:
-    """Run a rig job for the command line: input warnings as one
-    ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", InputWarning)
-        report = run_rig_job(job, settings)
-    for w in caught:
-        if issubclass(w.category, InputWarning):
-            print(f"facewrap: warning: {w.message}", file=sys.stderr)
-    if not quiet:
-        print(rig_summary_line(job, report))
-        if report.get("units_source") == "inferred":
-            print(units_note(report["units"], "inferred"))
-    return report
+    """Run a rig job for the command line, as a wrap job is
+    (:func:`~facewrap.cli.wrap.run_job_verbosely`)."""
+    return run_job_verbosely(run_rig_job, rig_summary_line, job, settings, quiet)
 
 
 def cmd_rig(args) -> int:

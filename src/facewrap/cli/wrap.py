@@ -15,15 +15,17 @@ from facewrap.cli.fit_options import (add_fit_options, add_wrap_file_options,
 from facewrap.jobs import InputWarning, WrapJob, run_wrap_job
 from facewrap.units import UNKNOWN, add_units_argument, format_distance, units_note
 
-__all__ = ["register", "cmd_wrap", "run_wrap_job_verbosely", "wrap_summary_line"]
+__all__ = ["register", "cmd_wrap", "run_job_verbosely", "run_wrap_job_verbosely",
+           "wrap_summary_line"]
 
 
-def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
-    """Run a wrap job for the command line: input warnings as one
-    ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
+def run_job_verbosely(run, summary, job, settings, quiet: bool = False) -> dict:
+    """Run a job for the command line (a wrap, a rig): ``run(job, settings)``, its
+    input warnings as one ``facewrap: warning:`` line each, then unless ``quiet``
+    what was detected, the one line ``summary(job, report)`` and the units note."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
-        report = run_wrap_job(job, settings)
+        report = run(job, settings)
     for w in caught:
         if issubclass(w.category, InputWarning):
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
@@ -31,10 +33,15 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
         for what, found in report.get("detected_landmarks", {}).items():
             print(f"{what} landmarks detected: {len(found['low_confidence'])} of 68 "
                   "low-confidence, left out")
-        print(wrap_summary_line(job, report))
+        print(summary(job, report))
         if report.get("units_source") == "inferred":
             print(units_note(report["units"], "inferred"))
     return report
+
+
+def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
+    """Run a wrap job for the command line (:func:`run_job_verbosely`)."""
+    return run_job_verbosely(run_wrap_job, wrap_summary_line, job, settings, quiet)
 
 
 def wrap_summary_line(job, report: dict) -> str:

@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facewrap.detection.for_wrap import detection_report
 from facewrap.errors import InputError
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
@@ -339,6 +340,9 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
               "warnings": notes,
               "scan_landmarks_source": "detected" if "scan" in inputs["detections"]
               else "file"}
+    if inputs["detections"]:
+        report["detected_landmarks"] = {k: detection_report(v)
+                                        for k, v in inputs["detections"].items()}
     if inputs["profile"] is not None:
         report["template_profile"] = {"path": inputs["profile"].path,
                                       "gives": inputs["profile"].summary()}
