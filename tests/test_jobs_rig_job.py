@@ -274,3 +274,17 @@ def test_expression_scans_in_a_job_file_are_a_list_of_paths(person, tmp_path):
         run_rig_job(replace(loaded, expression_scans=[str(kept)] + job.expression_scans[1:]))
     assert kept.read_bytes() == Path(job.expression_scans[0]).read_bytes()
     assert sorted(p.name for p in (tmp_path / "rig").iterdir()) == ["shapes"]
+
+
+@pytest.mark.filterwarnings("ignore::facewrap.jobs.wrap_job.InputWarning")  # low-res sample
+def test_expression_scans_without_landmark_files_are_detected(person, tmp_path):
+    pytest.importorskip("dlib", reason="the optional extra facewrap[landmarks] is absent")
+    job = replace(person_job(person, tmp_path / "rig"), expression_landmarks=[],
+                  expression_scans=person_job(person, "x").expression_scans[:1])
+    report = run_rig_job(job)
+    (example,) = report["examples"]
+    assert example["scan_landmarks_source"] == "detected"
+    assert set(report["detected_landmarks"]) == {"expression scan 1"}   # the neutral's: a file
+    # the template's 68 unnamed landmarks pair with the detected ones in iBUG order: the
+    # rig still improves on the neutral-only one for that scan
+    assert example["error"]["mean"] < example["neutral_only_error"]["mean"]

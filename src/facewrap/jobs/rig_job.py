@@ -233,8 +233,14 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                "pinned": inputs["pinned"], "graph_cache": graph_cache}
     if not expressions:   # the expression scans' wraps build trees of their own
         options["scan_tree"] = inputs["scan_tree"]
+    template_landmarks = inputs["template_landmarks"]
+    named = [e["template_landmarks"] for e in expressions if "scan" in e["detections"]]
+    if template_landmarks.names is None and named:
+        # detected landmarks are named: pair them with the same template landmarks
+        # named as the detection read them (68 unnamed ones in iBUG order)
+        template_landmarks = named[0]
     try:
-        return build_rig(inputs["template"], inputs["scan"], inputs["template_landmarks"],
+        return build_rig(inputs["template"], inputs["scan"], template_landmarks,
                          inputs["scan_landmarks"], inputs["blendshapes"],
                          settings=settings, method=job.method,
                          rigid_vertices=None if profile is None else profile.rigid,
@@ -340,9 +346,11 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
               "warnings": notes,
               "scan_landmarks_source": "detected" if "scan" in inputs["detections"]
               else "file"}
-    if inputs["detections"]:
-        report["detected_landmarks"] = {k: detection_report(v)
-                                        for k, v in inputs["detections"].items()}
+    detected = {k: detection_report(v) for k, v in inputs["detections"].items()}
+    detected.update({f"expression scan {k + 1}": detection_report(e["detections"]["scan"])
+                     for k, e in enumerate(expressions) if "scan" in e["detections"]})
+    if detected:   # the neutral's ("scan", "template"), then each expression scan's
+        report["detected_landmarks"] = detected
     if inputs["profile"] is not None:
         report["template_profile"] = {"path": inputs["profile"].path,
                                       "gives": inputs["profile"].summary()}
