@@ -1,4 +1,4 @@
-"""``facewrap rig NEUTRAL_SCAN [EXPRESSION_SCAN ...] --template T --blendshapes DIR -o OUT/``.
+"""``facewrap rig NEUTRAL [EXPRESSION_SCAN ...] --template T --blendshapes DIR -o OUT``.
 
 A person's rig from their scans.
 
@@ -73,7 +73,8 @@ def register(subparsers, summary: str) -> None:
                     "(example-based rigging); written as OUT/neutral.obj, "
                     "OUT/shapes/<name>.obj, OUT/rig.glb (morph targets, texture, "
                     "metres) and OUT/rig.json (the report).")
-    p.add_argument("scan", metavar="NEUTRAL_SCAN", help="the person's neutral scan (OBJ/PLY)")
+    p.add_argument("scan", metavar="NEUTRAL_SCAN",
+                   help="the person's neutral scan (OBJ/PLY)")
     p.add_argument("expression_scans", metavar="EXPRESSION_SCAN", nargs="*",
                    help="scans of the person's expressions (OBJ/PLY; any head pose)")
     p.add_argument("--template", required=True, help="template mesh (OBJ/PLY)")

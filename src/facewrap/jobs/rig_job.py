@@ -58,7 +58,8 @@ from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
 
 __all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
-           "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL", "SHAPES", "GLB", "REPORT"]
+           "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL",
+           "SHAPES", "GLB", "REPORT"]
 
 #: The files and folder written inside a rig job's output folder.
 NEUTRAL, SHAPES, GLB, REPORT = "neutral.obj", "shapes", "rig.glb", "rig.json"
