@@ -52,6 +52,7 @@ from facewrap.jobs.fields import input_field, output_field
 from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
+from facewrap.progress import progress
 from facewrap.rig import PERSONALISE_METHODS, build_rig
 from facewrap.texture.tiles import file_textures, material_images
 from facewrap.units import metres_per_unit, resolve_units
@@ -397,12 +398,24 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     """
     settings = settings or WrapSettings()
     check_rig_job_paths(job)
-    t0 = time.perf_counter()
-    inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
-    expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
-                   for k in range(len(job.expression_scans))]
-    read_seconds = time.perf_counter() - t0
-    rig = _build(job, settings, inputs, expressions, graph_cache)
+    # on a terminal, one line that says which step runs (the wraps draw their own)
+    with progress(3, "rig: reading the scans") as bar:
+        t0 = time.perf_counter()
+        inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
+        expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
+                       for k in range(len(job.expression_scans))]
+        read_seconds = time.perf_counter() - t0
+        bar.update(completed=1, description="rig: wrapping, making the shapes")
+        rig = _build(job, settings, inputs, expressions, graph_cache)
+        bar.update(completed=2, description="rig: writing")
+        report = _finish(job, rig, inputs, expressions, read_seconds)
+        bar.advance()
+    return report
+
+
+def _finish(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: float
+            ) -> dict:
+    """Refuse a rig that is not finite, issue the warnings, write the outputs."""
     if not np.isfinite(rig.neutral.vertices).all() or not all(
             np.isfinite(v).all() for v in rig.shapes.values()):
         raise InputError("the rig has non-finite positions (degenerate input?)", job.scan)
@@ -413,7 +426,7 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
         notes += e["warnings"] + _named(w.warnings, _files(
             wrap_job.scan, wrap_job.scan_landmarks, job))
     for note in notes:
-        warnings.warn(note, InputWarning, stacklevel=2)
+        warnings.warn(note, InputWarning, stacklevel=3)
     report = _report(job, rig, inputs, expressions, read_seconds, notes)
     _write_rig_outputs(job, rig, inputs, report)
     return report
