@@ -117,6 +117,16 @@ def _expression_wraps(template, result, template_landmarks, scans, landmarks, ri
     return wraps
 
 
+def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
+    """The rigid vertices both scans saw: where a wrap only followed (the back of
+    the head no scanner reached, a hole), its position says nothing of the pose."""
+    keep = np.ones(len(rigid), dtype=bool)
+    for mask in (seen, None if neutral.projection is None else neutral.projection.projected):
+        if mask is not None:
+            keep &= mask[rigid]
+    return rigid[keep] if keep.sum() >= max(3, len(rigid) // 10) else rigid
+
+
 def _checked_expressions(scans, landmarks, weights):
     scans = list(scans)
     landmarks = list(landmarks) or [None] * len(scans)
@@ -166,7 +176,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     rigid_vertices : (r,) int, optional
         Skull-rigid template vertices (ICT-FaceKit's ``idx_to_rigid_verts``, from
         the profile).  Default: :func:`~facewrap.rig.least_moving` over the
-        template's shapes.
+        template's shapes, among the vertices the neutral scan saw.
     example_settings : ExampleSettings, optional
     **wrap_options
         Passed to :func:`~facewrap.wrapping.wrap` (``exclude``, ``fit_mask``, ...).
@@ -194,23 +204,27 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
                   blendshapes=blendshapes, **wrap_options)
     t1 = time.perf_counter()
-    rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
-                                    for v in blendshapes.values()]), template.vertices)
-             if rigid_vertices is None else np.asarray(rigid_vertices, dtype=np.int64))
     shapes = personalise_shapes(template, blendshapes, result.mesh, result.transform,
-                                method=method, anchors=rigid if anchors is None else anchors)
+                                method=method,
+                                anchors=rigid_vertices if anchors is None else anchors)
     t2 = time.perf_counter()
     timings = {"wrap": t1 - t0, "shapes": t2 - t1}
     if not scans:
         timings["total"] = t2 - t0
         return Rig(result.mesh, shapes.shapes, result, method, timings,
                    prior=shapes.shapes)
+    seen = None if result.projection is None else result.projection.projected
+    rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
+                                    for v in blendshapes.values()]), template.vertices,
+                          among=seen)
+             if rigid_vertices is None else np.asarray(rigid_vertices, dtype=np.int64))
     wraps = _expression_wraps(template, result, template_landmarks, scans, exp_landmarks,
                               rigid, blendshapes, settings, wrap_options)
     t3 = time.perf_counter()
-    stable = [stabilise(w.vertices, result.vertices, rigid) for w in wraps]
-    t4 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
+    stable = [stabilise(w.vertices, result.vertices, _seen_rigid(rigid, result, m))
+              for w, m in zip(wraps, masks)]
+    t4 = time.perf_counter()
     fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
                        masks=masks, weights=exp_weights, rigid=rigid,
                        settings=example_settings)

@@ -33,7 +33,7 @@ ROBUST_SCALE = 1.0
 ROBUST_ITERATIONS = 20
 
 
-def least_moving(poses, rest, fraction: float = 0.1) -> np.ndarray:
+def least_moving(poses, rest, fraction: float = 0.1, among=None) -> np.ndarray:
     """The ``fraction`` of vertices whose largest move over ``poses`` is smallest.
 
     Parameters
@@ -44,6 +44,8 @@ def least_moving(poses, rest, fraction: float = 0.1) -> np.ndarray:
         Their rest positions (the neutral).
     fraction : float
         Share of the vertices kept (at least 3 are).
+    among : (n,) bool, optional
+        The candidates (say, the vertices a scan saw); ``fraction`` is of them.
 
     Returns
     -------
@@ -61,8 +63,9 @@ def least_moving(poses, rest, fraction: float = 0.1) -> np.ndarray:
     rest = np.asarray(rest, dtype=np.float64)
     most = (np.linalg.norm(poses - rest[None], axis=2).max(axis=0) if len(poses)
             else np.zeros(len(rest)))
-    k = min(len(rest), max(3, int(fraction * len(rest))))
-    return np.sort(np.argsort(most, kind="stable")[:k]).astype(np.int64)
+    ids = np.arange(len(rest)) if among is None else np.flatnonzero(among)
+    k = min(len(ids), max(3, int(fraction * len(ids))))
+    return np.sort(ids[np.argsort(most[ids], kind="stable")[:k]]).astype(np.int64)
 
 
 @dataclass(frozen=True)
