@@ -1,8 +1,8 @@
 """The ``facewrap`` command: builds the parser and dispatches to one subcommand.
 
 Each subcommand lives in its own module here (``info``, ``convert``, ``sample``,
-``wrap``, ``animate``, ``track``, ``transfer``, ``evaluate``, ``report``, ``run``,
-``batch``, ``demo``, ``landmarks``) with ``register(subparsers, summary)`` and a
+``wrap``, ``animate``, ``track``, ``transfer``, ``rig``, ``evaluate``, ``report``,
+``run``, ``batch``, ``demo``, ``landmarks``) with ``register(subparsers, summary)`` and a
 ``cmd_<name>(args)`` that parses and calls the library.  Only the chosen
 command's module is imported (the others appear in ``--help`` by their summary
 line), so a command pays the start-up of what it uses and nothing else.  Errors in user input
@@ -33,11 +33,12 @@ COMMANDS = {
     "animate": "interpolate two fitted meshes into a sequence",
     "track": "register a sequence of scans (4D), each frame from the last",
     "transfer": "transfer poses/blendshapes onto a mesh of another topology",
+    "rig": "a person's rig from their scan: neutral, their own shapes, GLB",
     "evaluate": "distances, landmark / ground-truth errors and triangle quality of a "
                 "fitted mesh",
     "report": "HTML page (numbers, pictures, 3D viewer) of a wrap run",
-    "run": "run a wrap or transfer described by a TOML job file",
-    "batch": "run many wrap or transfer jobs from a manifest (CSV or TOML), resumable",
+    "run": "run a wrap, transfer or rig described by a TOML job file",
+    "batch": "run many wrap, transfer or rig jobs from a manifest (CSV or TOML), resumable",
     "demo": "run the main job on the built-in sample",
     "landmarks": "detect the 68 face landmarks on a scan or template (no user input)",
 }

@@ -1,4 +1,4 @@
-"""The fitting options shared by ``facewrap wrap`` and ``facewrap track``.
+"""The fitting options shared by ``facewrap wrap``, ``facewrap track`` and ``facewrap rig``.
 
 Choices and defaults come from :class:`~facewrap.wrapping.WrapSettings` (its
 field defaults and its constraint table, :func:`facewrap.params.choices_of`), so
@@ -14,7 +14,8 @@ from facewrap.errors import InputError
 from facewrap.params import SettingsError, choices_of
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["add_fit_options", "wrap_settings_from_args", "option_name"]
+__all__ = ["add_fit_options", "add_wrap_file_options", "wrap_settings_from_args",
+           "option_name"]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(WrapSettings)}
 
@@ -30,9 +31,37 @@ def _choice_option(p, option: str, field: str, help: str, type=str) -> None:
                    choices=list(choices_of(WrapSettings, field)), help=help)
 
 
-def add_fit_options(p) -> None:
-    """Add the fitting options (see :class:`~facewrap.wrapping.WrapSettings`) to ``p``."""
-    p.add_argument("--blendshapes", metavar="DIR",
+def add_wrap_file_options(p) -> None:
+    """Add the input files of one wrap besides template and scan (landmarks, profile,
+    vertex sets, texture: the :class:`~facewrap.jobs.WrapJob` fields) to ``p``."""
+    p.add_argument("--template-landmarks",
+                   help="template vertex ids (text) or facewrap landmark JSON (default: "
+                        "the template profile's)")
+    p.add_argument("--scan-landmarks",
+                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON "
+                        "(default: the 68 iBUG points detected on the scan, and on the "
+                        "template when it has no landmarks; needs facewrap[landmarks])")
+    p.add_argument("--template-profile", metavar="FILE",
+                   help="the template's landmarks and fitting vertices: ICT-FaceKit's "
+                        "vertex_indices.json or a facewrap profile (default: one found "
+                        "beside the template; 'none' for none)")
+    p.add_argument("--fit-mask", metavar="FILE",
+                   help="template vertex ids to pull onto the scan, and only those")
+    p.add_argument("--pin", metavar="FILE",
+                   help="template vertex ids kept exactly where the landmark alignment "
+                        "puts them")
+    p.add_argument("--texture", help="scan texture image to bake into the template UVs")
+    p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
+
+
+def add_fit_options(p, *, blendshapes_required: bool = False,
+                    output_frame: bool = True) -> None:
+    """Add the fitting options (see :class:`~facewrap.wrapping.WrapSettings`) to ``p``.
+
+    ``blendshapes_required``: ``--blendshapes`` must be given (a rig's shapes);
+    ``output_frame``: offer ``--output-frame`` (not where outputs stay on the scan).
+    """
+    p.add_argument("--blendshapes", metavar="DIR", required=blendshapes_required,
                    help="folder of meshes in the template's topology (shape = file - "
                         "template)")
     _choice_option(p, "--model", "model", "deformation model (default: hybrid with "
@@ -84,10 +113,12 @@ def add_fit_options(p) -> None:
                    help="weight of point-to-point against point-to-plane (weight 1) "
                         f"distances in the fit ({_allowed('point_weight')}; default "
                         "%(default)s)")
-    p.add_argument("--output-frame", choices=OUTPUT_FRAMES, default=WrapJob.output_frame,
-                   help="write the result where the scan is ('scan') or mapped back "
-                        "through the inverse of the landmark similarity so it overlays "
-                        "the template ('template'; default %(default)s)")
+    if output_frame:
+        p.add_argument("--output-frame", choices=OUTPUT_FRAMES,
+                       default=WrapJob.output_frame,
+                       help="write the result where the scan is ('scan') or mapped back "
+                            "through the inverse of the landmark similarity so it "
+                            "overlays the template ('template'; default %(default)s)")
     p.add_argument("--allow-mirrored", action="store_true",
                    help="fit landmarks that match a mirror image of the template's "
                         "(refused by default: usually a mirrored scan or landmark file)")

@@ -1,4 +1,4 @@
-"""``facewrap run JOB.toml``: run the job (wrap or transfer) a job file describes.
+"""``facewrap run JOB.toml``: run the job (wrap, transfer or rig) a job file describes.
 
 Parsing and one call.  The job file format is :mod:`facewrap.jobs.jobfile`'s;
 ``--write-template`` writes a commented wrap job file with every key to start
@@ -14,7 +14,7 @@ from facewrap.cli.transfer import print_transfer_summary
 from facewrap.cli.wrap import run_wrap_job_verbosely
 from facewrap.errors import InputError
 from facewrap.io.paths import check_writable
-from facewrap.jobs import TRANSFER, job_to_toml, kind_of, load_job, run_transfer_job, write_job
+from facewrap.jobs import RIG, TRANSFER, job_to_toml, kind_of, load_job, run_transfer_job, write_job
 
 __all__ = ["register", "cmd_run"]
 
@@ -42,6 +42,9 @@ def cmd_run(args) -> int:
         report = run_transfer_job(job)
         if not args.quiet:
             print_transfer_summary(report)
+    elif kind is RIG:
+        from facewrap.cli.rig import run_rig_job_verbosely   # its imports, on use
+        run_rig_job_verbosely(job, settings, quiet=args.quiet)
     else:
         run_wrap_job_verbosely(job, settings, quiet=args.quiet)
     return 0
@@ -52,7 +55,7 @@ def register(subparsers, summary: str) -> None:
     p = subparsers.add_parser(
         "run", help=summary,
         description="Run the job a TOML job file describes (inputs, outputs and "
-                    "[wrap] or [transfer] settings; paths relative to the file). Start "
+                    "[wrap], [transfer] or [rig] settings; paths relative to the file). Start "
                     "from `facewrap run --write-template job.toml`.")
     p.add_argument("job", metavar="JOB.toml", help="job file")
     p.add_argument("--dry-run", action="store_true",

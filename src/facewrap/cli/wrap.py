@@ -10,19 +10,22 @@ from __future__ import annotations
 import sys
 import warnings
 
-from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
+from facewrap.cli.fit_options import (add_fit_options, add_wrap_file_options,
+                                      wrap_settings_from_args)
 from facewrap.jobs import InputWarning, WrapJob, run_wrap_job
 from facewrap.units import UNKNOWN, add_units_argument, format_distance, units_note
 
-__all__ = ["register", "cmd_wrap", "run_wrap_job_verbosely", "wrap_summary_line"]
+__all__ = ["register", "cmd_wrap", "run_job_verbosely", "run_wrap_job_verbosely",
+           "wrap_summary_line"]
 
 
-def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
-    """Run a wrap job for the command line: input warnings as one
-    ``facewrap: warning:`` line each, then a one-line summary unless ``quiet``."""
+def run_job_verbosely(run, summary, job, settings, quiet: bool = False) -> dict:
+    """Run a job for the command line (a wrap, a rig): ``run(job, settings)``, its
+    input warnings as one ``facewrap: warning:`` line each, then unless ``quiet``
+    what was detected, the one line ``summary(job, report)`` and the units note."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
-        report = run_wrap_job(job, settings)
+        report = run(job, settings)
     for w in caught:
         if issubclass(w.category, InputWarning):
             print(f"facewrap: warning: {w.message}", file=sys.stderr)
@@ -30,10 +33,15 @@ def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
         for what, found in report.get("detected_landmarks", {}).items():
             print(f"{what} landmarks detected: {len(found['low_confidence'])} of 68 "
                   "low-confidence, left out")
-        print(wrap_summary_line(job, report))
+        print(summary(job, report))
         if report.get("units_source") == "inferred":
             print(units_note(report["units"], "inferred"))
     return report
+
+
+def run_wrap_job_verbosely(job, settings, quiet: bool = False) -> dict:
+    """Run a wrap job for the command line (:func:`run_job_verbosely`)."""
+    return run_job_verbosely(run_wrap_job, wrap_summary_line, job, settings, quiet)
 
 
 def wrap_summary_line(job, report: dict) -> str:
@@ -69,25 +77,8 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scan", help="scan mesh (OBJ/PLY)")
     p.add_argument("-o", "--output", required=True, help="output mesh (OBJ/PLY)")
-    p.add_argument("--template-landmarks",
-                   help="template vertex ids (text) or facewrap landmark JSON (default: "
-                        "the template profile's)")
-    p.add_argument("--scan-landmarks",
-                   help="scan points: 'x y z' text, menpo .ljson or facewrap JSON "
-                        "(default: the 68 iBUG points detected on the scan, and on the "
-                        "template when it has no landmarks; needs facewrap[landmarks])")
-    p.add_argument("--template-profile", metavar="FILE",
-                   help="the template's landmarks and fitting vertices: ICT-FaceKit's "
-                        "vertex_indices.json or a facewrap profile (default: one found "
-                        "beside the template; 'none' for none)")
-    p.add_argument("--fit-mask", metavar="FILE",
-                   help="template vertex ids to pull onto the scan, and only those")
-    p.add_argument("--pin", metavar="FILE",
-                   help="template vertex ids kept exactly where the landmark alignment "
-                        "puts them")
+    add_wrap_file_options(p)
     add_fit_options(p)
-    p.add_argument("--texture", help="scan texture image to bake into the template UVs")
-    p.add_argument("--texture-size", type=int, default=WrapJob.texture_size)
     p.add_argument("--report", help="write metrics and timings as JSON")
     p.add_argument("--gltf", metavar="OUT.glb|OUT.gltf",
                    help="also write the fitted mesh as glTF (binary .glb or JSON .gltf, "

@@ -2,6 +2,7 @@
 
 * :mod:`.wrap_job` — :class:`WrapJob` and :func:`run_wrap_job`;
 * :mod:`.transfer_job` — :class:`TransferJob` and :func:`run_transfer_job`;
+* :mod:`.rig_job` — :class:`RigJob` and :func:`run_rig_job` (a person's rig);
 * :mod:`.kinds` — what job files and batches need of each kind of job;
 * :mod:`.jobfile` — reading TOML job files; :mod:`.jobfile_writer` — writing them;
 * :mod:`.values` — checking and converting values; :mod:`.toml_text` — TOML text.
@@ -17,6 +18,12 @@ _PUBLIC = {
     "write_job": "facewrap.jobs.jobfile_writer",
     "JOB_KINDS": "facewrap.jobs.kinds",
     "TRANSFER": "facewrap.jobs.kinds",
+    "RIG": "facewrap.jobs.kinds",
+    "RigJob": "facewrap.jobs.rig_job",
+    "run_rig_job": "facewrap.jobs.rig_job",
+    "check_rig_job_paths": "facewrap.jobs.rig_job",
+    "rig_job_inputs": "facewrap.jobs.rig_job",
+    "rig_job_outputs": "facewrap.jobs.rig_job",
     "WRAP": "facewrap.jobs.kinds",
     "JobKind": "facewrap.jobs.kinds",
     "kind_of": "facewrap.jobs.kinds",
@@ -43,8 +50,10 @@ __all__ = [
     # transfer jobs
     "TransferJob", "TransferJobSettings", "run_transfer_job", "check_transfer_job_paths",
     "transfer_job_inputs", "transfer_job_outputs",
+    # rig jobs
+    "RigJob", "run_rig_job", "check_rig_job_paths", "rig_job_inputs", "rig_job_outputs",
     # kinds of job
-    "JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "kind_of",
+    "JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "RIG", "kind_of",
     # job files
     "load_job", "read_job_tables", "job_to_toml", "write_job",
 ]

@@ -23,7 +23,11 @@ A wrap job file has three tables (and an optional ``version = 1``)::
 
 A transfer job file has a ``[transfer]`` table (:class:`~facewrap.jobs.transfer_job.
 TransferJobSettings` fields) instead of ``[wrap]``, and the inputs and outputs of a
-:class:`~facewrap.jobs.transfer_job.TransferJob`.  The settings table names the
+:class:`~facewrap.jobs.transfer_job.TransferJob`.  A rig job file has a ``[rig]`` table
+(the :class:`~facewrap.wrapping.WrapSettings` of the neutral's wrap; it may be
+empty, it names the kind) and the inputs and outputs of a
+:class:`~facewrap.jobs.rig_job.RigJob` (``expression_scans`` and
+``expression_landmarks`` are arrays of paths).  The settings table names the
 kind of job (:mod:`facewrap.jobs.kinds`); a partial file without one (a batch's
 shared inputs) is of the kind whose keys it uses.
 

@@ -1,7 +1,7 @@
-"""The kinds of job (wrap, transfer): what job files and batches need of each.
+"""The kinds of job (wrap, transfer, rig): what job files and batches need of each.
 
 A :class:`JobKind` ties a job dataclass to its settings dataclass, the name of
-its settings table in a job file (``[wrap]``, ``[transfer]``), and the functions
+its settings table in a job file (``[wrap]``, ``[transfer]``, ``[rig]``), and the functions
 that list its inputs and outputs, check its paths and run it.  Job files
 (:mod:`facewrap.jobs.jobfile`) and batches (:mod:`facewrap.batch`) work through
 this table only, so a new kind of job is one entry in :data:`JOB_KINDS`.
@@ -14,6 +14,8 @@ import os
 from dataclasses import dataclass
 from typing import Callable
 
+from facewrap.jobs.rig_job import (RigJob, check_rig_job_paths, rig_job_inputs,
+                                   rig_job_outputs, run_rig_job)
 from facewrap.jobs.transfer_job import (TransferJob, TransferJobSettings,
                                         check_transfer_job_paths, run_transfer_job,
                                         transfer_job_inputs, transfer_job_outputs)
@@ -21,7 +23,7 @@ from facewrap.jobs.wrap_job import (WrapJob, check_job_paths, job_inputs, job_ou
                                     run_wrap_job)
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "kind_of"]
+__all__ = ["JobKind", "JOB_KINDS", "WRAP", "TRANSFER", "RIG", "kind_of"]
 
 
 @dataclass(frozen=True)
@@ -83,12 +85,18 @@ TRANSFER = JobKind(name="transfer", job_class=TransferJob,
                    check_paths=check_transfer_job_paths, main_output="out",
                    summary="transfers the source shapes onto the target",
                    subject="source_shapes", settings_field="settings")
+# the neutral's wrap settings are the [rig] table; the method is a job field
+RIG = JobKind(name="rig", job_class=RigJob, settings_class=WrapSettings, run=run_rig_job,
+              inputs=rig_job_inputs, outputs=rig_job_outputs,
+              check_paths=check_rig_job_paths, main_output="output",
+              summary="builds the person's rig (neutral, shapes, GLB) from their scan",
+              subject="scan")
 #: Every kind of job, by the name of its settings table.
-JOB_KINDS = {k.name: k for k in (WRAP, TRANSFER)}
+JOB_KINDS = {k.name: k for k in (WRAP, TRANSFER, RIG)}
 
 
 def kind_of(job) -> JobKind:
-    """The kind of a job instance (WrapJob, TransferJob)."""
+    """The kind of a job instance (WrapJob, TransferJob, RigJob)."""
     for kind in JOB_KINDS.values():
         if isinstance(job, kind.job_class):
             return kind

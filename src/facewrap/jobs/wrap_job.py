@@ -55,7 +55,8 @@ from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 log = logging.getLogger(__name__)
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
-           "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES"]
+           "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES",
+           "write_wrap_outputs", "textureoutput_field"]
 
 #: Mesh formats an output may have.
 MESH_EXTENSIONS = (".obj", ".ply")
@@ -412,7 +413,7 @@ def _template_landmarks(job: WrapJob, template: Mesh, profile, detections):
                      "(see facewrap.io.profile)", job.template)
 
 
-def _write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
+def write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
     """Mesh, baked images, material library, glTF and report, staged and moved into
     place together.
 
@@ -539,5 +540,5 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
-    _write_wrap_outputs(job, result, inputs, report)
+    write_wrap_outputs(job, result, inputs, report)
     return report

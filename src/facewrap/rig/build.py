@@ -1,16 +1,36 @@
-"""``build_rig``: a person's neutral scan in, their rig out (wrap, then personalise)."""
+"""``build_rig``: a person's scans in, their rig out.
+
+The neutral scan is wrapped (the hybrid model) and the template's shapes are made
+the person's (:mod:`.personalise`).  Expression scans, when given, are each
+wrapped warm-started from the neutral's result
+(:func:`facewrap.wrapping.track.wrap_following`, as a sequence's later frame is),
+after a rough rigid pre-alignment (the head moves between scans): from the
+expression's landmarks to the neutral scan's, reweighted so that the mouth and
+brows, which the expression moves, count little; or, for a scan without
+landmarks, by rigid ICP of the neutral wrap onto it (its landmarks then are the
+neutral's moved along and snapped onto the scan, weighted low, as for a
+sequence).  Each wrap is stabilised (:mod:`.stabilise`) and the shapes are
+corrected to reproduce them (:mod:`.examples`).
+"""
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from facewrap.landmarks import Landmarks
+from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.similarity import Similarity
+from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.mesh import Mesh
+from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples
 from facewrap.rig.personalise import personalise_shapes
+from facewrap.rig.stabilise import least_moving, stabilise
 from facewrap.wrapping import WrapResult, WrapSettings, wrap
+from facewrap.wrapping.align import rigid_icp
+from facewrap.wrapping.track import wrap_following
 
 __all__ = ["Rig", "build_rig"]
 
@@ -30,7 +50,16 @@ class Rig:
     method : str
         How the shapes were carried (:data:`~facewrap.rig.PERSONALISE_METHODS`).
     timings : dict
-        Seconds: ``wrap``, ``shapes`` and ``total``.
+        Seconds: ``wrap``, ``shapes``, ``total`` and, with expression scans,
+        ``expressions`` (their wraps), ``stabilise`` and ``examples``.
+    examples : ExampleFit or None
+        With expression scans: their weights, reconstruction errors and rigid
+        poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
+        corrected ones.  None without.
+    expression_wraps : list of WrapResult
+        One per expression scan (in its scan's frame).
+    prior : dict of str to (n, 3) float64
+        The shapes before the examples corrected them (the neutral-only rig's).
     """
 
     neutral: Mesh
@@ -38,6 +67,9 @@ class Rig:
     wrap: WrapResult
     method: str
     timings: dict = field(default_factory=dict)
+    examples: ExampleFit | None = None
+    expression_wraps: list = field(default_factory=list)
+    prior: dict = field(default_factory=dict)
 
     def shape_mesh(self, name: str) -> Mesh:
         """Shape ``name`` as a mesh in the template's exact topology."""
@@ -51,11 +83,68 @@ class Rig:
                           textures=textures)
 
 
+def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
+                 landmarks: Landmarks | None, tree: ClosestPointTree,
+                 rigid: np.ndarray) -> Similarity:
+    """A rough rigid motion from the neutral scan's frame to ``scan``'s.
+
+    From the landmarks when given (the neutral wrap's landmarks onto the scan's,
+    robustly: the ones the expression moves lose their weight), else by trimmed
+    rigid ICP of the neutral wrap's skull-rigid vertices onto the scan.
+    """
+    if landmarks is not None:
+        ia, ib = pair_landmarks(template_landmarks, landmarks, ("template", "scan"))
+        ours = template_landmarks.positions(neutral.mesh)[ia]
+        theirs = landmarks.positions(scan)[ib]
+        return stabilise(ours, theirs, np.arange(len(ia))).pose
+    points = neutral.vertices[rigid]
+    return rigid_icp(points, tree, max_distance=0.1 * scan.scale()).transform
+
+
+def _expression_wraps(template, result, template_landmarks, scans, landmarks, rigid,
+                      blendshapes, settings, wrap_options) -> list[WrapResult]:
+    """Each expression scan wrapped from the neutral's result, moved by the head's
+    rough motion first (so the warm start begins where the head now is)."""
+    wraps = []
+    for scan, lm in zip(scans, landmarks):
+        tree = ClosestPointTree(scan.vertices, scan.triangles)
+        motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
+        start = replace(result, transform=motion.compose(result.transform),
+                        mesh=result.mesh.with_vertices(motion.apply(result.vertices)))
+        wraps.append(wrap_following(template, scan, template_landmarks, lm, start,
+                                    settings, blendshapes=blendshapes, scan_tree=tree,
+                                    **wrap_options))
+    return wraps
+
+
+def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
+    """The rigid vertices both scans saw: where a wrap only followed (the back of
+    the head no scanner reached, a hole), its position says nothing of the pose."""
+    keep = np.ones(len(rigid), dtype=bool)
+    for mask in (seen, None if neutral.projection is None else neutral.projection.projected):
+        if mask is not None:
+            keep &= mask[rigid]
+    return rigid[keep] if keep.sum() >= max(3, len(rigid) // 10) else rigid
+
+
+def _checked_expressions(scans, landmarks, weights):
+    scans = list(scans)
+    landmarks = list(landmarks) or [None] * len(scans)
+    weights = list(weights) or [None] * len(scans)
+    for what, items in (("expression_landmarks", landmarks), ("expression_weights", weights)):
+        if len(items) != len(scans):
+            raise ValueError(f"{len(scans)} expression scans but {len(items)} {what}")
+    return scans, landmarks, weights
+
+
 def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
               scan_landmarks: Landmarks, blendshapes: dict, *,
               settings: WrapSettings | None = None, method: str = "deformation",
-              anchors=None, **wrap_options) -> Rig:
-    """Wrap ``template`` onto a person's neutral ``scan`` and make its shapes theirs.
+              anchors=None, expression_scans: Sequence[Mesh] = (),
+              expression_landmarks: Sequence[Landmarks | None] = (),
+              expression_weights: Sequence[dict | None] = (), rigid_vertices=None,
+              example_settings: ExampleSettings | None = None, **wrap_options) -> Rig:
+    """Wrap ``template`` onto a person's scans and make its shapes theirs.
 
     Parameters
     ----------
@@ -73,7 +162,22 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     method : {"deformation", "delta"}
         See :func:`~facewrap.rig.personalise_shapes`.
     anchors : (k,) int, optional
-        See :func:`~facewrap.rig.personalise_shapes`.
+        See :func:`~facewrap.rig.personalise_shapes`; default ``rigid_vertices``.
+    expression_scans : sequence of Mesh, optional
+        Scans of the person's expressions (any head pose): each is wrapped,
+        stabilised and used to correct the shapes (:func:`~facewrap.rig.fit_examples`).
+    expression_landmarks : sequence of (Landmarks or None), optional
+        One per expression scan, paired with ``template_landmarks`` as the
+        neutral's are; None (or omitted): the head's pose is found by rigid ICP
+        and the neutral's landmarks, carried along, guide the wrap weakly.
+    expression_weights : sequence of (dict or None), optional
+        One per expression scan: the expression the person was asked to make
+        (``{"jawOpen": 1.0}``), a prior for its weights; None: free.
+    rigid_vertices : (r,) int, optional
+        Skull-rigid template vertices (ICT-FaceKit's ``idx_to_rigid_verts``, from
+        the profile).  Default: :func:`~facewrap.rig.least_moving` over the
+        template's shapes, among the vertices the neutral scan saw.
+    example_settings : ExampleSettings, optional
     **wrap_options
         Passed to :func:`~facewrap.wrapping.wrap` (``exclude``, ``fit_mask``, ...).
 
@@ -90,14 +194,42 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     ...                 tpl.blendshapes)
     >>> sorted(rig.shapes) == sorted(tpl.blendshapes), rig.neutral.n_vertices
     (True, 1164)
+    >>> rig.examples is None
+    True
     """
+    scans, exp_landmarks, exp_weights = _checked_expressions(
+        expression_scans, expression_landmarks, expression_weights)
     t0 = time.perf_counter()
     settings = settings or WrapSettings(model="hybrid")
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
                   blendshapes=blendshapes, **wrap_options)
     t1 = time.perf_counter()
     shapes = personalise_shapes(template, blendshapes, result.mesh, result.transform,
-                                method=method, anchors=anchors)
+                                method=method,
+                                anchors=rigid_vertices if anchors is None else anchors)
     t2 = time.perf_counter()
-    return Rig(result.mesh, shapes.shapes, result, method,
-               {"wrap": t1 - t0, "shapes": t2 - t1, "total": t2 - t0})
+    timings = {"wrap": t1 - t0, "shapes": t2 - t1}
+    if not scans:
+        timings["total"] = t2 - t0
+        return Rig(result.mesh, shapes.shapes, result, method, timings,
+                   prior=shapes.shapes)
+    seen = None if result.projection is None else result.projection.projected
+    rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
+                                    for v in blendshapes.values()]), template.vertices,
+                          among=seen)
+             if rigid_vertices is None else np.asarray(rigid_vertices, dtype=np.int64))
+    wraps = _expression_wraps(template, result, template_landmarks, scans, exp_landmarks,
+                              rigid, blendshapes, settings, wrap_options)
+    t3 = time.perf_counter()
+    masks = [None if w.projection is None else w.projection.projected for w in wraps]
+    stable = [stabilise(w.vertices, result.vertices, _seen_rigid(rigid, result, m))
+              for w, m in zip(wraps, masks)]
+    t4 = time.perf_counter()
+    fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
+                       masks=masks, weights=exp_weights, rigid=rigid,
+                       settings=example_settings)
+    fit = replace(fit, poses=[x.pose for x in stable])
+    t5 = time.perf_counter()
+    timings.update(expressions=t3 - t2, stabilise=t4 - t3, examples=t5 - t4,
+                   total=t5 - t0)
+    return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes)

@@ -25,6 +25,7 @@ import numpy as np
 from facewrap.geometry.similarity import Similarity
 from facewrap.mesh import Mesh
 from facewrap.params import Options, validate
+from facewrap.rig.stabilise import least_moving
 from facewrap.transfer import Correspondence, DeformationTransfer
 
 __all__ = ["PERSONALISE_METHODS", "PersonalisedShapes", "personalise_shapes"]
@@ -69,14 +70,6 @@ def _same_topology(template: Mesh, anchors) -> Correspondence:
     return Correspondence(t, t.copy(), n, len(t), n, len(t), np.c_[anchors, anchors],
                           template.vertices.copy(), "source",
                           {"kind": "same topology"})
-
-
-def _least_moving(poses: np.ndarray, rest: np.ndarray, fraction: float = 0.1) -> np.ndarray:
-    """The ``fraction`` of vertices whose largest move over ``poses`` is smallest."""
-    most = (np.linalg.norm(poses - rest[None], axis=2).max(axis=0) if len(poses)
-            else np.zeros(len(rest)))
-    k = max(3, int(fraction * len(rest)))
-    return np.sort(np.argsort(most, kind="stable")[:k])
 
 
 def personalise_shapes(template: Mesh, shapes: dict, person: Mesh, similarity: Similarity,
@@ -132,7 +125,7 @@ def personalise_shapes(template: Mesh, shapes: dict, person: Mesh, similarity: S
         return PersonalisedShapes(dict(zip(names, out)), method,
                                   {"factor": 0.0, "shapes": time.perf_counter() - t0})
     if anchors is None:
-        anchors = _least_moving(poses, aligned)
+        anchors = least_moving(poses, aligned)
     anchors = np.asarray(anchors, dtype=np.int64)
     source = template.with_vertices(aligned)
     # one anchor vertex fixes the solve's translation; the anchors' mean then sets it

@@ -37,7 +37,8 @@ from facewrap.wrapping.models.graph import GraphCache
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.stages import WrapResult, wrap
 
-__all__ = ["TrackResult", "track", "tracking_schedule", "write_track_outputs"]
+__all__ = ["TrackResult", "track", "tracking_schedule", "wrap_following",
+           "write_track_outputs"]
 
 #: landmark weight factor of frames whose landmarks are predicted from the previous
 #: frames.  Larger factors let the lag of the first, unpredicted frame compound
@@ -105,6 +106,35 @@ def _propagated_landmarks(previous: WrapResult, template_landmarks: Landmarks,
     return Landmarks.from_points(tree.query(P).points, names=template_landmarks.names)
 
 
+def wrap_following(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
+                   scan_landmarks: Landmarks | None, previous: WrapResult,
+                   settings: WrapSettings | None = None, *, before: WrapResult | None = None,
+                   blendshapes=None, scan_tree: ClosestPointTree | None = None,
+                   **options) -> WrapResult:
+    """One scan wrapped warm-started from ``previous`` (a later frame of :func:`track`).
+
+    ``previous``'s similarity and blend weights start the fit, with
+    :func:`tracking_schedule` unless ``settings.stages`` is set.  Without
+    ``scan_landmarks``, the landmarks are predicted from ``previous`` (and
+    ``before``, the frame before it: constant velocity), put onto the scan and
+    weighted by :data:`PROPAGATED_LANDMARKS`.  Other arguments (and ``options``:
+    ``exclude``, ``graph_cache``, ...) as for :func:`~facewrap.wrapping.wrap`;
+    ``settings`` are the first frame's.
+    """
+    s0 = settings or WrapSettings()
+    tree = scan_tree or ClosestPointTree(scan.vertices, scan.triangles)
+    given = scan_landmarks is not None
+    lm = scan_landmarks if given else _propagated_landmarks(previous, template_landmarks,
+                                                            tree, before)
+    model = previous.settings.model
+    # carried-over landmarks are predictions: they guide, they never pull
+    s = replace(s0, model=model, stages=s0.stages or tracking_schedule(model),
+                landmark_scale=s0.landmark_scale * (1.0 if given else PROPAGATED_LANDMARKS),
+                landmark_pull=s0.landmark_pull and given)
+    return wrap(template, scan, template_landmarks, lm, s, blendshapes=blendshapes,
+                scan_tree=tree, initial=previous, **options)
+
+
 def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
           settings: WrapSettings | None = None, *, blendshapes=None, exclude=None,
           progress=None, graph_cache: GraphCache | None = None) -> TrackResult:
@@ -151,18 +181,10 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
             result = wrap(template, scan, template_landmarks, lm, s0, exclude=exclude,
                           blendshapes=blendshapes, scan_tree=tree, graph_cache=graph_cache)
         else:
-            if lm is None:
-                lm = _propagated_landmarks(previous, template_landmarks, tree,
-                                           frames[-2] if len(frames) > 1 else None)
-            model = previous.settings.model
-            # carried-over landmarks are predictions: they guide, they never pull
-            s = replace(s0, model=model, stages=s0.stages or tracking_schedule(model),
-                        landmark_scale=s0.landmark_scale * (1.0 if given[-1]
-                                                            else PROPAGATED_LANDMARKS),
-                        landmark_pull=s0.landmark_pull and given[-1])
-            result = wrap(template, scan, template_landmarks, lm, s, exclude=exclude,
-                          blendshapes=blendshapes, scan_tree=tree, initial=previous,
-                          graph_cache=graph_cache)
+            result = wrap_following(template, scan, template_landmarks, lm, previous, s0,
+                                    before=frames[-2] if len(frames) > 1 else None,
+                                    exclude=exclude, blendshapes=blendshapes,
+                                    scan_tree=tree, graph_cache=graph_cache)
         frames.append(result)
         if progress is not None:
             progress(i, result)
