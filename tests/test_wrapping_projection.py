@@ -3,7 +3,8 @@ import pytest
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.wrapping.projection import METHOD_PRISM, project_to_surface, smooth_extension
+from facewrap.wrapping.blend import smooth_extension
+from facewrap.wrapping.projection import METHOD_PRISM, project_to_surface
 
 
 def grid(n, size=1.0, z=lambda x, y: 0 * x, jitter=0.0, seed=0, quads=True):
@@ -119,7 +120,7 @@ def _strip_with_sliver():
 def test_settle_turns_a_sliver_back_with_its_neighbourhood_rotation():
     from facewrap.geometry import flipped_triangles
     from facewrap.geometry.similarity import Similarity
-    from facewrap.wrapping.projection import settle_turned_corners
+    from facewrap.wrapping.unfold import settle_turned_corners
     V, T = _strip_with_sliver()
     # the whole neighbourhood turned 30 degrees about x and moved: the sliver's
     # corner slipped across the long edge
@@ -143,7 +144,7 @@ def test_settle_turns_a_sliver_back_with_its_neighbourhood_rotation():
 
 def test_relax_flips_fewest_never_leaves_more_folds_than_it_was_given():
     from facewrap.geometry import flipped_triangles
-    from facewrap.wrapping.projection import relax_flips
+    from facewrap.wrapping.unfold import relax_flips
     rng = np.random.default_rng(3)
     g = np.stack(np.meshgrid(np.arange(8.0), np.arange(8.0)), -1).reshape(-1, 2)
     V = np.c_[g, np.zeros(64)]
@@ -155,3 +156,36 @@ def test_relax_flips_fewest_never_leaves_more_folds_than_it_was_given():
         out, moved = relax_flips(Mesh(V, T), V, fit, fixed=fixed, rounds=3, fewest=True)
         assert flipped_triangles(out, V, T).sum() <= flipped_triangles(fit, V, T).sum()
         assert not moved[fixed].any() and np.array_equal(out[~moved], fit[~moved])
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_a_biharmonic_fill_follows_the_scan_across_a_hole_and_folds_nothing(masked):
+    """Vertices over a hole of a curved scan do not land; a harmonic blend sags
+    between the landing points around it, the biharmonic fill (blend_order 2)
+    follows the bump.  Vertices the mask leaves out keep the harmonic blend."""
+    from facewrap.geometry import turned_triangles
+    template = grid(31, 0.8)
+    template = template.with_vertices(template.vertices + [0, 0, 0.1])
+    scan = grid(70, 1.0, bump, jitter=0.2, quads=False)
+    C = scan.vertices[scan.triangles].mean(axis=1)
+    hole = np.hypot(C[:, 0] - 0.1, C[:, 1]) < 0.3          # over the bump's top
+    scan = Mesh(scan.vertices, scan.triangles[~hole])
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    V = template.vertices
+    mask = None
+    if masked:          # the hole's far half may not be projected at all
+        mask = ~((np.hypot(V[:, 0] - 0.1, V[:, 1]) < 0.3) & (V[:, 0] > 0.1))
+    kw = dict(max_distance=0.5, max_normal_angle=80, mask=mask)
+    one = project_to_surface(template, tree, blend_order=1, **kw)
+    two = project_to_surface(template, tree, blend_order=2, **kw)
+    np.testing.assert_array_equal(one.projected, two.projected)
+    gap = ~two.projected & (mask if masked else True)
+    assert gap.sum() > 20
+    truth = lambda P: np.abs(P[:, 2] - bump(P[:, 0], P[:, 1]))   # height off the bump
+    # (with the far half masked, the near half's fill meets the harmonic far half)
+    better = 0.8 if masked else 0.5
+    assert truth(two.vertices[gap]).mean() < better * truth(one.vertices[gap]).mean()
+    assert not turned_triangles(two.vertices, V, template.triangles).any()
+    np.testing.assert_array_equal(two.vertices[two.projected], one.vertices[one.projected])
+    if masked:          # left out: harmonic, as with blend_order 1
+        np.testing.assert_allclose(two.vertices[~mask], one.vertices[~mask], atol=1e-9)

@@ -13,7 +13,7 @@ from facewrap.sample import make_scan, make_template
 from facewrap.wrapping import WrapSettings, wrap
 from facewrap.wrapping.follow import follow_skin, side_changes
 from facewrap.geometry import folded_in
-from facewrap.wrapping.projection import relax_flips
+from facewrap.wrapping.unfold import relax_flips
 from facewrap.wrapping import roles
 from facewrap.wrapping.roles import (CAVITY, EXCLUDED, FITTED, PART, PINNED, VERTEX_ROLES,
                                      cached_hidden_surface, find_hidden_surface,

@@ -248,7 +248,7 @@ def _grid(k=4):
 
 def test_folds_a_second_projection_makes_are_put_back_to_the_unfolded_pose():
     from facewrap.geometry import turned_triangles
-    from facewrap.wrapping.projection import step_back_new_folds as _revert_new_folds
+    from facewrap.wrapping.unfold import step_back_new_folds as _revert_new_folds
     V, T = _grid()
     before = V + [0.0, 0.0, 0.1]                  # upright, moved
     after = before.copy()

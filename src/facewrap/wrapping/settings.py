@@ -112,7 +112,7 @@ class WrapSettings:
     unfold : bool
         Unfold triangles the fit turned over (facing away from the aligned
         template) by smoothing them and a ring around them
-        (:func:`~facewrap.wrapping.projection.relax_flips`); pinned vertices stay.
+        (:func:`~facewrap.wrapping.unfold.relax_flips`); pinned vertices stay.
     """
     model: str = "auto"
     scale: bool = True

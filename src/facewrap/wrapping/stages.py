@@ -35,12 +35,12 @@ from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked_scan
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
-from facewrap.wrapping.projection import (Projection, project_to_surface, relax_flips,
-                                          settle_turned_corners, smooth_extension,
-                                          step_back_new_folds)
+from facewrap.wrapping.blend import smooth_extension
+from facewrap.wrapping.projection import Projection, project_to_surface
 from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
                                      vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
+from facewrap.wrapping.unfold import relax_flips, settle_turned_corners, step_back_new_folds
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
@@ -358,7 +358,7 @@ def pin(problem: WrapProblem, vertices, similarity: Similarity,
 def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
                projection: Projection | None, rest=None) -> tuple[np.ndarray, dict]:
     """The last stage: triangles the fit turned over unfolded (``settings.unfold``,
-    :func:`~facewrap.wrapping.projection.relax_flips`) and the result projected
+    :func:`~facewrap.wrapping.unfold.relax_flips`) and the result projected
     again from there, pinned vertices put back (:func:`pin`), the template's parts
     moved with the skin nearest to them and kept on their side of it
     (:mod:`facewrap.wrapping.follow`).
