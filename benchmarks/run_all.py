@@ -50,7 +50,8 @@ def main() -> int:
              f"Measured by `make bench` on {time.strftime('%Y-%m-%d')}: "
              f"{platform.machine()}, {cpu} cores, Python {platform.python_version()}. "
              "Times are wall-clock seconds, best of the repeats stated in each "
-             "benchmark's source.", ""]
+             "benchmark's source. facewrap runs from compiled bytecode, as an "
+             "installed package does (see `benchmarks/run_all.py`).", ""]
     failed = []
     for name in names:
         t = time.perf_counter()
