@@ -18,7 +18,8 @@ from facewrap.detection.backend import face_model
 from facewrap.detection.fuse import Fused, fuse_views, seen_lifts
 from facewrap.detection.search import face_frame, find_face, search_directions
 from facewrap.detection.settings import DetectionSettings
-from facewrap.detection.views import Camera, SceneArrays, render_view, rotation_about
+from facewrap.detection.views import (Camera, SceneArrays, render_view, rotation_about,
+                                      skin_triangles)
 from facewrap.errors import InputError
 from facewrap.geometry.checks import mesh_arrays
 from facewrap.geometry.closest import ClosestPointTree
@@ -129,7 +130,8 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         The mesh's texture image (see :func:`mesh_texture`).
     settings : DetectionSettings, optional
     tree : ClosestPointTree, optional
-        Of the same triangles, when the caller has one (it is built otherwise).
+        Of the same triangles, when the caller has one (it is built otherwise; a
+        mesh of several pieces snaps onto its skin pieces, with a tree of its own).
     source : path, optional
         The mesh's file, named in errors.
 
@@ -159,7 +161,7 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         raise InputError("a texture was given but the mesh has no texture coordinates",
                          source)
     corner_uvs = None if texture is None else mesh.uvs[uvs]
-    scene = SceneArrays.of(V, T, corner_uvs, texture)
+    scene = SceneArrays.of(V, T, corner_uvs, texture, skin_triangles(V, T))
     t1 = time.perf_counter()
     found = find_face(scene, model, settings.search_size)
     if found is None:
@@ -229,7 +231,7 @@ def _snapped(scene, points, tree, eyes: float):
     distance of a point (the fused points lie within a millimetre or two of the
     surface): on a 200k-triangle scan a tree of all of them costs a second.
     """
-    if tree is not None:
+    if tree is not None and scene.skin is None:
         found = tree.query(points)
         return found.triangles, found.barycentric
     from scipy.spatial import cKDTree
@@ -240,6 +242,8 @@ def _snapped(scene, points, tree, eyes: float):
                          for c in kd.query_ball_point(points, 0.25 * eyes)])] = True
     near[kd.query(points)[1]] = True                        # at least the nearest vertex
     keep = np.flatnonzero(near[scene.T].any(axis=1))
+    if scene.skin is not None:                        # never onto a lash or a tear film
+        keep = np.intersect1d(keep, scene.skin)
     used, local = np.unique(scene.T[keep], return_inverse=True)
     found = ClosestPointTree(scene.V[used], local.reshape(-1, 3)).query(points)
     return keep[found.triangles], found.barycentric
