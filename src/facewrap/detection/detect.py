@@ -30,6 +30,7 @@ __all__ = ["DetectedLandmarks", "detect_landmarks"]
 
 _FRAME_PASSES = 2        # frontal re-renders that settle the face frame
 _NOSE_DEPTH = 0.125      # of the eye distance: least height of a nose tip
+_REACH = 6.0             # pixels: a refined view's point off the surface's edge lifts
 _GRAZING = 0.6           # |cos| to the frontal view below which a point is less sure
 
 
@@ -232,7 +233,7 @@ def _refined(scene, model, rotation, center, eyes, settings):
                       "pixel_size": cam.pixel_size, "found": face is not None})
         if face is None:
             continue
-        pts, tri = view.lift(scene, face.points)
+        pts, tri = view.lift(scene, face.points, _REACH)
         lifts.append(seen_lifts(pts, tri, normals, cam.direction))
         pixels.append(face.points)
         cameras.append(cam)

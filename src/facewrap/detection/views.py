@@ -158,8 +158,18 @@ class RenderedView:
     gray: np.ndarray
     raster: Raster
 
-    def lift(self, scene: SceneArrays, pixels) -> tuple[np.ndarray, np.ndarray]:
+    def lift(self, scene: SceneArrays, pixels, reach: float = 0.0
+             ) -> tuple[np.ndarray, np.ndarray]:
         """Surface points seen at (k, 2) pixel coordinates (nearest pixel centre).
+
+        Parameters
+        ----------
+        scene : SceneArrays
+        pixels : (k, 2) float
+        reach : float
+            A point on the background within this many pixels of the surface lifts
+            from the nearest pixel showing it (a chin point just below a cropped
+            scan's edge); 0: none.
 
         Returns
         -------
@@ -168,7 +178,10 @@ class RenderedView:
         triangle : (k,) int64
             -1 there.
         """
-        p = np.rint(np.asarray(pixels, dtype=np.float64)).astype(np.int64)
+        pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if reach > 0:
+            pixels = self._onto_surface(pixels, reach)
+        p = np.rint(pixels).astype(np.int64)
         h, w = self.gray.shape
         inside = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
         tri = np.full(len(p), -1, dtype=np.int64)
@@ -182,11 +195,27 @@ class RenderedView:
             corners = scene.V[scene.T[tri[hit]]]                       # (k, 3, 3)
             # the exact point inside the pixel's triangle when it lies there
             exact = _barycentric_2d(self.camera.project(corners.reshape(-1, 3))
-                                    .reshape(-1, 3, 2), np.asarray(pixels, float)[hit])
+                                    .reshape(-1, 3, 2), pixels[hit])
             inside = np.all(exact >= -_EDGE_SLACK, axis=1)
             bary[inside] = _clamped(exact[inside])
             out[hit] = np.einsum("kj,kjd->kd", bary, corners)
         return out, tri
+
+    def _onto_surface(self, pixels: np.ndarray, reach: float) -> np.ndarray:
+        """``pixels`` with those on the background within ``reach`` of the surface
+        moved onto the nearest covered pixel centre."""
+        h, w = self.gray.shape
+        p = np.clip(np.rint(pixels).astype(np.int64), 0, [w - 1, h - 1])
+        mask = self.raster.triangle >= 0
+        off = ~mask[p[:, 1], p[:, 0]]
+        if not off.any() or not mask.any():
+            return pixels
+        dist, rows, cols = _nearest_covered(mask)
+        move = off & (dist[p[:, 1], p[:, 0]] <= reach)
+        out = pixels.copy()
+        out[move] = np.column_stack([cols[p[move, 1], p[move, 0]],
+                                     rows[p[move, 1], p[move, 0]]])
+        return out
 
 
 def skin_triangles(V, T) -> np.ndarray | None:
@@ -221,6 +250,14 @@ def skin_triangles(V, T) -> np.ndarray | None:
     through = part & bordered[labels]
     skin = np.flatnonzero(~through[T].any(axis=1))
     return None if len(skin) in (0, len(T)) else skin
+
+
+def _nearest_covered(mask: np.ndarray):
+    """(distance, rows, cols) of the nearest covered pixel to every pixel."""
+    from scipy.ndimage import distance_transform_edt
+
+    dist, (rows, cols) = distance_transform_edt(~mask, return_indices=True)
+    return dist, rows, cols
 
 
 def _interpolated(values, corners, bary) -> np.ndarray:
