@@ -17,6 +17,7 @@ import pytest
 from facewrap.cli import main
 from facewrap.detection import DetectionSettings, detect_landmarks, mesh_texture
 from facewrap.detection.fuse import fuse_views
+from facewrap.detection.views import Camera, SceneArrays, render_view, skin_triangles
 from facewrap.errors import InputError
 from facewrap.geometry.visibility import sphere_directions
 from facewrap.io import read_mesh
@@ -52,8 +53,10 @@ def test_the_sample_scan_gives_68_named_points_on_its_surface(sample):
     assert any(v["found"] for v in found.views) and found.views[0]["yaw"] == 0
     truth = read_landmarks(folder / "scan_landmarks.txt", kind="points").points
     err = np.linalg.norm(found.positions - truth, axis=1)
-    # the inner face (nose, eyes) lands near the sample's own points, in mm
-    assert err[GROUPS["nose"]].mean() < 8.0 and err[GROUPS["eyes"]].mean() < 12.0
+    # measured (bench_detection): nose 2.0 mm, eyes 3.9 mm, brows 4.4 mm, all 68
+    # 8.0 mm (the jaw 19 mm), in mm
+    assert err[GROUPS["nose"]].mean() < 3.0 and err[GROUPS["eyes"]].mean() < 5.0
+    assert err[GROUPS["brows"]].mean() < 6.0 and err.mean() < 10.0
 
 
 def _moved_back(scan, image, found, R, scale):
@@ -95,6 +98,60 @@ def test_fusing_keeps_agreeing_views_and_scores_the_others_low():
     assert np.linalg.norm(fused.points[:10] - truth[:10], axis=1).max() < 1.0
     assert np.all(fused.confidence[:10] < fused.confidence[10:60].min())
     assert np.all(fused.confidence[60:] < 0.5) and np.all(fused.seen[60:] == 1)
+
+
+def _skin_and_lash():
+    """A 2 x 2 sheet of skin at z = 0 (a 10 x 10 grid) and, 0.1 in front of it, a
+    small open strip (a lash): two pieces, the strip not skin."""
+    g = np.linspace(-1.0, 1.0, 11)
+    V = np.array([[x, y, 0.0] for y in g for x in g])
+    i = np.arange(10)[:, None] * 11 + np.arange(10)[None, :]
+    q = np.stack([i, i + 1, i + 12, i + 11], axis=-1).reshape(-1, 4)
+    T = np.r_[q[:, [0, 1, 2]], q[:, [0, 2, 3]]]
+    strip = np.array([[-.2, -.05, .1], [.2, -.05, .1], [.2, .05, .1], [-.2, .05, .1]])
+    return np.r_[V, strip], np.r_[T, len(V) + np.array([[0, 1, 2], [0, 2, 3]])], len(T)
+
+
+def test_a_lift_looks_through_an_open_piece_in_front_of_the_skin():
+    V, T, n_skin = _skin_and_lash()
+    skin = skin_triangles(V, T)
+    assert skin is not None and np.array_equal(skin, np.arange(n_skin))
+    scene = SceneArrays.of(V, T, skin=skin)
+    view = render_view(scene, Camera(np.eye(3), np.zeros(3), 0.02, (128, 128)))
+    centre = [[63.5, 63.5]]
+    point, tri = view.lift(scene, centre)
+    assert tri[0] < n_skin and abs(point[0, 2]) < 1e-9      # on the skin, not the strip
+    everything = SceneArrays.of(V, T)                        # without the rule: the strip
+    point, tri = render_view(everything, view.camera).lift(everything, centre)
+    assert tri[0] >= n_skin and abs(point[0, 2] - 0.1) < 1e-9
+
+
+def test_a_point_just_off_the_edge_lifts_from_the_nearest_covered_pixel():
+    V = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0.]])
+    scene = SceneArrays.of(V, [[0, 1, 2], [0, 2, 3]])
+    view = render_view(scene, Camera(np.eye(3), np.zeros(3), 0.05, (64, 64)))
+    # the square covers columns 12..51; 3 pixels right of it, then 10
+    near, far = [[54.0, 31.5]], [[61.0, 31.5]]
+    assert np.isnan(view.lift(scene, near)[0]).all()
+    point, tri = view.lift(scene, near, reach=4.0)
+    assert tri[0] >= 0 and abs(point[0, 0] - 1.0) < 0.05
+    assert np.isnan(view.lift(scene, far, reach=4.0)[0]).all()
+
+
+def test_points_on_surface_turned_from_the_front_are_less_sure(sample):
+    """The grazing rule: no confident point where the surface meets the frontal view
+    at more than 72 degrees (|cos| < 0.3)."""
+    folder, scan, found = sample
+    from facewrap.geometry.normals import vertex_normals
+    lm = found.landmarks
+    normals = vertex_normals(scan.vertices, scan.triangles, "angle")
+    corners = normals[scan.triangles[lm.triangle]]
+    n = np.einsum("kj,kjd->kd", lm.barycentric, corners)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    front = np.array(found.views[0]["direction"])
+    facing = np.abs(n @ front)
+    assert np.all(found.low_confidence[facing < 0.3])
+    assert np.any(facing >= 0.3) and not found.low_confidence[facing >= 0.9].all()
 
 
 def test_without_the_extra_the_command_names_it(tmp_path):
