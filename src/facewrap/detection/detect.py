@@ -163,13 +163,16 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         raise InputError("a texture was given but the mesh has no texture coordinates",
                          source)
     corner_uvs = None if texture is None else mesh.uvs[uvs]
-    scene = SceneArrays.of(V, T, corner_uvs, texture, skin_triangles(V, T))
+    scene = SceneArrays.of(V, T, corner_uvs, texture)
     t1 = time.perf_counter()
     found = find_face(scene, model, settings.search_size)
     if found is None:
         raise _no_face(source, len(search_directions(V, T)))
     pictures = found.pictures
-    lifted, _ = found.view.lift(scene, found.face.points)
+    lifted, hit = found.view.lift(scene, found.face.points)
+    skin = skin_triangles(V, T, hit)
+    if skin is not None:        # lashes or tear films in front of the eyes: look through
+        scene = replace(scene, skin=skin)
     if not _frame_points(lifted):
         raise _no_face(source, pictures)
     rotation, center, eyes = face_frame(lifted, found.view.camera.direction)

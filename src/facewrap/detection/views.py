@@ -218,7 +218,7 @@ class RenderedView:
         return out
 
 
-def skin_triangles(V, T) -> np.ndarray | None:
+def skin_triangles(V, T, hit=None) -> np.ndarray | None:
     """(s,) int64 ids of the triangles a lift may land on, or None for all of them.
 
     A scan is one surface (stray bits of it included); a production template is
@@ -228,7 +228,21 @@ def skin_triangles(V, T) -> np.ndarray | None:
     :mod:`facewrap.wrapping.roles`'s rule
     (:func:`~facewrap.wrapping.roles.find_hidden_surface`, cached by content) and
     has a border.  Closed pieces (eyeballs) stay: looking through them would
-    land in the socket behind.  A mesh of one piece skips all of it.
+    land in the socket behind.  A mesh of one piece skips all of it, and so does
+    a mesh whose lifts (``hit``) all landed on its largest piece: the skin test
+    costs seconds on a 200k-triangle scan with a few stray bits, which no lift
+    lands on.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+    hit : (k,) int64, optional
+        Triangles (-1: none) that lifts through every triangle landed on.
+
+    Returns
+    -------
+    (s,) int64 or None
 
     Examples
     --------
@@ -238,7 +252,12 @@ def skin_triangles(V, T) -> np.ndarray | None:
     """
     T = np.asarray(T, dtype=np.int64)
     labels = connected_components(T, len(V))
-    if len(T) == 0 or np.all(labels[T[:, 0]] == labels[T[0, 0]]):
+    if len(T) == 0:
+        return None
+    piece = labels[T[:, 0]]
+    largest = np.argmax(np.bincount(piece))          # by triangles: the face surface
+    landed = piece if hit is None else piece[np.asarray(hit)[np.asarray(hit) >= 0]]
+    if np.all(landed == largest):
         return None
     from facewrap.wrapping.roles import find_hidden_surface   # only multi-piece meshes
 
