@@ -53,10 +53,11 @@ def test_the_sample_scan_gives_68_named_points_on_its_surface(sample):
     assert any(v["found"] for v in found.views) and found.views[0]["yaw"] == 0
     truth = read_landmarks(folder / "scan_landmarks.txt", kind="points").points
     err = np.linalg.norm(found.positions - truth, axis=1)
-    # measured (bench_detection): nose 2.0 mm, eyes 3.9 mm, brows 4.4 mm, all 68
-    # 8.0 mm (the jaw 19 mm), in mm
-    assert err[GROUPS["nose"]].mean() < 3.0 and err[GROUPS["eyes"]].mean() < 5.0
-    assert err[GROUPS["brows"]].mean() < 6.0 and err.mean() < 10.0
+    # measured (bench_detection): nose 2.3 mm, eyes 3.6 mm, brows 4.1 mm, jaw
+    # 7.6 mm, all 68 5.0 mm (in mm)
+    assert err[GROUPS["nose"]].mean() < 3.5 and err[GROUPS["eyes"]].mean() < 5.0
+    assert err[GROUPS["brows"]].mean() < 6.0 and err[GROUPS["jaw"]].mean() < 11.0
+    assert err.mean() < 7.0
 
 
 def _moved_back(scan, image, found, R, scale):

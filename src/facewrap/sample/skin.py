@@ -38,6 +38,10 @@ def skin_texture(size, ident, rng, eyes_open=1.0) -> np.ndarray:
         img = img * (1.0 - alpha) + np.asarray(colour) * alpha
 
     mix([0.85, 0.5, 0.47], 0.22 * gaussian(as_ - 42.0, t + 28.0, 15.0, 11.0))
+    # shadow beyond the jaw line (the landmarks' jaw contour, see
+    # layout.landmark_layout): a detector puts the jaw where the face's lit part ends
+    jaw = (as_ / 74.0) ** (2 / 0.85) + (np.maximum(-6.0 - t, 0.0) / 92.0) ** (2 / 1.3)
+    mix(np.array([0.3, 0.21, 0.18]), 0.85 * smoothstep((jaw - 1.0) / 0.15))
     # hair above the hairline and at the temples
     hairline = 66.0 - 76.0 * smoothstep((as_ - 60.0) / 90.0)
     strands = 0.8 + 0.2 * _smooth_noise(rng, size, size // 6 or 1, order=1)
