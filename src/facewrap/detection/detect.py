@@ -31,6 +31,8 @@ __all__ = ["DetectedLandmarks", "detect_landmarks"]
 _FRAME_PASSES = 2        # frontal re-renders that settle the face frame
 _NOSE_DEPTH = 0.125      # of the eye distance: least height of a nose tip
 _REACH = 6.0             # pixels: a refined view's point off the surface's edge lifts
+_SHADED_BROWS = 0.5      # confidence factor of the brows of an untextured picture
+_BROWS = slice(17, 27)
 _GRAZING = 0.6           # |cos| to the frontal view below which a point is less sure
 
 
@@ -195,18 +197,22 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
     result = _result(scene, fused, views, reprojection, eyes, settings, tree, source,
                      {"model": t_model, "search": t2 - t1, "refine": t3 - t2,
                       "pictures": pictures, "t1": t1, "t3": t3})
-    return _grazing_scored(result, scene, rotation[2], settings)
+    return _rescored(result, scene, rotation[2], settings)
 
 
-def _grazing_scored(found: DetectedLandmarks, scene, front, settings) -> DetectedLandmarks:
+def _rescored(found: DetectedLandmarks, scene, front, settings) -> DetectedLandmarks:
     """Confidence times ``|cos|`` of the surface to the frontal view over
-    :data:`_GRAZING` (at most 1).
+    :data:`_GRAZING` (at most 1), and times :data:`_SHADED_BROWS` for the brows of
+    a mesh drawn without a texture.
 
     Where the face turns away from the front (the jaw contour's sides), a point a
     pixel off in the picture is ``1 / tan`` pixels off in depth: the detector's 2D
     jaw points on a turning cheek lift 10-20 mm from where an annotator clicks
     (measured on james and ICT's identities, ``bench_detection``), though every
-    view agrees on them.  Those are flagged, not trusted.
+    view agrees on them.  A brow is hair, not shape: shaded, the detector guesses
+    it from the brow ridge, 6-8 mm off on every shaded case (james, ICT's template
+    and identities, the sample template) against 3-4 mm textured, every view
+    agreeing.  Those are flagged, not trusted.
     """
     lm = found.landmarks
     # the vertex normals' blend: smoother than one triangle's on a noisy scan
@@ -214,6 +220,8 @@ def _grazing_scored(found: DetectedLandmarks, scene, front, settings) -> Detecte
     length = np.maximum(np.linalg.norm(normals, axis=1), 1e-300)
     facing = np.abs(normals @ front) / length
     confidence = found.confidence * np.clip(facing / _GRAZING, 0.0, 1.0)
+    if scene.texture is None:
+        confidence[_BROWS] *= _SHADED_BROWS
     return replace(found, confidence=confidence,
                    low_confidence=confidence < settings.min_confidence)
 
