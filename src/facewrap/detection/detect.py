@@ -3,8 +3,10 @@
 Steps (each in its own module): find the face from any direction
 (:mod:`.search`), fit its frame, draw it from the front and turned to either side
 (:mod:`.views`), detect the 68 points in each picture (:mod:`.backend`), lift them
-onto the surface and fuse the views (:mod:`.fuse`), and snap the result onto the
-surface as triangle + barycentric landmarks named :data:`~facewrap.landmarks.IBUG68_NAMES`.
+onto the skin (through a template's lashes and tear films) and fuse the views
+(:mod:`.fuse`), score down what the pictures fix poorly (the jaw contour's sides,
+shaded brows), and snap the result onto the surface as triangle + barycentric
+landmarks named :data:`~facewrap.landmarks.IBUG68_NAMES`.
 """
 
 from __future__ import annotations
@@ -49,7 +51,9 @@ class DetectedLandmarks:
         Their positions, on the surface.
     confidence : (68,) float64 in [0, 1]
         Share of the refined views that agree on the point times a Gaussian of their
-        spread (see :mod:`facewrap.detection.fuse`).
+        spread (see :mod:`facewrap.detection.fuse`), lowered where the surface turns
+        away from the frontal view and for the brows of an untextured mesh (see
+        :func:`_rescored`).
     low_confidence : (68,) bool
         ``confidence < settings.min_confidence``.
     reprojection : (68,) float64
