@@ -231,3 +231,23 @@ def test_ict_eyes_are_found_on_the_skin_and_far_points_are_flagged(ict_folder, s
     assert err[GROUPS["eyes"]].mean() < 4.0 and err[GROUPS["mouth"]].mean() < 3.0
     assert err[ok].mean() < 3.0 and ok.sum() >= 25
     assert not np.any((err > 8.0) & ok)
+
+
+def test_a_lash_strip_in_front_of_the_eye_is_looked_through(sample):
+    """The sample scan, shaded, with a small open strip (a lash) 2 mm in front of its
+    right upper lid: no landmark lands on the strip, the eye stays where it was."""
+    folder, scan, found = sample
+    V, T = scan.vertices, scan.triangles
+    plain = detect_landmarks((V, T))
+    front = np.array(plain.views[0]["direction"])
+    lid = plain.positions[[36, 37, 38, 39]]
+    along = lid[3] - lid[0]
+    up = np.cross(front, along)
+    up *= 3.0 / np.linalg.norm(up)
+    a, b = lid[0] - 0.15 * along + 2.0 * front, lid[3] + 0.15 * along + 2.0 * front
+    strip = np.array([a - up, b - up, b + up, a + up])
+    quad = len(V) + np.array([[0, 1, 2], [0, 2, 3]])
+    lashed = detect_landmarks((np.r_[V, strip], np.r_[T, quad]))
+    assert np.all(lashed.landmarks.triangle < len(T))
+    moved = np.linalg.norm(lashed.positions[36:42] - plain.positions[36:42], axis=1)
+    assert moved.max() < 3.0     # mm (the strip changes the picture a little)
