@@ -17,6 +17,7 @@ import pytest
 from facewrap.cli import main
 from facewrap.detection import DetectionSettings, detect_landmarks, mesh_texture
 from facewrap.detection.fuse import fuse_views
+from facewrap.detection.views import Camera, SceneArrays, render_view, skin_triangles
 from facewrap.errors import InputError
 from facewrap.geometry.visibility import sphere_directions
 from facewrap.io import read_mesh
@@ -52,8 +53,11 @@ def test_the_sample_scan_gives_68_named_points_on_its_surface(sample):
     assert any(v["found"] for v in found.views) and found.views[0]["yaw"] == 0
     truth = read_landmarks(folder / "scan_landmarks.txt", kind="points").points
     err = np.linalg.norm(found.positions - truth, axis=1)
-    # the inner face (nose, eyes) lands near the sample's own points, in mm
-    assert err[GROUPS["nose"]].mean() < 8.0 and err[GROUPS["eyes"]].mean() < 12.0
+    # measured (bench_detection): nose 2.3 mm, eyes 3.6 mm, brows 4.1 mm, jaw
+    # 7.6 mm, all 68 5.0 mm (in mm)
+    assert err[GROUPS["nose"]].mean() < 3.5 and err[GROUPS["eyes"]].mean() < 5.0
+    assert err[GROUPS["brows"]].mean() < 6.0 and err[GROUPS["jaw"]].mean() < 11.0
+    assert err.mean() < 7.0
 
 
 def _moved_back(scan, image, found, R, scale):
@@ -97,6 +101,60 @@ def test_fusing_keeps_agreeing_views_and_scores_the_others_low():
     assert np.all(fused.confidence[60:] < 0.5) and np.all(fused.seen[60:] == 1)
 
 
+def _skin_and_lash():
+    """A 2 x 2 sheet of skin at z = 0 (a 10 x 10 grid) and, 0.1 in front of it, a
+    small open strip (a lash): two pieces, the strip not skin."""
+    g = np.linspace(-1.0, 1.0, 11)
+    V = np.array([[x, y, 0.0] for y in g for x in g])
+    i = np.arange(10)[:, None] * 11 + np.arange(10)[None, :]
+    q = np.stack([i, i + 1, i + 12, i + 11], axis=-1).reshape(-1, 4)
+    T = np.r_[q[:, [0, 1, 2]], q[:, [0, 2, 3]]]
+    strip = np.array([[-.2, -.05, .1], [.2, -.05, .1], [.2, .05, .1], [-.2, .05, .1]])
+    return np.r_[V, strip], np.r_[T, len(V) + np.array([[0, 1, 2], [0, 2, 3]])], len(T)
+
+
+def test_a_lift_looks_through_an_open_piece_in_front_of_the_skin():
+    V, T, n_skin = _skin_and_lash()
+    skin = skin_triangles(V, T)
+    assert skin is not None and np.array_equal(skin, np.arange(n_skin))
+    scene = SceneArrays.of(V, T, skin=skin)
+    view = render_view(scene, Camera(np.eye(3), np.zeros(3), 0.02, (128, 128)))
+    centre = [[63.5, 63.5]]
+    point, tri = view.lift(scene, centre)
+    assert tri[0] < n_skin and abs(point[0, 2]) < 1e-9      # on the skin, not the strip
+    everything = SceneArrays.of(V, T)                        # without the rule: the strip
+    point, tri = render_view(everything, view.camera).lift(everything, centre)
+    assert tri[0] >= n_skin and abs(point[0, 2] - 0.1) < 1e-9
+
+
+def test_a_point_just_off_the_edge_lifts_from_the_nearest_covered_pixel():
+    V = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0.]])
+    scene = SceneArrays.of(V, [[0, 1, 2], [0, 2, 3]])
+    view = render_view(scene, Camera(np.eye(3), np.zeros(3), 0.05, (64, 64)))
+    # the square covers columns 12..51; 3 pixels right of it, then 10
+    near, far = [[54.0, 31.5]], [[61.0, 31.5]]
+    assert np.isnan(view.lift(scene, near)[0]).all()
+    point, tri = view.lift(scene, near, reach=4.0)
+    assert tri[0] >= 0 and abs(point[0, 0] - 1.0) < 0.05
+    assert np.isnan(view.lift(scene, far, reach=4.0)[0]).all()
+
+
+def test_points_on_surface_turned_from_the_front_are_less_sure(sample):
+    """The grazing rule: no confident point where the surface meets the frontal view
+    at more than 72 degrees (|cos| < 0.3)."""
+    folder, scan, found = sample
+    from facewrap.geometry.normals import vertex_normals
+    lm = found.landmarks
+    normals = vertex_normals(scan.vertices, scan.triangles, "angle")
+    corners = normals[scan.triangles[lm.triangle]]
+    n = np.einsum("kj,kjd->kd", lm.barycentric, corners)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    front = np.array(found.views[0]["direction"])
+    facing = np.abs(n @ front)
+    assert np.all(found.low_confidence[facing < 0.3])
+    assert np.any(facing >= 0.3) and not found.low_confidence[facing >= 0.9].all()
+
+
 def test_without_the_extra_the_command_names_it(tmp_path):
     code = ("import sys; sys.modules['dlib'] = None\n"
             "from facewrap.cli import main\n"
@@ -126,7 +184,7 @@ def test_james_landmarks_against_the_manual_ones(data_dir):
     found, err = _james(data_dir)
     ok = ~found.low_confidence
     # measured (bench_detection): eyes 3.0 mm, mouth 2.0 mm, confident points
-    # 2.8 mm mean, no confident point more than 8 mm off
+    # 2.6 mm mean (47 of them), no confident point more than 8 mm off
     assert err[GROUPS["eyes"]].mean() < 4.0 and err[GROUPS["mouth"]].mean() < 3.0
     assert err[ok].mean() < 3.5 and ok.sum() >= 40
     assert not np.any((err > 8.0) & ok)
@@ -135,7 +193,7 @@ def test_james_landmarks_against_the_manual_ones(data_dir):
 @needs_data
 @pytest.mark.shared_data
 @pytest.mark.xfail(reason="issue 18's 2.5 mm mean over all 68: dlib's jaw contour on our "
-                          "renders is 13 mm off james's (5.2 mm mean over all, 2.8 mm "
+                          "renders is 11 mm off james's (4.75 mm mean over all, 2.6 mm "
                           "over the confident points)", strict=True)
 def test_james_meets_the_issue_18_acceptance(data_dir):
     found, err = _james(data_dir)
@@ -153,3 +211,43 @@ def test_james_turned_upside_down_in_metres_gives_the_same_landmarks(data_dir):
     # issue 18: within 0.5 mm after undoing the transform (measured 0.27 mm)
     assert ok.sum() >= 40
     assert dist[ok].mean() < 0.5
+
+
+@needs_data
+@pytest.mark.shared_data
+@pytest.mark.parametrize("shape", [None, "identity000"])
+def test_ict_eyes_are_found_on_the_skin_and_far_points_are_flagged(ict_folder, shape):
+    """ICT's lashes and eye occlusion shells lie in front of the eyelids: lifts look
+    through them (eyes were 7.5 mm off on the template before, lifted onto them);
+    the grazing jaw and the shaded brows are flagged (issue 18: no unflagged point
+    more than 8 mm off)."""
+    from facewrap.datasets import ICTFaceKit
+    kit = ICTFaceKit(ict_folder)
+    mesh = kit.neutral if shape is None else kit.neutral.with_vertices(kit.shape(shape))
+    found = detect_landmarks(mesh)
+    err = 10.0 * np.linalg.norm(found.positions - kit.landmarks.positions(mesh), axis=1)
+    # measured: eyes 2.8 mm, mouth 1.9-2.0 mm, the 32 confident points 2.3-2.4 mm
+    ok = ~found.low_confidence
+    assert err[GROUPS["eyes"]].mean() < 4.0 and err[GROUPS["mouth"]].mean() < 3.0
+    assert err[ok].mean() < 3.0 and ok.sum() >= 25
+    assert not np.any((err > 8.0) & ok)
+
+
+def test_a_lash_strip_in_front_of_the_eye_is_looked_through(sample):
+    """The sample scan, shaded, with a small open strip (a lash) 2 mm in front of its
+    right upper lid: no landmark lands on the strip, the eye stays where it was."""
+    folder, scan, found = sample
+    V, T = scan.vertices, scan.triangles
+    plain = detect_landmarks((V, T))
+    front = np.array(plain.views[0]["direction"])
+    lid = plain.positions[[36, 37, 38, 39]]
+    along = lid[3] - lid[0]
+    up = np.cross(front, along)
+    up *= 3.0 / np.linalg.norm(up)
+    a, b = lid[0] - 0.15 * along + 2.0 * front, lid[3] + 0.15 * along + 2.0 * front
+    strip = np.array([a - up, b - up, b + up, a + up])
+    quad = len(V) + np.array([[0, 1, 2], [0, 2, 3]])
+    lashed = detect_landmarks((np.r_[V, strip], np.r_[T, quad]))
+    assert np.all(lashed.landmarks.triangle < len(T))
+    moved = np.linalg.norm(lashed.positions[36:42] - plain.positions[36:42], axis=1)
+    assert moved.max() < 3.0     # mm (the strip changes the picture a little)

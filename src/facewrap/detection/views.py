@@ -19,11 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from facewrap.geometry import boundary_edges, connected_components
 from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.report.raster import Raster, trusted_rasterize
 from facewrap.texture.bake import sample_image
 
-__all__ = ["Camera", "SceneArrays", "RenderedView", "render_view", "rotation_about"]
+__all__ = ["Camera", "SceneArrays", "RenderedView", "render_view", "rotation_about",
+           "skin_triangles"]
 
 _AMBIENT = 0.25          # grey level of a surface seen edge-on (shaded pictures)
 _BACKGROUND = 0          # black: the detector sees the head's outline
@@ -113,22 +115,30 @@ class SceneArrays:
     corner_uvs : (t, 3, 2) float64 or None
         Texture coordinates of each triangle corner (when there is a texture).
     texture : (H, W, 3) uint8 or None
+    skin : (s,) int64 or None
+        The triangles a detected point may be lifted onto, when not all of them:
+        the skin of a template whose lashes, tear films and eyeballs are pieces of
+        their own in front of it (see :func:`skin_triangles`).  They are all drawn;
+        a lift looks through the others.
     """
     V: np.ndarray
     T: np.ndarray
     normals: np.ndarray
     corner_uvs: np.ndarray | None
     texture: np.ndarray | None
+    skin: np.ndarray | None = None
 
     @classmethod
-    def of(cls, V, T, triangle_uvs=None, texture=None) -> "SceneArrays":
-        """Arrays of a mesh; ``triangle_uvs`` (t, 3, 2) and ``texture`` both or neither."""
+    def of(cls, V, T, triangle_uvs=None, texture=None, skin=None) -> "SceneArrays":
+        """Arrays of a mesh; ``triangle_uvs`` (t, 3, 2) and ``texture`` both or
+        neither; ``skin`` (s,) triangle ids or None (all)."""
         V = np.asarray(V, dtype=np.float64)
         T = np.asarray(T, dtype=np.int64)
         uvs = None if texture is None or triangle_uvs is None else \
             np.asarray(triangle_uvs, dtype=np.float64)
         return cls(V, T, trusted_vertex_normals(V, T, "angle"), uvs,
-                   None if uvs is None else texture)
+                   None if uvs is None else texture,
+                   None if skin is None else np.asarray(skin, dtype=np.int64))
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,14 +151,25 @@ class RenderedView:
     gray : (H, W) uint8
         Grey levels, row 0 at the top; the background is black.
     raster : Raster
-        Visible triangle and barycentric coordinates of each pixel.
+        Visible triangle (of the full mesh) and barycentric coordinates of each
+        pixel, among the scene's ``skin`` triangles when it names them.
     """
     camera: Camera
     gray: np.ndarray
     raster: Raster
 
-    def lift(self, scene: SceneArrays, pixels) -> tuple[np.ndarray, np.ndarray]:
+    def lift(self, scene: SceneArrays, pixels, reach: float = 0.0
+             ) -> tuple[np.ndarray, np.ndarray]:
         """Surface points seen at (k, 2) pixel coordinates (nearest pixel centre).
+
+        Parameters
+        ----------
+        scene : SceneArrays
+        pixels : (k, 2) float
+        reach : float
+            A point on the background within this many pixels of the surface lifts
+            from the nearest pixel showing it (a chin point just below a cropped
+            scan's edge); 0: none.
 
         Returns
         -------
@@ -157,7 +178,10 @@ class RenderedView:
         triangle : (k,) int64
             -1 there.
         """
-        p = np.rint(np.asarray(pixels, dtype=np.float64)).astype(np.int64)
+        pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if reach > 0:
+            pixels = self._onto_surface(pixels, reach)
+        p = np.rint(pixels).astype(np.int64)
         h, w = self.gray.shape
         inside = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
         tri = np.full(len(p), -1, dtype=np.int64)
@@ -171,11 +195,88 @@ class RenderedView:
             corners = scene.V[scene.T[tri[hit]]]                       # (k, 3, 3)
             # the exact point inside the pixel's triangle when it lies there
             exact = _barycentric_2d(self.camera.project(corners.reshape(-1, 3))
-                                    .reshape(-1, 3, 2), np.asarray(pixels, float)[hit])
+                                    .reshape(-1, 3, 2), pixels[hit])
             inside = np.all(exact >= -_EDGE_SLACK, axis=1)
             bary[inside] = _clamped(exact[inside])
             out[hit] = np.einsum("kj,kjd->kd", bary, corners)
         return out, tri
+
+    def _onto_surface(self, pixels: np.ndarray, reach: float) -> np.ndarray:
+        """``pixels`` with those on the background within ``reach`` of the surface
+        moved onto the nearest covered pixel centre."""
+        h, w = self.gray.shape
+        p = np.clip(np.rint(pixels).astype(np.int64), 0, [w - 1, h - 1])
+        mask = self.raster.triangle >= 0
+        off = ~mask[p[:, 1], p[:, 0]]
+        if not off.any() or not mask.any():
+            return pixels
+        dist, rows, cols = _nearest_covered(mask)
+        move = off & (dist[p[:, 1], p[:, 0]] <= reach)
+        out = pixels.copy()
+        out[move] = np.column_stack([cols[p[move, 1], p[move, 0]],
+                                     rows[p[move, 1], p[move, 0]]])
+        return out
+
+
+def skin_triangles(V, T, hit=None) -> np.ndarray | None:
+    """(s,) int64 ids of the triangles a lift may land on, or None for all of them.
+
+    A scan is one surface (stray bits of it included); a production template is
+    several: lashes, tear films and eye occlusion shells are open pieces of their
+    own lying in front of the eyelids' skin, where the eye landmarks are.  A lift
+    looks through those: through every piece that is not skin by
+    :mod:`facewrap.wrapping.roles`'s rule
+    (:func:`~facewrap.wrapping.roles.find_hidden_surface`, cached by content) and
+    has a border.  Closed pieces (eyeballs) stay: looking through them would
+    land in the socket behind.  A mesh of one piece skips all of it, and so does
+    a mesh whose lifts (``hit``) all landed on its largest piece: the skin test
+    costs seconds on a 200k-triangle scan with a few stray bits, which no lift
+    lands on.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+    hit : (k,) int64, optional
+        Triangles (-1: none) that lifts through every triangle landed on.
+
+    Returns
+    -------
+    (s,) int64 or None
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
+    >>> skin_triangles(V, [[0, 1, 2]]) is None
+    True
+    """
+    T = np.asarray(T, dtype=np.int64)
+    labels = connected_components(T, len(V))
+    if len(T) == 0:
+        return None
+    piece = labels[T[:, 0]]
+    largest = np.argmax(np.bincount(piece))          # by triangles: the face surface
+    landed = piece if hit is None else piece[np.asarray(hit)[np.asarray(hit) >= 0]]
+    if np.all(landed == largest):
+        return None
+    from facewrap.wrapping.roles import find_hidden_surface   # only multi-piece meshes
+
+    part = find_hidden_surface(V, T).part
+    bordered = np.zeros(int(labels.max()) + 1, dtype=bool)
+    border = boundary_edges(T)
+    if len(border):
+        bordered[labels[border[:, 0]]] = True
+    through = part & bordered[labels]
+    skin = np.flatnonzero(~through[T].any(axis=1))
+    return None if len(skin) in (0, len(T)) else skin
+
+
+def _nearest_covered(mask: np.ndarray):
+    """(distance, rows, cols) of the nearest covered pixel to every pixel."""
+    from scipy.ndimage import distance_transform_edt
+
+    dist, (rows, cols) = distance_transform_edt(~mask, return_indices=True)
+    return dist, rows, cols
 
 
 def _interpolated(values, corners, bary) -> np.ndarray:
@@ -235,6 +336,21 @@ def render_view(scene: SceneArrays, camera: Camera) -> RenderedView:
     x = C[:, 0] / camera.pixel_size + w / 2 - 0.5
     y = h / 2 - C[:, 1] / camera.pixel_size - 0.5
     raster = trusted_rasterize(x, y, -C[:, 2], scene.T, w, h)
+    gray = _grey(scene, camera, raster, w, h)
+    if scene.skin is not None:
+        raster = _renumbered(trusted_rasterize(x, y, -C[:, 2], scene.T[scene.skin], w, h),
+                             scene.skin)
+    return RenderedView(camera, gray, raster)
+
+
+def _renumbered(raster: Raster, triangles: np.ndarray) -> Raster:
+    """A raster of a subset of the triangles, numbered as in the full mesh."""
+    full = np.where(raster.triangle >= 0, triangles[np.maximum(raster.triangle, 0)], -1)
+    return Raster(full, raster.pixels, raster.barycentric)
+
+
+def _grey(scene: SceneArrays, camera: Camera, raster: Raster, w: int, h: int):
+    """(h, w) uint8 picture of the raster: textured or shaded, black background."""
     gray = np.full(h * w, _BACKGROUND, dtype=np.float32)
     if len(raster.pixels):
         tri = raster.triangle.reshape(-1)[raster.pixels]
@@ -253,5 +369,4 @@ def render_view(scene: SceneArrays, camera: Camera) -> RenderedView:
             gray[raster.pixels] = albedo * (_TEXTURE_SHADING * shade + 1 - _TEXTURE_SHADING)
         else:
             gray[raster.pixels] = 255.0 * shade
-    return RenderedView(camera, np.clip(np.rint(gray), 0, 255).astype(np.uint8)
-                        .reshape(h, w), raster)
+    return np.clip(np.rint(gray), 0, 255).astype(np.uint8).reshape(h, w)

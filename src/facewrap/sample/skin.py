@@ -38,6 +38,10 @@ def skin_texture(size, ident, rng, eyes_open=1.0) -> np.ndarray:
         img = img * (1.0 - alpha) + np.asarray(colour) * alpha
 
     mix([0.85, 0.5, 0.47], 0.22 * gaussian(as_ - 42.0, t + 28.0, 15.0, 11.0))
+    # shadow beyond the jaw line (the landmarks' jaw contour, see
+    # layout.landmark_layout): a detector puts the jaw where the face's lit part ends
+    jaw = (as_ / 74.0) ** (2 / 0.85) + (np.maximum(-6.0 - t, 0.0) / 92.0) ** (2 / 1.3)
+    mix(np.array([0.3, 0.21, 0.18]), 0.85 * smoothstep((jaw - 1.0) / 0.15))
     # hair above the hairline and at the temples
     hairline = 66.0 - 76.0 * smoothstep((as_ - 60.0) / 90.0)
     strands = 0.8 + 0.2 * _smooth_noise(rng, size, size // 6 or 1, order=1)
@@ -46,20 +50,22 @@ def skin_texture(size, ident, rng, eyes_open=1.0) -> np.ndarray:
         smoothstep((t - hairline) / 4.0) * ~ears)
     # brows
     centre = 15.5 + 4.5 * np.exp(-((as_ - 33.0) / 14.0) ** 2)
-    half = 3.0 - 1.8 * smoothstep((as_ - 15.0) / 38.0)
+    half = 4.0 - 2.2 * smoothstep((as_ - 15.0) / 38.0)
     ends = smoothstep((as_ - 10.0) / 4.0) * (1.0 - smoothstep((as_ - 52.0) / 5.0))
     brow = smoothstep((half - np.abs(t - centre)) / 1.2) * ends
-    mix(np.array([0.3, 0.21, 0.16]) * strands[..., None], 0.9 * brow)
+    mix(np.array([0.16, 0.11, 0.09]) * strands[..., None], 0.95 * brow)
     # lips
     b = t - MOUTH_T
     eu, el = lip_extent(s)
     lip = (smoothstep((eu - b) / 1.2 + 0.5) * smoothstep((b + el) / 1.2 + 0.5)
            * (as_ < MOUTH_HALF_WIDTH + 1.0))
-    mix([0.72, 0.36, 0.36], 0.85 * lip)
+    mix([0.55, 0.24, 0.25], 0.9 * lip)
     # nostrils
     mix([0.35, 0.2, 0.18], smoothstep(1.0 - np.hypot((as_ - 6.0) / 2.6, (t + 41.0) / 1.7)))
     # eyes: white, iris and pupil inside the opening, lashes along the margins
     a, be = eye_local(s, t)
+    # the socket's shadow around the eye: what a detector first sees of an eye
+    mix([0.42, 0.28, 0.25], 0.45 * gaussian(a, be + 1.0, 0.8 * EYE_HALF_WIDTH, 5.5))
     opening = eye_opening(a, be, 0.0)
     r = np.hypot(a, be + 0.5)
     iris = np.array([0.38, 0.26, 0.16]) if ident.skin < 0.3 else np.array([0.3, 0.45, 0.6])
@@ -69,7 +75,7 @@ def skin_texture(size, ident, rng, eyes_open=1.0) -> np.ndarray:
     mix(eye, opening * eyes_open)
     up, lo, _ = lid_margins(a)
     env = (np.abs(a) < EYE_HALF_WIDTH + 1.0)
-    mix([0.12, 0.09, 0.08], 0.9 * env * smoothstep(1.0 - np.abs(be - up - 0.3) / 0.9))
+    mix([0.08, 0.06, 0.05], env * smoothstep(1.0 - np.abs(be - up - 0.5) / 1.4))
     mix([0.2, 0.14, 0.12], 0.5 * env * smoothstep(1.0 - np.abs(be - lo + 0.2) / 0.6))
     img *= (1.0 + 0.03 * rng.standard_normal((size, size)))[..., None]     # pores
     return np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8)
