@@ -25,7 +25,7 @@ import logging
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import KW_ONLY, asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -72,15 +72,19 @@ class InputWarning(UserWarning):
 class WrapJob:
     """Files of one wrap (settings live apart, in :class:`WrapSettings`).
 
+    ``template`` and ``scan`` may be given by position, every other field by name
+    (``WrapJob("t.obj", "s.obj", output="out.obj")``).
+
     Attributes
     ----------
     template : path
         Template mesh (OBJ/PLY) whose topology the result keeps.
     scan : path
         Scan mesh (OBJ/PLY).
-    scan_landmarks : path or None
-        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON; None: the
-        68 iBUG points are detected on the scan (:mod:`facewrap.detection`), and on
+    scan_landmarks : path, optional
+        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON.  Left out
+        (None), the 68 iBUG points are detected on the scan (:mod:`facewrap.detection`,
+        the extra ``facewrap[landmarks]``), the low-confidence ones left out, and on
         the template too when it has no landmarks of its own.
     output : path
         Fitted mesh (OBJ/PLY) in the template's exact topology.
@@ -124,7 +128,8 @@ class WrapJob:
     """
     template: str = input_field()
     scan: str = input_field()
-    scan_landmarks: str | None = input_field()
+    _: KW_ONLY   # by name from here: scan_landmarks may be left out, output may not
+    scan_landmarks: str | None = input_field(default=None)
     output: str = output_field()
     template_landmarks: str | None = input_field(default=None)
     template_profile: str | None = input_field(default=None)
