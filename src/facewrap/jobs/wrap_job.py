@@ -389,6 +389,16 @@ def _detect(mesh: Mesh, path, texture_path):
     return found
 
 
+def _detection_entry(found) -> dict:
+    """The report's account of one detection, with the points themselves: surface
+    landmarks (triangle of the mesh file's triangulation + barycentric) and
+    positions, so a report page draws them without detecting again."""
+    lm = found.landmarks
+    return {**detection_report(found), "names": list(lm.names),
+            "triangles": lm.triangle.tolist(), "barycentric": lm.barycentric.tolist(),
+            "positions": np.asarray(found.positions).tolist()}
+
+
 def _template_profile(job: WrapJob, template: Mesh):
     """The job's template profile, read and checked against the template (None
     without one)."""
@@ -535,7 +545,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     report["scan_landmarks_source"] = "detected" if "scan" in inputs["detections"] \
         else "file"
     if inputs["detections"]:
-        report["detected_landmarks"] = {k: detection_report(v)
+        report["detected_landmarks"] = {k: _detection_entry(v)
                                         for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
                                                             result.mesh.vertices)

@@ -93,8 +93,8 @@ def _viewer_html(data: dict) -> str:
         f'data-fw-opacity="{e(m["name"])}"></div>' for m in data["meshes"])
     layers += "".join(
         f'<div class="layer"><label><input type="checkbox" data-fw-points="{k}"'
-        f'{" checked" if p["visible"] else ""}><span class="swatch dot" style="background:'
-        f'{e(p["color"])}"></span><span class="name" title="{e(p["name"])}">'
+        f'{" checked" if p["visible"] else ""}><span class="swatch dot {e(p["marker"])}" '
+        f'style="--c:{e(p["color"])}"></span><span class="name" title="{e(p["name"])}">'
         f'{e(p["name"])} ({p["count"]})</span></label></div>'
         for k, p in enumerate(data["points"]))
     heat = ""

@@ -33,10 +33,12 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from facewrap.datasets import load_shape_folder
+from facewrap.detection.for_wrap import confident_landmarks
 from facewrap.errors import InputError
 from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
@@ -45,9 +47,9 @@ from facewrap.io.files import read_json
 from facewrap.io.images import check_image, load_image
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.profile import read_template_profile
-from facewrap.landmarks import pair_landmarks
+from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.texture.tiles import BAKED_MATERIAL
-from facewrap.report.html import MeshLayer, write_html_report
+from facewrap.report.html import MeshLayer, PointSet, write_html_report
 from facewrap.report.run_tables import run_summary
 from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
@@ -222,9 +224,32 @@ def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
     return out or None
 
 
-def _template_landmarks(job: dict, report_path: Path, profile):
+#: Colour of the scan landmarks a detection flagged as low-confidence (hollow rings).
+LOW_CONFIDENCE_COLOR = "#c2188f"
+
+
+def _detected(run: dict, which: str, report_path: Path):
+    """``(Landmarks, (k,) bool low-confidence)`` of the run's detection on ``which``
+    ("scan" or "template"), from the report's surface landmarks; None without one."""
+    entry = (run.get("detected_landmarks") or {}).get(which)
+    if not isinstance(entry, dict):
+        return None
+    try:
+        names = list(entry["names"])
+        lm = Landmarks.from_barycentric(entry["triangles"], entry["barycentric"], names)
+        low = np.isin(names, list(entry.get("low_confidence", ())))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"'detected_landmarks' › {which} is malformed ({exc})",
+                         report_path) from None
+    return lm, low
+
+
+def _template_landmarks(job: dict, report_path: Path, profile, run: dict):
     """The run's template landmarks: from their file, else from the template profile
-    the run used (``profile``: its path, from the report)."""
+    the run used (``profile``: its path, from the report), else detected."""
+    found = _detected(run, "template", report_path)
+    if "template_landmarks" not in job and not profile and found is not None:
+        return found[0]
     if "template_landmarks" in job or not profile:
         return read_landmarks(_existing(job["template_landmarks"], report_path,
                                         "template landmarks"), kind="auto")
@@ -235,20 +260,39 @@ def _template_landmarks(job: dict, report_path: Path, profile):
     return landmarks
 
 
-def _landmark_points(job: dict, report_path: Path, template, scan, result, M,
+def _scan_landmarks(run: dict, report_path: Path, template_landmarks):
+    """``(template, scan, low)``: the run's scan landmarks from their file (``low``
+    None), else the detected ones paired as the wrap paired them (the confident
+    points; ``low``: the positions of the others, drawn apart)."""
+    job = run["job"]
+    found = _detected(run, "scan", report_path)
+    if job.get("scan_landmarks") or found is None:
+        return template_landmarks, read_landmarks(_existing(
+            job["scan_landmarks"], report_path, "scan landmarks"), kind="points"), None
+    lm, low = found
+    tl, sl = confident_landmarks(template_landmarks,
+                                 SimpleNamespace(landmarks=lm, low_confidence=low))
+    return tl, sl, lm.subset(np.flatnonzero(low))
+
+
+def _landmark_points(run: dict, report_path: Path, template, scan, result, M,
                      profile=None):
     """Landmark sets for the viewer, labels of the worst, and the paired errors.
 
     Returns ``(points, labels, errors)``: ``points`` maps "landmarks: template"
-    (aligned), "landmarks: scan" and "landmarks: result" to (k, 3) positions;
-    ``labels`` names the :data:`WORST_LANDMARKS_LABELLED` largest result → scan
-    errors; ``errors`` is (l,) float over the pairs.  Empty when the files are gone.
+    (aligned), "landmarks: scan" and "landmarks: result" to (k, 3) positions —
+    detected scan landmarks as "landmarks: scan (detected)" diamonds and their
+    low-confidence ones, left out of the wrap, as "landmarks: scan (low
+    confidence)" rings; ``labels`` names the :data:`WORST_LANDMARKS_LABELLED`
+    largest result → scan errors; ``errors`` is (l,) float over the pairs.  Empty
+    when the files are gone.
     """
+    job = run["job"]
     try:
-        tl = _template_landmarks(job, report_path, profile)
-        sl = read_landmarks(_existing(job["scan_landmarks"], report_path,
-                                      "scan landmarks"), kind="points")
+        tl = _template_landmarks(job, report_path, profile, run)
         tl.check(template.n_vertices, len(template.triangles))
+        tl, sl, low = _scan_landmarks(run, report_path, tl)
+        sl.check(scan.n_vertices, len(scan.triangles))
         ia, ib = pair_landmarks(tl, sl, ("template", "scan"))
     except (KeyError, InputError, ValueError) as exc:
         log.warning("landmarks not shown: %s", exc)
@@ -256,9 +300,17 @@ def _landmark_points(job: dict, report_path: Path, template, scan, result, M,
     A, t = M[:3, :3], M[:3, 3]
     on_result = tl.positions(result.vertices, result.triangles)[ia]
     on_scan = sl.positions(scan.vertices, scan.triangles)[ib]
-    points = {"landmarks: template": (tl.positions(template.vertices, template.triangles)
-                                      @ A.T + t)[ia],
-              "landmarks: scan": on_scan, "landmarks: result": on_result}
+    aligned = (tl.positions(template.vertices, template.triangles) @ A.T + t)[ia]
+    points = {"landmarks: template": aligned}
+    if low is None:
+        points["landmarks: scan"] = on_scan
+    else:
+        points["landmarks: scan (detected)"] = PointSet(on_scan, marker="diamond")
+        if len(low):
+            points["landmarks: scan (low confidence)"] = PointSet(
+                low.positions(scan.vertices, scan.triangles), marker="ring",
+                color=LOW_CONFIDENCE_COLOR)
+    points["landmarks: result"] = on_result
     errors = np.linalg.norm(on_result - on_scan, axis=1)
     worst = np.argsort(-errors, kind="stable")[:WORST_LANDMARKS_LABELLED]
     # names from the template's file, else the scan's (a menpo .ljson names them)
@@ -368,7 +420,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     truth = _ground_truth_values(ground_truth, result, codes)
     to_scan, to_result = _distances(scan, result, codes)
     profile = run.get("template_profile", {}).get("path")
-    points, worst, errors = _landmark_points(job, report_path, template, scan, result, M,
+    points, worst, errors = _landmark_points(run, report_path, template, scan, result, M,
                                              profile)
     labelled = [(name, float(errors[j])) for j, _, name in worst]
     scalars = {"distance to scan": ("result", to_scan, unit),

@@ -295,10 +295,12 @@ def _mesh_entry(name, V, T, k, visible) -> dict:
 
 def _color(name: str, k: int) -> str:
     """Colour of a layer: by its first word (scan, result, template, part, ...),
-    landmarks by their last (``landmarks: scan``), else cycled."""
+    landmarks by their second (``landmarks: scan``, ``landmarks: scan (detected)``),
+    else cycled."""
     words = name.lower().replace("_", " ").replace(":", " ").split()
     if words and words[0] == "landmarks":
-        return _POINT_COLORS.get(words[-1], _CYCLE[k % len(_CYCLE)])
+        return _POINT_COLORS.get(words[1] if len(words) > 1 else "",
+                                 _CYCLE[k % len(_CYCLE)])
     return _PALETTE.get(words[0] if words else "", _CYCLE[k % len(_CYCLE)])
 
 
