@@ -15,7 +15,9 @@ both are over the same vertices (the *fitted* ones of the report's
   each UDIM tile and material), each layer counting the template's vertices of its
   role, as the "vertex roles" table does;
 - landmarks of the template (aligned), the scan and the result, the worst few
-  labelled with name and error;
+  labelled with name and error; scan landmarks the run detected (no scan landmark
+  file) as diamonds, their low-confidence ones, left out of the wrap, as hollow
+  rings, and a picture of the scan with them marked (front and three-quarter);
 - heatmaps: result → scan distance over the fitted vertices (grey where the
   closest scan point is on the scan's border, as in the fit metrics), scan →
   result distance, and with ground truth the distance to it;
@@ -44,13 +46,17 @@ from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.files import read_json
-from facewrap.io.images import check_image, load_image
+from facewrap.io.images import check_image, load_image, png_bytes
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.profile import read_template_profile
 from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.texture.tiles import BAKED_MATERIAL
 from facewrap.report.html import MeshLayer, PointSet, write_html_report
-from facewrap.report.run_tables import run_summary
+from facewrap.report.viewer_data import FLAGGED_COLOR
+from facewrap.report.cameras import frame_from_axes
+from facewrap.report.figures import side_by_side
+from facewrap.report.landmark_figure import landmark_picture
+from facewrap.report.run_tables import landmark_source, run_summary
 from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
 __all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
@@ -224,10 +230,6 @@ def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
     return out or None
 
 
-#: Colour of the scan landmarks a detection flagged as low-confidence (hollow rings).
-LOW_CONFIDENCE_COLOR = "#c2188f"
-
-
 def _detected(run: dict, which: str, report_path: Path):
     """``(Landmarks, (k,) bool low-confidence)`` of the run's detection on ``which``
     ("scan" or "template"), from the report's surface landmarks; None without one."""
@@ -309,7 +311,7 @@ def _landmark_points(run: dict, report_path: Path, template, scan, result, M,
         if len(low):
             points["landmarks: scan (low confidence)"] = PointSet(
                 low.positions(scan.vertices, scan.triangles), marker="ring",
-                color=LOW_CONFIDENCE_COLOR)
+                color=FLAGGED_COLOR)
     points["landmarks: result"] = on_result
     errors = np.linalg.norm(on_result - on_scan, axis=1)
     worst = np.argsort(-errors, kind="stable")[:WORST_LANDMARKS_LABELLED]
@@ -350,6 +352,27 @@ def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
             raise InputError("no such file", p)
         check_image(p)
     return pictures
+
+
+def _detection_pictures(run: dict, report_path: Path, scan, up, front) -> list:
+    """The scan from the front and three-quarter with its detected landmarks marked
+    (diamonds: confident; rings: low-confidence, left out of the wrap), when the
+    run detected them; ``(caption, PNG bytes)``."""
+    found = _detected(run, "scan", report_path)
+    if found is None or run["job"].get("scan_landmarks"):
+        return []
+    lm, low = found
+    try:
+        points = lm.positions(scan.vertices, scan.triangles)
+    except (IndexError, ValueError) as exc:
+        log.warning("detected landmarks not drawn: %s", exc)
+        return []
+    frame = frame_from_axes(up=up, front=front)
+    views = [landmark_picture(scan, points, low, view=v, frame=frame)
+             for v in ("front", "three_quarter")]
+    caption = (f"scan landmarks: {landmark_source(run)}; diamonds confident, rings "
+               "low-confidence (left out of the wrap)")
+    return [(caption, png_bytes(side_by_side(views, ["front", "three-quarter"])))]
 
 
 def _run_units(run: dict, units: str, result) -> tuple[str, str]:
@@ -432,6 +455,8 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
                           roles=dict(zip(VERTEX_ROLE_NAMES, counts.tolist())),
                           worst_landmarks=labelled, ground_truth=truth)
     layers = _result_layers(result, codes, _baked_textures(run, report_path, result))
+    up, front = A @ np.asarray(template_up, float), A @ np.asarray(template_front, float)
+    pictures += _detection_pictures(run, report_path, scan, up, front)
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,
@@ -443,5 +468,4 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
         labels=[("landmarks: result", at, f"{name}: {format_distance(errors[j], unit)}")
                 for j, at, name in worst],
         blendshapes=_blendshape_preview(job, report_path, template, result, A),
-        view_up=A @ np.asarray(template_up, float),
-        view_front=A @ np.asarray(template_front, float))
+        view_up=up, view_front=front)

@@ -24,7 +24,8 @@ from facewrap.io.gltf import gltf_layout
 from facewrap.mesh import Mesh
 from facewrap.units import resolution_decimals
 
-__all__ = ["viewer_data", "view_axes", "MeshLayer", "PointSet", "MARKERS",
+__all__ = ["viewer_data", "view_axes", "MeshLayer", "PointSet", "MARKERS", "POINT_COLORS",
+           "FLAGGED_COLOR",
            "COLOR_RANGE_PERCENTILE", "VIEW_NAMES"]
 
 _PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0",
@@ -33,7 +34,11 @@ _PALETTE = {"scan": "#b9c3cf", "result": "#d9a98c", "template": "#8fb3a0",
             "pinned": "#6f9ec9",
             # landmarks: bright, to stand out on the meshes
             "landmarks": "#ffffff"}
-_POINT_COLORS = {"template": "#2e9e5b", "scan": "#1f6fd1", "result": "#e8452c"}
+#: Colours of the landmark sets, by the set (``landmarks: scan``...), in the viewer
+#: and the pictures.
+POINT_COLORS = {"template": "#2e9e5b", "scan": "#1f6fd1", "result": "#e8452c"}
+#: Colour of landmarks flagged as doubtful (low-confidence detections).
+FLAGGED_COLOR = "#c2188f"
 _CYCLE = ["#d9a98c", "#b9c3cf", "#8fb3a0", "#b7a3cf", "#cfc08f", "#8fb0cf"]
 #: Percentile of a heatmap's values at the top of its initial colour range.
 COLOR_RANGE_PERCENTILE = 98
@@ -299,7 +304,7 @@ def _color(name: str, k: int) -> str:
     else cycled."""
     words = name.lower().replace("_", " ").replace(":", " ").split()
     if words and words[0] == "landmarks":
-        return _POINT_COLORS.get(words[1] if len(words) > 1 else "",
+        return POINT_COLORS.get(words[1] if len(words) > 1 else "",
                                  _CYCLE[k % len(_CYCLE)])
     return _PALETTE.get(words[0] if words else "", _CYCLE[k % len(_CYCLE)])
 
