@@ -83,7 +83,7 @@ class WrapJob:
     scan : path
         Scan mesh (OBJ/PLY).
     scan_landmarks : path, optional
-        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON.  Left out
+        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON; left out
         (None), the 68 iBUG points are detected on the scan (:mod:`facewrap.detection`,
         the extra ``facewrap[landmarks]``), the low-confidence ones left out, and on
         the template too when it has no landmarks of its own.

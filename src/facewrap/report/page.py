@@ -435,6 +435,8 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     run = load_run_report(report_path)
     job = run["job"]
     pictures = _pictures(run, report_path, images)   # checked before any work
+    for which in ("scan", "template"):               # so are the run's detections
+        _detected(run, which, report_path)
     M = _similarity(run, report_path)
     A, t = M[:3, :3], M[:3, 3]
     template, scan, result = run_meshes(job, report_path)

@@ -10,8 +10,8 @@
  * blendshapes are per original vertex, and its normals stay smooth across the seams
  * when a blendshape moves it. Distances print as facewrap.units.format_distance
  * does (about four significant digits, never finer than the unit's resolution).
- * Sets window.facewrapViewer = {ready, webgl, meshes, points, labels, textures,
- * error} once drawn with every texture (tests).
+ * Sets window.facewrapViewer = {ready, webgl, meshes, points, pointStyles, labels,
+ * textures, error} once drawn with every texture (tests).
  */
 (function () {
   "use strict";
@@ -230,11 +230,11 @@
                      ring: [OCTA, 1.8, true] };
     const pointSets = (data.points || []).map(function (p) {
       const m = MARKER[p.marker] || MARKER.ball;
-      const mat = m[2]
-        ? new T.MeshBasicMaterial({ color: new T.Color(p.color), wireframe: true })
-        : new T.MeshStandardMaterial({ color: new T.Color(p.color),
-          emissive: new T.Color(p.color), emissiveIntensity: 0.35, roughness: 0.4,
-          flatShading: m[0] === OCTA });
+      // the vendored bundle has the standard material only: a hollow marker is its
+      // wireframe, lit by its own colour so it reads the same from every side
+      const mat = new T.MeshStandardMaterial({ color: new T.Color(p.color),
+        emissive: new T.Color(p.color), emissiveIntensity: m[2] ? 0.9 : 0.35,
+        roughness: 0.4, flatShading: m[0] === OCTA, wireframe: m[2] });
       const obj = new T.Mesh(ballsGeometry(decode(p.positions, Float32Array),
                                            m[1] * ballRadius, m[0]), mat);
       obj.visible = p.visible;
@@ -243,6 +243,13 @@
       return { spec: p, obj: obj };
     });
     state.points = pointSets.length;
+    // for tests: how each set is drawn (marker vertices per point, hollow or not)
+    state.pointStyles = pointSets.map(function (p) {
+      return { name: p.spec.name, marker: p.spec.marker || "ball",
+               vertices: p.obj.geometry.getAttribute("position").count /
+                         Math.max(p.spec.count, 1),
+               wireframe: !!p.obj.material.wireframe, color: "#" + p.obj.material.color.getHexString() };
+    });
     const labelHost = $("fw-labels");
     const labels = (data.labels || []).map(function (l) {
       const div = document.createElement("div");
