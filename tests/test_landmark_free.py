@@ -29,14 +29,7 @@ from facewrap.sample import make_scan, make_template, write_sample
 from facewrap.wrapping import WrapSettings
 from conftest import facewrap
 from test_report_html import CHROMIUM, Browser, needs_chromium
-from test_report_run_page import table_rows
-
-
-def page_data(path: Path) -> dict:
-    """The viewer's JSON block of a page."""
-    m = re.search(r'<script type="application/json" id="facewrap-data">(.*?)</script>',
-                  path.read_text(encoding="utf-8"), re.S)
-    return json.loads(m.group(1))
+from test_report_run_page import page_data, table_rows
 
 
 def overview(path: Path) -> dict:

@@ -3,6 +3,17 @@
 Outputs in ``OUT``: ``frame_0000.obj``… in the template's exact topology,
 ``weights.csv`` (blend weights per frame) and ``track.json`` (fit and landmark
 errors over time, iterations, seconds).  See :mod:`facewrap.wrapping.track`.
+
+Landmarks: ``--scan-landmarks`` for the first frame (or every frame); left out, the
+68 iBUG points are detected on the first frame (the extra ``facewrap[landmarks]``;
+its low-confidence points left out) and every later frame follows the fit, as a
+frame without landmarks of its own does (the fitted landmarks of the frames before,
+moved on and onto its scan).  That is chosen over a detection per frame: a second
+or more each, and each with its own jitter, where the previous fit is already
+within a frame's motion.  The line ``frame 0 (FILE): 68 landmarks detected...``
+and ``track.json`` (``scan_landmarks_source``, ``detected_landmarks``) say so.
+``--template-landmarks`` left out: the template profile's (found beside the
+template), else detected on the template.
 """
 
 from __future__ import annotations
