@@ -186,6 +186,28 @@ def _count(image, colour) -> int:
     return int((np.abs(image.astype(int) - rgb).max(axis=2) < 40).sum())
 
 
+def test_template_landmarks_the_run_detected_are_drawn_too(detected_run, tmp_path):
+    # a run with no template landmark file and no profile: they were detected too
+    report = json.loads(detected_run["report"].read_text())
+    ids = read_landmarks(report["job"].pop("template_landmarks"), kind="auto").vertex
+    template = read_mesh(report["job"]["template"])
+    T = template.triangles
+    tri = np.array([int(np.flatnonzero((T == v).any(axis=1))[0]) for v in ids])
+    bary = (T[tri] == ids[:, None]).astype(float)     # the vertex's corner
+    names = report["detected_landmarks"]["scan"]["names"]
+    report["detected_landmarks"]["template"] = {
+        "names": names, "triangles": tri.tolist(), "barycentric": bary.tolist(),
+        "low_confidence": []}
+    path = detected_run["dir"] / "both.json"
+    path.write_text(json.dumps(report))
+    sets = {p["name"]: p for p in page_data(build_report_page(path, tmp_path))["points"]}
+    assert sets["landmarks: template"]["count"] == 51
+    shown = np.frombuffer(base64.b64decode(sets["landmarks: result"]["positions"]),
+                          "<f4").reshape(-1, 3)
+    result = read_mesh(detected_run["dir"] / "wrapped.obj")
+    np.testing.assert_allclose(shown, result.vertices[ids[17:]], atol=1e-3)
+
+
 def test_a_page_of_a_run_with_a_landmark_file_is_as_before(detected_run, tmp_path):
     page = build_report_page(detected_run["dir"] / "run.json", tmp_path / "html")
     names = [p["name"] for p in page_data(page)["points"]]
@@ -289,3 +311,19 @@ def test_track_detects_the_first_frame_and_later_frames_follow(sample, tmp_path,
     # the sample's detection is rough, but the fit stays on the scan
     assert all(f["fit_mean"] < 0.5 for f in report["frames"])
     assert len(sorted(out.glob("frame_*.obj"))) == 3
+
+
+@pytest.mark.slow
+def test_track_of_scans_with_no_face_is_one_error(sample, tmp_path, capsys):
+    from scipy.spatial import ConvexHull
+    from facewrap.mesh import Mesh
+    V = np.random.default_rng(3).normal(size=(600, 3))
+    V = 90.0 * V / np.linalg.norm(V, axis=1, keepdims=True)
+    write_mesh(tmp_path / "ball.obj", Mesh(V, ConvexHull(V).simplices))
+    rc = facewrap("track", sample / "template.obj", tmp_path / "ball.obj", "-o",
+                  tmp_path / "out", "--template-landmarks",
+                  sample / "template_landmarks.txt")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith("facewrap: error: ")
+    assert "ball.obj" in err[0] and "no face" in err[0]
+    assert not (tmp_path / "out").exists()
