@@ -284,8 +284,15 @@ def test_run_and_batch_detect_when_the_job_has_no_scan_landmarks(sample, tmp_pat
                     "-q") == 0
     with open(tmp_path / "jobs.summary.csv") as fh:
         rows = list(csv.DictReader(fh))
-    assert [r["status"] for r in rows] == ["done"]
-    assert json.loads((tmp_path / "b" / "o.obj.done.json").read_text())
+    assert [(r["status"], r["scan_landmarks"]) for r in rows] == [("done", "detected")]
+    assert json.loads((tmp_path / "b" / "o.obj.done.json").read_text())[
+        "scan_landmarks"] == "detected"
+    # a re-run skips the finished job and still says how its landmarks came
+    assert facewrap("batch", tmp_path / "jobs.csv", "--job", tmp_path / "job.toml",
+                    "-q") == 0
+    with open(tmp_path / "jobs.summary.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["status"], r["scan_landmarks"]) for r in rows] == [("skipped", "detected")]
 
 
 @pytest.mark.slow
