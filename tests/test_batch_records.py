@@ -13,8 +13,8 @@ from facewrap.wrapping import WrapSettings
 def wrap_job(d) -> WrapJob:
     for name in ("t.obj", "s.obj", "t.txt", "s.txt"):
         (d / name).write_text(name)
-    return WrapJob(str(d / "t.obj"), str(d / "s.obj"), str(d / "s.txt"),
-                   str(d / "out" / "a.obj"), str(d / "t.txt"))
+    return WrapJob(str(d / "t.obj"), str(d / "s.obj"), scan_landmarks=str(d / "s.txt"),
+                   output=str(d / "out" / "a.obj"), template_landmarks=str(d / "t.txt"))
 
 
 def finish(job, settings, report=None) -> dict:

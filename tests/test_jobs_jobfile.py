@@ -102,7 +102,8 @@ def test_new_settings_become_keys_by_introspection(tmp_path):
         values = read_job_tables(p).settings
         assert values == {"new_knob": 2.0, "names": ["a", "b"], "inner": Inner(3.0)}
         assert "new_knob = 1.0" in job_to_toml(
-            WrapJob("t.obj", "s.obj", "s.txt", "o.obj", "t.txt"), Grown())
+            WrapJob("t.obj", "s.obj", scan_landmarks="s.txt", output="o.obj",
+                    template_landmarks="t.txt"), Grown())
         bad = write(tmp_path / "k.toml", "[wrap.inner]\nradius = 3\ncolour = 1\n")
         with pytest.raises(InputError, match="unknown key 'colour'"):
             read_job_tables(bad)

@@ -4,8 +4,9 @@ A **manifest** lists the jobs; a shared **job file** (:mod:`facewrap.jobs.jobfil
 holds what they have in common (template, landmarks, settings), and its settings
 table says the kind of every job (wrap by default, or transfer).
 
-* CSV: a header row, then one job per row.  Columns ``scan``, ``scan_landmarks``,
-  ``output`` (unless the job file gives them), and optionally ``name``, ``job`` (a
+* CSV: a header row, then one job per row.  Columns ``scan`` and ``output``
+  (unless the job file gives them), and optionally ``scan_landmarks`` (left out or
+  empty: detected on the scan, see :class:`~facewrap.jobs.WrapJob`), ``name``, ``job`` (a
   job file for this row), any other job field (:class:`~facewrap.jobs.WrapJob`,
   :class:`~facewrap.jobs.TransferJob`) and any scalar setting (``smoothing``, or
   ``wrap.smoothing``).  An empty cell means "not overridden"; lines starting with
@@ -77,7 +78,7 @@ def done_record_path(job) -> str:
     """``OUTPUT.done.json``: the record that ``job`` finished, beside its main output.
 
     >>> from facewrap.jobs import WrapJob
-    >>> done_record_path(WrapJob("t.obj", "s.obj", "s.txt", "out/a.obj", "t.txt"))
+    >>> done_record_path(WrapJob("t.obj", "s.obj", output="out/a.obj"))
     'out/a.obj.done.json'
     """
     return kind_of(job).output_of(job) + ".done.json"

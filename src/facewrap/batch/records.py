@@ -143,7 +143,8 @@ def write_done_record(job, fp: dict, report: dict, seconds: float) -> None:
            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
            "metrics": scalar_metrics(report.get("metrics", {})),
            "model": report.get("settings", {}).get("model"),
-           "warnings": report.get("warnings", [])}
+           "warnings": report.get("warnings", []),
+           "scan_landmarks": report.get("scan_landmarks_source", "")}
     with atomic_write(done_record_path(job), "w", encoding="utf-8") as fh:
         json.dump(rec, fh, indent=1)
 

@@ -46,7 +46,8 @@ def skipped_row(bj: BatchJob, fp: dict | None = None) -> dict | None:
         return None
     return summary_row(bj, SKIPPED, seconds=rec.get("seconds", 0.0),
                        host=rec.get("host", ""), metrics=rec.get("metrics", {}),
-                       warnings=rec.get("warnings", []))
+                       warnings=rec.get("warnings", []),
+                       scan_landmarks=rec.get("scan_landmarks", ""))
 
 
 def _one_line_error(exc: BaseException) -> str:
@@ -91,7 +92,8 @@ def run_one(bj: BatchJob) -> dict:
         write_done_record(bj.job, fp, report, seconds)
         return summary_row(bj, DONE, seconds=seconds, host=worker_name(),
                            metrics=scalar_metrics(report.get("metrics", {})),
-                           warnings=report.get("warnings", []))
+                           warnings=report.get("warnings", []),
+                           scan_landmarks=report.get("scan_landmarks_source", ""))
     except Exception as exc:  # noqa: BLE001 - one job's failure must not stop a batch
         return summary_row(bj, FAILED, seconds=time.perf_counter() - t0,
                            host=worker_name(), error=_one_line_error(exc))

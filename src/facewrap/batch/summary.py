@@ -27,7 +27,7 @@ DONE, SKIPPED, FAILED, PENDING = "done", "skipped", "failed", "pending"
 STATUSES = (DONE, SKIPPED, FAILED, PENDING)
 #: Columns of the CSV summary (then one per metric of :data:`METRIC_COLUMNS`).
 SUMMARY_COLUMNS = ("index", "name", "status", "output", "seconds", "error", "warnings",
-                   "host")
+                   "host", "scan_landmarks")
 #: Metrics of a wrap report shown as CSV columns.
 METRIC_COLUMNS = ("fit_mean", "fit_p95", "fit_max", "fit_coverage", "landmark_mean",
                   "landmark_max")
@@ -60,11 +60,12 @@ class BatchResult:
 
 def summary_row(bj: BatchJob, status: str, **values) -> dict:
     """The summary row of a job: ``index``, ``name``, ``status``, ``output``,
-    ``seconds``, ``error``, ``warnings``, ``host``, ``metrics`` (``values`` override
-    the empty defaults)."""
+    ``seconds``, ``error``, ``warnings``, ``host``, ``scan_landmarks`` (a wrap's
+    ``"file"`` or ``"detected"``), ``metrics`` (``values`` override the empty
+    defaults)."""
     row = {"index": bj.index, "name": bj.name, "status": status,
            "output": getattr(bj.job, bj.kind.main_output), "seconds": 0.0, "error": "",
-           "warnings": [], "host": "", "metrics": {}}
+           "warnings": [], "host": "", "scan_landmarks": "", "metrics": {}}
     row.update(values)
     return row
 
@@ -76,6 +77,7 @@ def _csv_text(rows: list[dict]) -> str:
     for r in rows:
         writer.writerow([r["index"], r["name"], r["status"], r["output"],
                          f"{r['seconds']:.3f}", r["error"], len(r["warnings"]), r["host"],
+                         r.get("scan_landmarks", ""),
                          *(("" if r["metrics"].get(m) is None else repr(r["metrics"][m]))
                            for m in METRIC_COLUMNS)])
     return buf.getvalue()

@@ -3,6 +3,17 @@
 Outputs in ``OUT``: ``frame_0000.obj``… in the template's exact topology,
 ``weights.csv`` (blend weights per frame) and ``track.json`` (fit and landmark
 errors over time, iterations, seconds).  See :mod:`facewrap.wrapping.track`.
+
+Landmarks: ``--scan-landmarks`` for the first frame (or every frame); left out, the
+68 iBUG points are detected on the first frame (the extra ``facewrap[landmarks]``;
+its low-confidence points left out) and every later frame follows the fit, as a
+frame without landmarks of its own does (the fitted landmarks of the frames before,
+moved on and onto its scan).  That is chosen over a detection per frame: a second
+or more each, and each with its own jitter, where the previous fit is already
+within a frame's motion.  The line ``frame 0 (FILE): 68 landmarks detected...``
+and ``track.json`` (``scan_landmarks_source``, ``detected_landmarks``) say so.
+``--template-landmarks`` left out: the template profile's (found beside the
+template), else detected on the template.
 """
 
 from __future__ import annotations
@@ -17,7 +28,9 @@ from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
-from facewrap.jobs import read_mesh_landmarks
+from facewrap.io.profile import find_template_profile, read_template_profile
+from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
+                                    detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
 from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
 from facewrap.wrapping import track, write_track_outputs
@@ -50,28 +63,69 @@ def frame_warnings(result, scans) -> list[str]:
             for note in frame.warnings]
 
 
-def cmd_track(args) -> int:
-    """Track the template through the scans and write the sequence."""
-    scans = _scan_paths(args.scans)
-    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
-              *args.scan_landmarks, args.blendshapes, args.exclude]
-    # weights.csv is checked whether or not blend weights will be written
-    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
-                       inputs=[p for p in inputs if p])
-    template = read_mesh(args.template)
+def _scan_landmarks(args, template, meshes, scans):
+    """Template landmarks and one entry per frame (None: carried on from the fit of
+    the frames before), with the detections made (``{"template"|"frame 0": ...}``).
+
+    With no ``--scan-landmarks``, the first frame's are detected and every later
+    frame's are the fitted landmarks of the frames before it, moved on and put onto
+    its scan (:func:`facewrap.wrapping.track.track`): the face moves little between
+    frames, so this is smoother than a detection per frame (about a second each,
+    and a jitter of its own) and follows the fit."""
+    template_path = args.template
+    detections = {}
+    if args.template_landmarks:
+        tl, tl_source = read_mesh_landmarks(args.template_landmarks, template,
+                                            kind="auto"), args.template_landmarks
+    else:
+        tl, tl_source = _profile_landmarks(template_path)
+        if tl is None:
+            detections["template"] = detect_mesh_landmarks(template, template_path)
+            tl, tl_source = detections["template"].landmarks, template_path
+    if not args.scan_landmarks:
+        tl, first, detections["frame 0"] = detected_scan_landmarks(
+            tl, tl_source, meshes[0], scans[0])
+        return tl, [first] + [None] * (len(meshes) - 1), detections
     if len(args.scan_landmarks) not in (1, len(scans)):
         raise InputError(f"give scan landmarks for the first frame or for all "
                          f"{len(scans)} frames, not {len(args.scan_landmarks)}",
                          args.scan_landmarks[0])
-    tl = read_mesh_landmarks(args.template_landmarks, template, kind="auto")
-    meshes = [read_mesh(p) for p in scans]
     lms = [read_mesh_landmarks(p, m, kind="points")
            for p, m in zip(args.scan_landmarks, meshes)]
     for path, lm in zip(args.scan_landmarks, lms):
         if (tl.names is None or lm.names is None) and len(lm) != len(tl):
-            raise InputError(f"has {len(lm)} landmarks but the template landmarks have "
-                             f"{len(tl)}", path)
-    lms += [None] * (len(meshes) - len(lms))
+            raise InputError(f"has {len(lm)} landmarks but the template landmarks "
+                             f"({tl_source}) have {len(tl)}", path)
+    return tl, lms + [None] * (len(meshes) - len(lms)), detections
+
+
+def _profile_landmarks(template_path):
+    """The landmarks of the template profile found beside the template and its
+    path, or ``(None, None)``."""
+    profile = find_template_profile(template_path)
+    if profile is None:
+        return None, None
+    landmarks = read_template_profile(profile).landmarks
+    return (None, None) if landmarks is None else (landmarks, str(profile))
+
+
+def cmd_track(args) -> int:
+    """Track the template through the scans and write the sequence."""
+    scans = _scan_paths(args.scans)
+    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
+              *(args.scan_landmarks or ()), args.blendshapes, args.exclude]
+    # weights.csv is checked whether or not blend weights will be written
+    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
+                       inputs=[p for p in inputs if p])
+    template = read_mesh(args.template)
+    meshes = [read_mesh(p) for p in scans]
+    tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+    if detections and not args.quiet:
+        for what, found in detections.items():
+            where = args.template if what == "template" else f"frame 0 ({scans[0]})"
+            print(f"{where}: 68 landmarks detected, {int(found.low_confidence.sum())} "
+                  "low-confidence left out"
+                  + ("; later frames follow the fit" if what != "template" else ""))
     shapes = None
     if args.blendshapes:
         shapes = load_shape_folder(args.blendshapes, template, exclude=())
@@ -103,7 +157,12 @@ def cmd_track(args) -> int:
         args.out, result, output_frame=args.output_frame,
         extra_report={"template": str(args.template), "scans": [str(p) for p in scans],
                       "shape_names": result.shape_names, "warnings": notes,
-                      "units": unit, "units_source": source})
+                      "units": unit, "units_source": source,
+                      "scan_landmarks_source": "detected" if "frame 0" in detections
+                      else "file",
+                      **({"detected_landmarks": {k: detection_entry(v) for k, v in
+                                                 detections.items()}}
+                         if detections else {})})
     if not args.quiet:
         print(f"wrote {len(paths['meshes'])} frames to {args.out}")
         if source == "inferred":
@@ -117,10 +176,13 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("template", help="template mesh (OBJ/PLY)")
     p.add_argument("scans", nargs="+", help="scan files in frame order, or a folder")
     p.add_argument("-o", "--out", required=True, help="output folder")
-    p.add_argument("--template-landmarks", required=True,
-                   help="template vertex ids (text) or facewrap landmark JSON")
-    p.add_argument("--scan-landmarks", required=True, nargs="+", metavar="F",
-                   help="landmarks of the first frame, or one file per frame")
+    p.add_argument("--template-landmarks",
+                   help="template vertex ids (text) or facewrap landmark JSON (default: "
+                        "the template profile's, else detected on the template)")
+    p.add_argument("--scan-landmarks", nargs="+", metavar="F",
+                   help="landmarks of the first frame, or one file per frame (default: "
+                        "the 68 iBUG points detected on the first frame, the later "
+                        "frames following the fit; needs facewrap[landmarks])")
     add_fit_options(p)
     add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")

@@ -25,7 +25,7 @@ import logging
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import KW_ONLY, asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +56,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["WrapJob", "InputWarning", "run_wrap_job", "load_wrap_inputs",
            "job_inputs", "job_outputs", "check_job_paths", "OUTPUT_FRAMES",
-           "write_wrap_outputs", "textureoutput_field"]
+           "write_wrap_outputs", "textureoutput_field", "detect_mesh_landmarks",
+           "detected_scan_landmarks", "detection_entry"]
 
 #: Mesh formats an output may have.
 MESH_EXTENSIONS = (".obj", ".ply")
@@ -73,15 +74,19 @@ class InputWarning(UserWarning):
 class WrapJob:
     """Files of one wrap (settings live apart, in :class:`WrapSettings`).
 
+    ``template`` and ``scan`` may be given by position, every other field by name
+    (``WrapJob("t.obj", "s.obj", output="out.obj")``).
+
     Attributes
     ----------
     template : path
         Template mesh (OBJ/PLY) whose topology the result keeps.
     scan : path
         Scan mesh (OBJ/PLY).
-    scan_landmarks : path or None
-        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON; None: the
-        68 iBUG points are detected on the scan (:mod:`facewrap.detection`), and on
+    scan_landmarks : path, optional
+        Scan points: ``x y z`` text, menpo ``.ljson`` or facewrap JSON; left out
+        (None), the 68 iBUG points are detected on the scan (:mod:`facewrap.detection`,
+        the extra ``facewrap[landmarks]``), the low-confidence ones left out, and on
         the template too when it has no landmarks of its own.
     output : path
         Fitted mesh (OBJ/PLY) in the template's exact topology.
@@ -125,7 +130,8 @@ class WrapJob:
     """
     template: str = input_field()
     scan: str = input_field()
-    scan_landmarks: str | None = input_field()
+    _: KW_ONLY   # by name from here: scan_landmarks may be left out, output may not
+    scan_landmarks: str | None = input_field(default=None)
     output: str = output_field()
     template_landmarks: str | None = input_field(default=None)
     template_profile: str | None = input_field(default=None)
@@ -301,16 +307,13 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     detections = {}
     if not job.template_landmarks and (profile is None or profile.landmarks is None) \
             and not job.scan_landmarks:
-        detections["template"] = _detect(template, job.template, None)
+        detections["template"] = detect_mesh_landmarks(template, job.template)
     tl, tl_source = _template_landmarks(job, template, profile, detections)
     if job.scan_landmarks:
         sl = read_mesh_landmarks(job.scan_landmarks, scan, kind="points")
     else:
-        detections["scan"] = _detect(scan, job.scan, job.texture)
-        try:
-            tl, sl = confident_landmarks(tl, detections["scan"])
-        except ValueError as exc:
-            raise InputError(str(exc).partition(": ")[2], tl_source) from None
+        tl, sl, detections["scan"] = detected_scan_landmarks(tl, tl_source, scan,
+                                                             job.scan, job.texture)
     if (tl.names is None or sl.names is None) and len(tl) != len(sl):
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({tl_source}) have {len(tl)}", job.scan_landmarks)
@@ -375,8 +378,22 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
             "detections": detections}
 
 
-def _detect(mesh: Mesh, path, texture_path):
-    """The 68 landmarks detected on a job's mesh (textured when it has an image)."""
+def detect_mesh_landmarks(mesh: Mesh, path, texture_path=None):
+    """The 68 landmarks detected on a job's mesh, logged.
+
+    Drawn textured with ``texture_path`` (when the mesh has texture coordinates),
+    else with the image its material names, else shaded.
+
+    Returns
+    -------
+    DetectedLandmarks
+
+    Raises
+    ------
+    InputError
+        No face on the mesh (naming ``path``), or the extra ``facewrap[landmarks]``
+        missing.
+    """
     from facewrap.detection import detect_landmarks, mesh_texture  # dlib loads on use
 
     image = load_image(texture_path) if texture_path and mesh.uvs is not None \
@@ -385,6 +402,41 @@ def _detect(mesh: Mesh, path, texture_path):
     log.info("%s: 68 landmarks detected (%d low-confidence, left out)", path,
              int(found.low_confidence.sum()))
     return found
+
+
+def detection_entry(found) -> dict:
+    """The report's account of one detection, with the points themselves: surface
+    landmarks (triangle of the mesh file's triangulation + barycentric) and
+    positions, so a report page draws them without detecting again."""
+    lm = found.landmarks
+    return {**detection_report(found), "names": list(lm.names),
+            "triangles": lm.triangle.tolist(), "barycentric": lm.barycentric.tolist(),
+            "positions": np.asarray(found.positions).tolist()}
+
+
+def detected_scan_landmarks(template_landmarks, template_source, scan: Mesh, path,
+                            texture_path=None):
+    """Scan landmarks detected and paired with the template's as a wrap uses them.
+
+    Returns
+    -------
+    (Landmarks, Landmarks, DetectedLandmarks)
+        Template and scan landmarks, named, the low-confidence scan points left out
+        (:func:`~facewrap.detection.for_wrap.confident_landmarks`), and the
+        detection itself (for the report, :func:`detection_entry`).
+
+    Raises
+    ------
+    InputError
+        As :func:`detect_mesh_landmarks`; naming ``template_source`` when its
+        landmarks cannot be paired with the iBUG-68 points.
+    """
+    found = detect_mesh_landmarks(scan, path, texture_path)
+    try:
+        tl, sl = confident_landmarks(template_landmarks, found)
+    except ValueError as exc:
+        raise InputError(str(exc).partition(": ")[2], template_source) from None
+    return tl, sl, found
 
 
 def _template_profile(job: WrapJob, template: Mesh):
@@ -533,7 +585,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     report["scan_landmarks_source"] = "detected" if "scan" in inputs["detections"] \
         else "file"
     if inputs["detections"]:
-        report["detected_landmarks"] = {k: detection_report(v)
+        report["detected_landmarks"] = {k: detection_entry(v)
                                         for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
                                                             result.mesh.vertices)

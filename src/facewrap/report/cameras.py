@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["VIEWS", "view_rotation", "frame_from_axes", "fit_pixel_size", "image_size"]
+__all__ = ["VIEWS", "view_rotation", "frame_from_axes", "fit_pixel_size", "image_size",
+           "camera_pixels"]
 
 #: Named views, ``name -> (azimuth, elevation)`` in degrees.
 VIEWS = {
@@ -145,6 +146,45 @@ def fit_pixel_size(points_list, views=("front",), size=(640, 640), margin=0.06,
             best = max(best, ext[0] / (w * (1 - 2 * margin)),
                        ext[1] / (h * (1 - 2 * margin)))
     return best if best > 0 else 1.0
+
+
+def camera_pixels(C, center, scale: float, size) -> tuple[np.ndarray, np.ndarray,
+                                                        np.ndarray]:
+    """Pixel coordinates and depth of points in camera coordinates.
+
+    The one projection of the renderer: what :func:`~facewrap.report.render.render_mesh`
+    draws and what is drawn over its pictures (landmarks) land on the same pixels.
+
+    Parameters
+    ----------
+    C : (n, 3) float
+        Camera coordinates (``V @ view_rotation(...).T``).
+    center : (2,) float
+        Camera x, y at the image centre.
+    scale : float
+        Pixels per model unit.
+    size : (width, height) int
+
+    Returns
+    -------
+    x, y : (n,) float64
+        Pixels, x to the right, y down; pixel ``(row, col)`` has its centre at
+        ``x = col``, ``y = row`` (as :func:`~facewrap.report.raster.trusted_rasterize`
+        takes them).
+    depth : (n,) float64
+        Smaller is nearer.
+
+    Examples
+    --------
+    >>> x, y, d = camera_pixels(np.array([[0.0, 0, 1], [1, 1, 0]]), (0, 0), 2.0, (8, 8))
+    >>> x.tolist(), y.tolist(), d.tolist()
+    ([3.5, 5.5], [3.5, 1.5], [-1.0, -0.0])
+    """
+    C = np.asarray(C, dtype=np.float64)
+    w, h = size
+    x = (C[:, 0] - center[0]) * scale + w / 2 - 0.5
+    y = h / 2 - (C[:, 1] - center[1]) * scale - 0.5
+    return x, y, -C[:, 2]
 
 
 def image_size(size) -> tuple[int, int]:

@@ -15,7 +15,9 @@ both are over the same vertices (the *fitted* ones of the report's
   each UDIM tile and material), each layer counting the template's vertices of its
   role, as the "vertex roles" table does;
 - landmarks of the template (aligned), the scan and the result, the worst few
-  labelled with name and error;
+  labelled with name and error; scan landmarks the run detected (no scan landmark
+  file) as diamonds, their low-confidence ones, left out of the wrap, as hollow
+  rings, and a picture of the scan with them marked (front and three-quarter);
 - heatmaps: result → scan distance over the fitted vertices (grey where the
   closest scan point is on the scan's border, as in the fit metrics), scan →
   result distance, and with ground truth the distance to it;
@@ -33,22 +35,28 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from facewrap.datasets import load_shape_folder
+from facewrap.detection.for_wrap import confident_landmarks
 from facewrap.errors import InputError
 from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.files import read_json
-from facewrap.io.images import check_image, load_image
+from facewrap.io.images import check_image, load_image, png_bytes
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.profile import read_template_profile
-from facewrap.landmarks import pair_landmarks
+from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.texture.tiles import BAKED_MATERIAL
-from facewrap.report.html import MeshLayer, write_html_report
-from facewrap.report.run_tables import run_summary
+from facewrap.report.html import MeshLayer, PointSet, write_html_report
+from facewrap.report.viewer_data import FLAGGED_COLOR
+from facewrap.report.cameras import frame_from_axes
+from facewrap.report.figures import side_by_side
+from facewrap.report.landmark_figure import landmark_picture
+from facewrap.report.run_tables import landmark_source, run_summary
 from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
 
 __all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
@@ -222,9 +230,28 @@ def _baked_textures(run: dict, report_path: Path, result) -> dict | None:
     return out or None
 
 
-def _template_landmarks(job: dict, report_path: Path, profile):
+def _detected(run: dict, which: str, report_path: Path):
+    """``(Landmarks, (k,) bool low-confidence)`` of the run's detection on ``which``
+    ("scan" or "template"), from the report's surface landmarks; None without one."""
+    entry = (run.get("detected_landmarks") or {}).get(which)
+    if not isinstance(entry, dict):
+        return None
+    try:
+        names = list(entry["names"])
+        lm = Landmarks.from_barycentric(entry["triangles"], entry["barycentric"], names)
+        low = np.isin(names, list(entry.get("low_confidence", ())))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"'detected_landmarks' › {which} is malformed ({exc})",
+                         report_path) from None
+    return lm, low
+
+
+def _template_landmarks(job: dict, report_path: Path, profile, run: dict):
     """The run's template landmarks: from their file, else from the template profile
-    the run used (``profile``: its path, from the report)."""
+    the run used (``profile``: its path, from the report), else detected."""
+    found = _detected(run, "template", report_path)
+    if "template_landmarks" not in job and not profile and found is not None:
+        return found[0]
     if "template_landmarks" in job or not profile:
         return read_landmarks(_existing(job["template_landmarks"], report_path,
                                         "template landmarks"), kind="auto")
@@ -235,20 +262,39 @@ def _template_landmarks(job: dict, report_path: Path, profile):
     return landmarks
 
 
-def _landmark_points(job: dict, report_path: Path, template, scan, result, M,
+def _scan_landmarks(run: dict, report_path: Path, template_landmarks):
+    """``(template, scan, low)``: the run's scan landmarks from their file (``low``
+    None), else the detected ones paired as the wrap paired them (the confident
+    points; ``low``: the positions of the others, drawn apart)."""
+    job = run["job"]
+    found = _detected(run, "scan", report_path)
+    if job.get("scan_landmarks") or found is None:
+        return template_landmarks, read_landmarks(_existing(
+            job["scan_landmarks"], report_path, "scan landmarks"), kind="points"), None
+    lm, low = found
+    tl, sl = confident_landmarks(template_landmarks,
+                                 SimpleNamespace(landmarks=lm, low_confidence=low))
+    return tl, sl, lm.subset(np.flatnonzero(low))
+
+
+def _landmark_points(run: dict, report_path: Path, template, scan, result, M,
                      profile=None):
     """Landmark sets for the viewer, labels of the worst, and the paired errors.
 
     Returns ``(points, labels, errors)``: ``points`` maps "landmarks: template"
-    (aligned), "landmarks: scan" and "landmarks: result" to (k, 3) positions;
-    ``labels`` names the :data:`WORST_LANDMARKS_LABELLED` largest result → scan
-    errors; ``errors`` is (l,) float over the pairs.  Empty when the files are gone.
+    (aligned), "landmarks: scan" and "landmarks: result" to (k, 3) positions —
+    detected scan landmarks as "landmarks: scan (detected)" diamonds and their
+    low-confidence ones, left out of the wrap, as "landmarks: scan (low
+    confidence)" rings; ``labels`` names the :data:`WORST_LANDMARKS_LABELLED`
+    largest result → scan errors; ``errors`` is (l,) float over the pairs.  Empty
+    when the files are gone.
     """
+    job = run["job"]
     try:
-        tl = _template_landmarks(job, report_path, profile)
-        sl = read_landmarks(_existing(job["scan_landmarks"], report_path,
-                                      "scan landmarks"), kind="points")
+        tl = _template_landmarks(job, report_path, profile, run)
         tl.check(template.n_vertices, len(template.triangles))
+        tl, sl, low = _scan_landmarks(run, report_path, tl)
+        sl.check(scan.n_vertices, len(scan.triangles))
         ia, ib = pair_landmarks(tl, sl, ("template", "scan"))
     except (KeyError, InputError, ValueError) as exc:
         log.warning("landmarks not shown: %s", exc)
@@ -256,9 +302,17 @@ def _landmark_points(job: dict, report_path: Path, template, scan, result, M,
     A, t = M[:3, :3], M[:3, 3]
     on_result = tl.positions(result.vertices, result.triangles)[ia]
     on_scan = sl.positions(scan.vertices, scan.triangles)[ib]
-    points = {"landmarks: template": (tl.positions(template.vertices, template.triangles)
-                                      @ A.T + t)[ia],
-              "landmarks: scan": on_scan, "landmarks: result": on_result}
+    aligned = (tl.positions(template.vertices, template.triangles) @ A.T + t)[ia]
+    points = {"landmarks: template": aligned}
+    if low is None:
+        points["landmarks: scan"] = on_scan
+    else:
+        points["landmarks: scan (detected)"] = PointSet(on_scan, marker="diamond")
+        if len(low):
+            points["landmarks: scan (low confidence)"] = PointSet(
+                low.positions(scan.vertices, scan.triangles), marker="ring",
+                color=FLAGGED_COLOR)
+    points["landmarks: result"] = on_result
     errors = np.linalg.norm(on_result - on_scan, axis=1)
     worst = np.argsort(-errors, kind="stable")[:WORST_LANDMARKS_LABELLED]
     # names from the template's file, else the scan's (a menpo .ljson names them)
@@ -298,6 +352,27 @@ def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
             raise InputError("no such file", p)
         check_image(p)
     return pictures
+
+
+def _detection_pictures(run: dict, report_path: Path, scan, up, front) -> list:
+    """The scan from the front and three-quarter with its detected landmarks marked
+    (diamonds: confident; rings: low-confidence, left out of the wrap), when the
+    run detected them; ``(caption, PNG bytes)``."""
+    found = _detected(run, "scan", report_path)
+    if found is None or run["job"].get("scan_landmarks"):
+        return []
+    lm, low = found
+    try:
+        points = lm.positions(scan.vertices, scan.triangles)
+    except (IndexError, ValueError) as exc:
+        log.warning("detected landmarks not drawn: %s", exc)
+        return []
+    frame = frame_from_axes(up=up, front=front)
+    views = [landmark_picture(scan, points, low, view=v, frame=frame)
+             for v in ("front", "three_quarter")]
+    caption = (f"scan landmarks: {landmark_source(run)}; diamonds confident, rings "
+               "low-confidence (left out of the wrap)")
+    return [(caption, png_bytes(side_by_side(views, ["front", "three-quarter"])))]
 
 
 def _run_units(run: dict, units: str, result) -> tuple[str, str]:
@@ -360,6 +435,8 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     run = load_run_report(report_path)
     job = run["job"]
     pictures = _pictures(run, report_path, images)   # checked before any work
+    for which in ("scan", "template"):               # so are the run's detections
+        _detected(run, which, report_path)
     M = _similarity(run, report_path)
     A, t = M[:3, :3], M[:3, 3]
     template, scan, result = run_meshes(job, report_path)
@@ -368,7 +445,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     truth = _ground_truth_values(ground_truth, result, codes)
     to_scan, to_result = _distances(scan, result, codes)
     profile = run.get("template_profile", {}).get("path")
-    points, worst, errors = _landmark_points(job, report_path, template, scan, result, M,
+    points, worst, errors = _landmark_points(run, report_path, template, scan, result, M,
                                              profile)
     labelled = [(name, float(errors[j])) for j, _, name in worst]
     scalars = {"distance to scan": ("result", to_scan, unit),
@@ -380,6 +457,8 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
                           roles=dict(zip(VERTEX_ROLE_NAMES, counts.tolist())),
                           worst_landmarks=labelled, ground_truth=truth)
     layers = _result_layers(result, codes, _baked_textures(run, report_path, result))
+    up, front = A @ np.asarray(template_up, float), A @ np.asarray(template_front, float)
+    pictures += _detection_pictures(run, report_path, scan, up, front)
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,
@@ -391,5 +470,4 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
         labels=[("landmarks: result", at, f"{name}: {format_distance(errors[j], unit)}")
                 for j, at, name in worst],
         blendshapes=_blendshape_preview(job, report_path, template, result, A),
-        view_up=A @ np.asarray(template_up, float),
-        view_front=A @ np.asarray(template_front, float))
+        view_up=up, view_front=front)

@@ -28,7 +28,7 @@ import numpy as np
 
 from facewrap.geometry.checks import mesh_arrays
 from facewrap.geometry.normals import trusted_face_normals, trusted_vertex_normals
-from facewrap.report.cameras import fit_pixel_size, image_size, view_rotation
+from facewrap.report.cameras import camera_pixels, fit_pixel_size, image_size, view_rotation
 from facewrap.report.colors import (NAN_COLOR, apply_colormap, as_rgb, color_limits, colormap,
                                     colormap_lookup, linear_to_srgb8, srgb_to_linear)
 from facewrap.report.raster import Raster, trusted_rasterize
@@ -167,10 +167,8 @@ def render_mesh(mesh, *, scalars=None, cmap="viridis", clim=None, colors=None,
     else:
         c2 = (R @ np.asarray(center, dtype=np.float64).reshape(3))[:2]
     W, H = w * ss, h * ss
-    scale = ss / pixel_size
-    x = (C[:, 0] - c2[0]) * scale + W / 2 - 0.5
-    y = H / 2 - (C[:, 1] - c2[1]) * scale - 0.5
-    raster = trusted_rasterize(x, y, -C[:, 2], T, W, H)
+    x, y, depth = camera_pixels(C, c2, ss / pixel_size, (W, H))
+    raster = trusted_rasterize(x, y, depth, T, W, H)
 
     premult = np.zeros((H * W, 3), dtype=np.float32)
     if len(raster.pixels):

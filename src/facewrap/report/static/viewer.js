@@ -2,15 +2,16 @@
  * draws its meshes with three.js (global FWTHREE, see three-viewer.min.js) and wires
  * the controls: layer toggles and opacity, heatmap choice and range with a colour
  * bar, blendshape sliders, view presets, and a value read-out under the pointer;
- * draws point sets (landmarks) as small balls, each set with a toggle, and text
+ * draws point sets (landmarks) as small balls (diamonds: detected; hollow wire
+ * diamonds: flagged low-confidence), each set with a toggle, and text
  * labels that follow the view. A layer that comes as its glTF has it (vertex_ids:
  * split at UV seams; normals; uvs and groups of triangles, each showing one of the
  * page's textures) is drawn with those normals and images; its heatmaps and
  * blendshapes are per original vertex, and its normals stay smooth across the seams
  * when a blendshape moves it. Distances print as facewrap.units.format_distance
  * does (about four significant digits, never finer than the unit's resolution).
- * Sets window.facewrapViewer = {ready, webgl, meshes, points, labels, textures,
- * error} once drawn with every texture (tests).
+ * Sets window.facewrapViewer = {ready, webgl, meshes, points, pointStyles, labels,
+ * textures, error} once drawn with every texture (tests).
  */
 (function () {
   "use strict";
@@ -80,14 +81,20 @@
     return { v: v.map(function (x) { return x / n; }), f: f };
   })();
 
-  function ballsGeometry(centres, radius) {
-    const k = centres.length / 3, nv = ICO.v.length / 3;
-    const pos = new Float32Array(k * ICO.v.length);
-    const idx = new Uint32Array(k * ICO.f.length);
+  // a diamond for detected landmarks (and, hollow, for the doubtful ones): an
+  // octahedron
+  const OCTA = { v: [1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1],
+                 f: [0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5] };
+
+  function ballsGeometry(centres, radius, shape) {
+    shape = shape || ICO;
+    const k = centres.length / 3, nv = shape.v.length / 3;
+    const pos = new Float32Array(k * shape.v.length);
+    const idx = new Uint32Array(k * shape.f.length);
     for (let p = 0; p < k; p++) {
       for (let j = 0; j < nv; j++) for (let c = 0; c < 3; c++)
-        pos[p * ICO.v.length + 3 * j + c] = centres[3 * p + c] + radius * ICO.v[3 * j + c];
-      for (let j = 0; j < ICO.f.length; j++) idx[p * ICO.f.length + j] = p * nv + ICO.f[j];
+        pos[p * shape.v.length + 3 * j + c] = centres[3 * p + c] + radius * shape.v[3 * j + c];
+      for (let j = 0; j < shape.f.length; j++) idx[p * shape.f.length + j] = p * nv + shape.f[j];
     }
     const g = new T.BufferGeometry();
     g.setAttribute("position", new T.BufferAttribute(pos, 3));
@@ -217,17 +224,32 @@
     Object.values(layers).forEach(function (l) { headSphere.expandByObject(l.obj); });
     const ballRadius = 0.006 * Math.max(headSphere.getBoundingSphere(new T.Sphere()).radius,
                                         1e-6);
+    // markers: balls (given landmarks), diamonds (detected), hollow wire diamonds
+    // half as large again (flagged: low-confidence), so the kinds tell apart at a glance
+    const MARKER = { ball: [ICO, 1.0, false], diamond: [OCTA, 1.5, false],
+                     ring: [OCTA, 1.8, true] };
     const pointSets = (data.points || []).map(function (p) {
+      const m = MARKER[p.marker] || MARKER.ball;
+      // the vendored bundle has the standard material only: a hollow marker is its
+      // wireframe, lit by its own colour so it reads the same from every side
       const mat = new T.MeshStandardMaterial({ color: new T.Color(p.color),
-        emissive: new T.Color(p.color), emissiveIntensity: 0.35, roughness: 0.4 });
-      const obj = new T.Mesh(ballsGeometry(decode(p.positions, Float32Array), ballRadius),
-                             mat);
+        emissive: new T.Color(p.color), emissiveIntensity: m[2] ? 0.9 : 0.35,
+        roughness: 0.4, flatShading: m[0] === OCTA, wireframe: m[2] });
+      const obj = new T.Mesh(ballsGeometry(decode(p.positions, Float32Array),
+                                           m[1] * ballRadius, m[0]), mat);
       obj.visible = p.visible;
       obj.renderOrder = 100;
       scene.add(obj);
       return { spec: p, obj: obj };
     });
     state.points = pointSets.length;
+    // for tests: how each set is drawn (marker vertices per point, hollow or not)
+    state.pointStyles = pointSets.map(function (p) {
+      return { name: p.spec.name, marker: p.spec.marker || "ball",
+               vertices: p.obj.geometry.getAttribute("position").count /
+                         Math.max(p.spec.count, 1),
+               wireframe: !!p.obj.material.wireframe, color: "#" + p.obj.material.color.getHexString() };
+    });
     const labelHost = $("fw-labels");
     const labels = (data.labels || []).map(function (l) {
       const div = document.createElement("div");
