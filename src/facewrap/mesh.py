@@ -24,8 +24,6 @@ from typing import Sequence
 
 import numpy as np
 
-from facewrap.geometry.arrays import unique_integers
-
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
 
 
@@ -35,6 +33,13 @@ def _readonly(a, dtype):
     arr = np.array(a, dtype=dtype, copy=True)
     arr.setflags(write=False)
     return arr
+
+
+def _used(ids: np.ndarray, n: int) -> np.ndarray:
+    """The distinct values of ``ids`` (ints in ``[0, n)``), sorted."""
+    used = np.zeros(n, dtype=bool)
+    used[ids] = True
+    return np.flatnonzero(used)
 
 
 def polygons_from_list(faces) -> tuple[np.ndarray, np.ndarray]:
@@ -382,7 +387,9 @@ class Mesh:
         sizes = self.face_sizes[keep]
         corner_mask = np.repeat(keep, self.face_sizes)
         old = self.face_indices[corner_mask]
-        vertex_map = unique_integers(old)
+        # the used ids by a mask, not np.unique: linear, and numpy >= 2.3 hashes a
+        # many-valued np.unique of integers 20x slower than a sort
+        vertex_map = _used(old, self.n_vertices)
         remap = np.full(self.n_vertices, -1, dtype=np.int64)
         remap[vertex_map] = np.arange(len(vertex_map))
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
@@ -390,7 +397,7 @@ class Mesh:
         kw = {}
         if self.uvs is not None:
             uv_old = self.face_uvs[corner_mask]
-            uv_map = unique_integers(uv_old)
+            uv_map = _used(uv_old, len(self.uvs))
             uv_remap = np.full(len(self.uvs), -1, dtype=np.int64)
             uv_remap[uv_map] = np.arange(len(uv_map))
             kw.update(uvs=self.uvs[uv_map], face_uvs=(offsets, uv_remap[uv_old]))
