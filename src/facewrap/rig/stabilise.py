@@ -35,7 +35,7 @@ from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.wrapping.align import rigid_icp
 
 __all__ = ["least_moving", "stabilise", "refine_pose", "Stabilised", "ROBUST_SCALE",
-           "ROBUST_ITERATIONS", "REFINE_TRIM", "REFINE_DISTANCE"]
+           "ROBUST_ITERATIONS", "REFINE_TRIM", "REFINE_DISTANCE", "REFINE_POINTS"]
 
 #: residuals are weighed against this many times their median (Cauchy's ``c``): a
 #: vertex moved by the expression by three times the typical residual has a tenth
@@ -48,6 +48,8 @@ ROBUST_ITERATIONS = 20
 REFINE_TRIM = 0.8
 #: and pairs no farther apart than this fraction of the face's size (about 2 mm)
 REFINE_DISTANCE = 0.01
+#: at most about this many vertices take part (every k-th of them)
+REFINE_POINTS = 3000
 
 
 def least_moving(poses, rest, fraction: float = 0.1, among=None) -> np.ndarray:
@@ -182,8 +184,10 @@ def refine_pose(prediction, triangles, tree, pose: Similarity, vertices) -> Simi
     """
     X = np.asarray(prediction, dtype=np.float64)
     ids = np.asarray(vertices, dtype=np.int64)
+    # a few thousand points pin six degrees of freedom; more only cost queries
+    ids = ids[::max(1, len(ids) // REFINE_POINTS)]
     size = float(np.linalg.norm(np.ptp(X, axis=0)))
     icp = rigid_icp(X[ids], tree, normals=vertex_normals(X, triangles)[ids],
                     init=pose.inverse(), trim=REFINE_TRIM,
-                    max_distance=REFINE_DISTANCE * size, iterations=50)
+                    max_distance=REFINE_DISTANCE * size, iterations=30)
     return icp.transform.inverse()
