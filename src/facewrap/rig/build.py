@@ -103,9 +103,11 @@ def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
 
 
 def _expression_wraps(template, result, template_landmarks, scans, landmarks, rigid,
-                      blendshapes, settings, wrap_options) -> list[WrapResult]:
+                      blendshapes, settings, wrap_options):
     """Each expression scan wrapped from the neutral's result, moved by the head's
-    rough motion first (so the warm start begins where the head now is)."""
+    rough motion first (so the warm start begins where the head now is).
+
+    Returns the wraps and the scans' closest-point trees (for the stabilisation)."""
     wraps, trees = [], []
     for scan, lm in zip(scans, landmarks):
         tree = ClosestPointTree(scan.vertices, scan.triangles)
@@ -128,7 +130,8 @@ def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, wei
     """Each expression wrap moved onto the neutral's head pose: a robust rigid fit on
     the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds of the prior rig's
     weights for it and :func:`~facewrap.rig.stabilise.refine_pose` of that
-    prediction onto the scan."""
+    prediction onto the scan.  ``weights`` and ``residual`` of each are the rigid
+    fit's (which rigid vertices the expression moved)."""
     V = result.vertices
     names = list(prior)
     D = np.stack([np.asarray(prior[k]) - V for k in names], axis=2)      # (n, 3, s)
@@ -158,6 +161,15 @@ def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
         if mask is not None:
             keep &= mask[rigid]
     return rigid[keep] if keep.sum() >= max(3, len(rigid) // 10) else rigid
+
+
+def _checked_rigid(rigid, n: int):
+    if rigid is None:
+        return None
+    ids = np.asarray(rigid).reshape(-1)
+    if ids.dtype.kind not in "iu" or len(ids) < 3 or ids.min() < 0 or ids.max() >= n:
+        raise ValueError(f"rigid_vertices must be at least 3 vertex ids in [0, {n})")
+    return ids.astype(np.int64)
 
 
 def _checked_expressions(scans, landmarks, weights):
@@ -232,6 +244,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     """
     scans, exp_landmarks, exp_weights = _checked_expressions(
         expression_scans, expression_landmarks, expression_weights)
+    rigid_vertices = _checked_rigid(rigid_vertices, template.n_vertices)
     t0 = time.perf_counter()
     settings = settings or WrapSettings(model="hybrid")
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
@@ -250,7 +263,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
                                     for v in blendshapes.values()]), template.vertices,
                           among=seen)
-             if rigid_vertices is None else np.asarray(rigid_vertices, dtype=np.int64))
+             if rigid_vertices is None else rigid_vertices)
     wraps, trees = _expression_wraps(template, result, template_landmarks, scans,
                                      exp_landmarks, rigid, blendshapes, settings,
                                      wrap_options)
