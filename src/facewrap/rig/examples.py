@@ -325,9 +325,10 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
     poisson = _Poisson(neutral, int(rigid[0]))
     T = poisson.op.triangles
     grad_S = source_gradient_blocks(poisson.op, S)               # (s, t, 9)
-    grad_E = source_gradient_blocks(poisson.op, E)               # (k, t, 9)
-    trusted = trust[:, T].all(axis=2).astype(np.float64)        # (k, t)
     reg = _prior_weights(grad_S, settings)
+    grad_S -= _IDENTITY                                          # M*_i − I
+    grad_E = source_gradient_blocks(poisson.op, E) - _IDENTITY   # M(S_j) − I
+    trusted = trust[:, T].all(axis=2).astype(np.float64)        # (k, t)
     t1 = time.perf_counter()
     timings = {"setup": t1 - t0, "weights": 0.0, "shapes": 0.0}
     alpha = _weights_of(V0, S, E, trust, prior, settings.weight_prior)
@@ -339,7 +340,7 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
         current = S.copy()
         if len(active):
             # residual of each example under the prior at the current weights
-            R = grad_E - (_IDENTITY + np.einsum("ji,itd->jtd", alpha, grad_S - _IDENTITY))
+            R = grad_E - np.tensordot(alpha[:, active], grad_S[active], axes=1)
             delta = _gradient_corrections(alpha[:, active], R, trusted, reg[active])
             move = poisson.displacements(delta)
             move -= move[:, rigid].mean(axis=1, keepdims=True)  # the skull stays put
