@@ -127,10 +127,19 @@ def _save(path: Path, case: Case):
 
 def ict_case(name: str, identity: str, expression: dict, *, n_triangles: int = 60000,
              noise_cm: float = 0.02, hole_radius_cm: float = 1.5,
-             landmark_noise_mm: float = 0.5, seed: int = 0) -> Case:
-    """An ICT-FaceKit ground-truth case (cached)."""
+             landmark_noise_mm: float = 0.5, seed: int = 0, person=None,
+             rigid=None) -> Case:
+    """An ICT-FaceKit ground-truth case (cached).
+
+    ``person`` (9409, 3) cm replaces ICT's identity + expression (a face made
+    otherwise, in the template's topology); ``rigid`` ``(R, t)`` replaces the
+    random rigid motion (mm).
+    """
+    extra = [] if person is None and rigid is None else [
+        hashlib.sha1(np.ascontiguousarray(person if person is not None else 0.0)).hexdigest(),
+        None if rigid is None else np.concatenate([np.ravel(rigid[0]), rigid[1]]).tolist()]
     key = json.dumps([name, identity, sorted(expression.items()), n_triangles, noise_cm,
-                      hole_radius_cm, landmark_noise_mm, seed, 2])
+                      hole_radius_cm, landmark_noise_mm, seed, 2] + extra)
     CACHE.mkdir(parents=True, exist_ok=True)
     path = CACHE / f"ict-{hashlib.sha1(key.encode()).hexdigest()[:12]}.npz"
     face, lms, shapes = ict_template()
@@ -147,6 +156,8 @@ def ict_case(name: str, identity: str, expression: dict, *, n_triangles: int = 6
     P = V0 + (kit.shape(identity)[:N_FACE] - kit.neutral.vertices[:N_FACE])
     for k, w in expression.items():
         P = P + w * (shapes[k] - V0)
+    if person is not None:
+        P = np.asarray(person, dtype=np.float64)
     T = face.triangles
     # another topology
     S, G = remesh(P, T, n_triangles)
@@ -165,6 +176,8 @@ def ict_case(name: str, identity: str, expression: dict, *, n_triangles: int = 6
     # mm and a rigid motion
     R = _rotation(rng)
     t = rng.uniform(-50, 50, size=3)
+    if rigid is not None:
+        R, t = np.asarray(rigid[0], dtype=np.float64), np.asarray(rigid[1], dtype=np.float64)
     scan = Mesh(10.0 * S @ R.T + t, G)
     truth = 10.0 * P @ R.T + t
     lm_pts = truth[lmv] + rng.normal(scale=landmark_noise_mm, size=(len(lmv), 3))

@@ -9,8 +9,9 @@ expression's landmarks to the neutral scan's, reweighted so that the mouth and
 brows, which the expression moves, count little; or, for a scan without
 landmarks, by rigid ICP of the neutral wrap onto it (its landmarks then are the
 neutral's moved along and snapped onto the scan, weighted low, as for a
-sequence).  Each wrap is stabilised (:mod:`.stabilise`) and the shapes are
-corrected to reproduce them (:mod:`.examples`).
+sequence).  Each wrap is stabilised (:mod:`.stabilise`: a robust fit on the
+skull-rigid vertices, then the prior rig's prediction of the expression registered
+onto its scan) and the shapes are corrected to reproduce them (:mod:`.examples`).
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.similarity import Similarity
 from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.mesh import Mesh
-from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples
+from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples, fit_weights
 from facewrap.rig.personalise import personalise_shapes
-from facewrap.rig.stabilise import least_moving, stabilise
+from facewrap.rig.stabilise import Stabilised, least_moving, refine_pose, stabilise
 from facewrap.wrapping import WrapResult, WrapSettings, wrap
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.track import wrap_following
@@ -102,10 +103,12 @@ def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
 
 
 def _expression_wraps(template, result, template_landmarks, scans, landmarks, rigid,
-                      blendshapes, settings, wrap_options) -> list[WrapResult]:
+                      blendshapes, settings, wrap_options):
     """Each expression scan wrapped from the neutral's result, moved by the head's
-    rough motion first (so the warm start begins where the head now is)."""
-    wraps = []
+    rough motion first (so the warm start begins where the head now is).
+
+    Returns the wraps and the scans' closest-point trees (for the stabilisation)."""
+    wraps, trees = [], []
     for scan, lm in zip(scans, landmarks):
         tree = ClosestPointTree(scan.vertices, scan.triangles)
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
@@ -114,7 +117,40 @@ def _expression_wraps(template, result, template_landmarks, scans, landmarks, ri
         wraps.append(wrap_following(template, scan, template_landmarks, lm, start,
                                     settings, blendshapes=blendshapes, scan_tree=tree,
                                     **wrap_options))
-    return wraps
+        trees.append(tree)
+    return wraps, trees
+
+
+#: rounds of (prior-rig weights, surface registration) in :func:`_stabilised`
+POSE_ROUNDS = 3
+
+
+def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, weights,
+                gamma: float) -> list[Stabilised]:
+    """Each expression wrap moved onto the neutral's head pose: a robust rigid fit on
+    the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds of the prior rig's
+    weights for it and :func:`~facewrap.rig.stabilise.refine_pose` of that
+    prediction onto the scan.  ``weights`` and ``residual`` of each are the rigid
+    fit's (which rigid vertices the expression moved)."""
+    V = result.vertices
+    names = list(prior)
+    D = np.stack([np.asarray(prior[k]) - V for k in names], axis=2)      # (n, 3, s)
+    seen = (np.ones(len(V), dtype=bool) if result.projection is None
+            else result.projection.projected)
+    out = []
+    for w, tree, mask, meant in zip(wraps, trees, masks, weights):
+        both = seen if mask is None else seen & mask
+        first = stabilise(w.vertices, V, _seen_rigid(rigid, result, mask))
+        pose = first.pose
+        target = None if meant is None else np.array([[meant.get(k, 0.0) for k in names]])
+        for _ in range(POSE_ROUNDS):
+            alpha = fit_weights(D[both].reshape(-1, len(names)),
+                                (pose.apply(w.vertices) - V)[both].reshape(-1, 1),
+                                prior=target, gamma=gamma)[0]
+            pose = refine_pose(V + D @ alpha, result.mesh.triangles, tree, pose,
+                               np.flatnonzero(both))
+        out.append(Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual))
+    return out
 
 
 def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
@@ -125,6 +161,15 @@ def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
         if mask is not None:
             keep &= mask[rigid]
     return rigid[keep] if keep.sum() >= max(3, len(rigid) // 10) else rigid
+
+
+def _checked_rigid(rigid, n: int):
+    if rigid is None:
+        return None
+    ids = np.asarray(rigid).reshape(-1)
+    if ids.dtype.kind not in "iu" or len(ids) < 3 or ids.min() < 0 or ids.max() >= n:
+        raise ValueError(f"rigid_vertices must be at least 3 vertex ids in [0, {n})")
+    return ids.astype(np.int64)
 
 
 def _checked_expressions(scans, landmarks, weights):
@@ -199,6 +244,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     """
     scans, exp_landmarks, exp_weights = _checked_expressions(
         expression_scans, expression_landmarks, expression_weights)
+    rigid_vertices = _checked_rigid(rigid_vertices, template.n_vertices)
     t0 = time.perf_counter()
     settings = settings or WrapSettings(model="hybrid")
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
@@ -217,13 +263,15 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
                                     for v in blendshapes.values()]), template.vertices,
                           among=seen)
-             if rigid_vertices is None else np.asarray(rigid_vertices, dtype=np.int64))
-    wraps = _expression_wraps(template, result, template_landmarks, scans, exp_landmarks,
-                              rigid, blendshapes, settings, wrap_options)
+             if rigid_vertices is None else rigid_vertices)
+    wraps, trees = _expression_wraps(template, result, template_landmarks, scans,
+                                     exp_landmarks, rigid, blendshapes, settings,
+                                     wrap_options)
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
-    stable = [stabilise(w.vertices, result.vertices, _seen_rigid(rigid, result, m))
-              for w, m in zip(wraps, masks)]
+    example_settings = example_settings or ExampleSettings()
+    stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks, exp_weights,
+                         example_settings.weight_prior)
     t4 = time.perf_counter()
     fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
                        masks=masks, weights=exp_weights, rigid=rigid,

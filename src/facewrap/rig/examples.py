@@ -82,10 +82,10 @@ class ExampleSettings:
     """
 
     iterations: int = 4
-    shape_prior: float = 0.002
+    shape_prior: float = 0.01
     kappa: float = 0.1
     theta: float = 2.0
-    weight_prior: float = 0.05
+    weight_prior: float = 0.5
     constraints = {"iterations": Interval(int, 1, 100),
                    "shape_prior": Interval(float, 0, None, closed="neither"),
                    "kappa": Interval(float, 0, None, closed="neither"),
@@ -199,10 +199,12 @@ def _gradient_corrections(A, R, trusted, reg) -> np.ndarray:
     batch = max(1, _BATCH_ENTRIES // max(s * s, 1))
     for lo in range(0, t, batch):     # batches bound the memory, not a Python loop per triangle
         hi = min(t, lo + batch)
-        c = trusted[:, lo:hi]                                    # (k, b)
-        M = np.einsum("jb,ji,jl->bil", c, A, A)
+        # X[b, i, j] = c_jb A_ji: both sums over the examples are batched matrix
+        # products (BLAS), not an einsum over three indices
+        X = trusted[:, lo:hi].T[:, None, :] * A.T[None]          # (b, s, k)
+        M = X @ A
         M[:, np.arange(s), np.arange(s)] += reg[:, lo:hi].T
-        rhs = np.einsum("jb,ji,jbd->bid", c, A, R[:, lo:hi])     # (b, s, 9)
+        rhs = X @ R[:, lo:hi].transpose(1, 0, 2)                 # (b, s, 9)
         out[:, lo:hi] = np.linalg.solve(M, rhs).transpose(1, 0, 2)
     return out
 
@@ -312,7 +314,7 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
     >>> V = face.vertices
     >>> smile = tpl.blendshapes["smile"][keep]
     >>> fit = fit_examples(face, {"smile": smile}, [V + 2 * (smile - V)])
-    >>> fit.weights[0]["smile"], fit.errors[0]["mean"] < 0.1 * fit.prior_errors[0]["mean"]
+    >>> fit.weights[0]["smile"], fit.errors[0]["mean"] < 0.3 * fit.prior_errors[0]["mean"]
     (1.0, True)
     """
     settings = settings or ExampleSettings()
@@ -323,9 +325,10 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
     poisson = _Poisson(neutral, int(rigid[0]))
     T = poisson.op.triangles
     grad_S = source_gradient_blocks(poisson.op, S)               # (s, t, 9)
-    grad_E = source_gradient_blocks(poisson.op, E)               # (k, t, 9)
-    trusted = trust[:, T].all(axis=2).astype(np.float64)        # (k, t)
     reg = _prior_weights(grad_S, settings)
+    grad_S -= _IDENTITY                                          # M*_i − I
+    grad_E = source_gradient_blocks(poisson.op, E) - _IDENTITY   # M(S_j) − I
+    trusted = trust[:, T].all(axis=2).astype(np.float64)        # (k, t)
     t1 = time.perf_counter()
     timings = {"setup": t1 - t0, "weights": 0.0, "shapes": 0.0}
     alpha = _weights_of(V0, S, E, trust, prior, settings.weight_prior)
@@ -337,7 +340,7 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
         current = S.copy()
         if len(active):
             # residual of each example under the prior at the current weights
-            R = grad_E - (_IDENTITY + np.einsum("ji,itd->jtd", alpha, grad_S - _IDENTITY))
+            R = grad_E - np.tensordot(alpha[:, active], grad_S[active], axes=1)
             delta = _gradient_corrections(alpha[:, active], R, trusted, reg[active])
             move = poisson.displacements(delta)
             move -= move[:, rigid].mean(axis=1, keepdims=True)  # the skull stays put
