@@ -7,6 +7,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -102,10 +103,19 @@ def test_a_dying_worker_fails_only_its_job(data, tmp_path):
     assert [rows[k]["status"] for k in (0, 1, 3, 4)] == ["done"] * 4
 
 
+_DEFAULT_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                   "signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT}); "
+                   "os.execv(sys.argv[1], sys.argv[1:])")
+
+
 def start_batch(cmd: list, out: Path, done: int) -> subprocess.Popen:
     """Start ``cmd`` (a batch) in a session of its own; return once ``done`` of its
     jobs have their done-records."""
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+    # as from a terminal: SIGINT at its default and unblocked, whatever this test
+    # process inherited or was left with (an ignored or blocked SIGINT is passed on
+    # through exec, and Python keeps an inherited SIG_IGN)
+    proc = subprocess.Popen([sys.executable, "-c", _DEFAULT_SIGINT, *map(str, cmd)],
+                            start_new_session=True, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE)
     deadline = time.monotonic() + 60
     try:
