@@ -90,7 +90,8 @@ def add_fit_options(p, *, blendshapes_required: bool = False,
                    help="leave the landmarks where the fit puts them")
     _choice_option(p, "--kernel", "kernel", "RBF kernel of the landmark warp")
     _choice_option(p, "--blend-order", "blend_order", "blending of the displacement of "
-                   "vertices that are not projected: 1 harmonic, 2 biharmonic "
+                   "vertices that are not projected: 1 harmonic, 2 biharmonic across "
+                   "the gaps, harmonic where that would fold a triangle "
                    "(default %(default)s)", type=int)
     p.add_argument("--smoothing", type=float, default=_DEFAULTS["smoothing"],
                    help="RBF smoothing for noisy landmarks (default 0)")
