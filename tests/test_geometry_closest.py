@@ -259,31 +259,6 @@ def test_a_collinear_triangle_is_measured_as_its_longest_edge():
                                atol=1e-9)
 
 
-@pytest.mark.parametrize("threads", [2, 3])
-def test_query_split_over_threads_answers_as_one_call(monkeypatch, threads):
-    """Blocks of query rows on several threads give what one call gives, row for row
-    (each point has its own tree walk), and what the brute force gives."""
-    import facewrap.geometry.closest as closest
-    V, T = icosphere(3, noise=0.05)
-    P = np.random.default_rng(3).normal(size=(701, 3)) * 1.5
-    tree = geo.ClosestPointTree(V, T)
-    alone = tree.query(P)
-    monkeypatch.setattr(closest, "_ROWS_PER_THREAD", 50)
-    monkeypatch.setattr(closest, "usable_threads", lambda: threads)
-    calls = []
-    real = closest.thread_map
-    monkeypatch.setattr(closest, "thread_map",
-                        lambda f, items, n: calls.append((len(items), n)) or real(f, items, n))
-    split = tree.query(P)
-    assert calls == [(threads, threads)]
-    assert np.array_equal(split.triangles, alone.triangles)
-    for name in ("points", "barycentric", "normals", "distances"):
-        np.testing.assert_allclose(getattr(split, name), getattr(alone, name),
-                                   rtol=0, atol=1e-12)
-    ref = np.sqrt(brute_force_sq_dist(V, T, P).min(axis=1))
-    np.testing.assert_allclose(split.distances, ref, rtol=0, atol=1e-9)
-
-
 def test_a_tree_built_in_the_background_answers_as_one_built_here():
     V, T = icosphere(3, noise=0.05)
     P = np.random.default_rng(4).normal(size=(300, 3))

@@ -1,7 +1,8 @@
-"""Threads for the hot loops that release the GIL (closest-point queries, hashing).
+"""Threads for work that releases the GIL: file reads and hashes, tree builds.
 
-The work a wrap can split is row-independent: each closest-point query, each file
-hash, gives the same answer alone as in a batch.  :func:`thread_map` runs such work
+The work a wrap can split is row-independent: each file read, each hash, gives the
+same answer alone as in a batch; a tree build (libigl's, one core) can go on while
+the other inputs are read.  :func:`thread_map` runs such work
 on the cores this process may use, in a small pool made once, and gives the answers
 in order, so results do not depend on the number of threads.
 
