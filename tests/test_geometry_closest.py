@@ -257,27 +257,3 @@ def test_a_collinear_triangle_is_measured_as_its_longest_edge():
     np.testing.assert_allclose(cp.distances, ref, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(cp.points - P, axis=1), cp.distances,
                                atol=1e-9)
-
-
-def test_a_tree_built_in_the_background_answers_as_one_built_here():
-    V, T = icosphere(3, noise=0.05)
-    P = np.random.default_rng(4).normal(size=(300, 3))
-    here = geo.ClosestPointTree(V, T)
-    there = geo.ClosestPointTree(V, T, background=True)
-    a, b = here.query(P), there.query(P)
-    assert np.array_equal(a.triangles, b.triangles)
-    np.testing.assert_allclose(b.distances, a.distances, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(there.vertex_normals, here.vertex_normals, atol=1e-12)
-    assert not there.vertex_normals.flags.writeable
-
-
-def test_a_background_build_that_fails_fails_at_first_use(monkeypatch):
-    import facewrap.geometry.closest as closest
-    V, T = icosphere(1)
-
-    def broken(*args):
-        raise MemoryError("no room for the tree")
-    monkeypatch.setattr(closest.ClosestPointTree, "_build", broken)
-    tree = geo.ClosestPointTree(V, T, background=True)    # returns at once
-    with pytest.raises(MemoryError, match="no room"):
-        tree.query(V[:2])

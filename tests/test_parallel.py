@@ -37,15 +37,3 @@ def test_thread_map_raises_the_first_failure_in_order():
         return x
     with pytest.raises(ValueError, match="bad 1"):
         parallel.thread_map(f, [0, 1, 2], threads=2)
-
-
-@pytest.mark.parametrize("threads", [1, 2])
-def test_in_background_gives_the_result_or_the_exception(monkeypatch, threads):
-    monkeypatch.setattr(parallel, "usable_threads", lambda: threads)
-    here = threading.current_thread().name
-    ran = []
-    assert parallel.in_background(lambda: ran.append(threading.current_thread().name)
-                                  or 7).result() == 7
-    assert (ran[0] == here) == (threads == 1)
-    with pytest.raises(KeyError):
-        parallel.in_background(lambda: {}["missing"]).result()

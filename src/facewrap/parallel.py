@@ -1,8 +1,9 @@
-"""Threads for work that releases the GIL: file reads and hashes, tree builds.
+"""Threads for work that releases the GIL: file reads and hashes.
 
 The work a wrap can split is row-independent: each file read, each hash, gives the
-same answer alone as in a batch; a tree build (libigl's, one core) can go on while
-the other inputs are read.  :func:`thread_map` runs such work
+same answer alone as in a batch.  (libigl's tree builds and queries hold the GIL,
+and its queries already use every core: they gain nothing here.)
+:func:`thread_map` runs such work
 on the cores this process may use, in a small pool made once, and gives the answers
 in order, so results do not depend on the number of threads.
 
@@ -16,9 +17,9 @@ from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["usable_cores", "usable_threads", "thread_map", "in_background"]
+__all__ = ["usable_cores", "usable_threads", "thread_map"]
 
 _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
@@ -101,23 +102,3 @@ def thread_map(func, items, threads: int | None = None) -> list:
         return [func(x) for x in items]
     return list(_executor(min(threads, len(items))).map(func, items))
 
-
-def in_background(func) -> Future:
-    """Start ``func()`` on another thread when a second core is usable; its Future.
-
-    With one usable thread it runs here and now, and the Future is already done:
-    the caller's ``result()`` is the same either way (exceptions included).
-
-    Examples
-    --------
-    >>> in_background(lambda: 6 * 7).result()
-    42
-    """
-    if usable_threads() <= 1:
-        done: Future = Future()
-        try:
-            done.set_result(func())
-        except Exception as exc:            # given back by result(), as a thread's
-            done.set_exception(exc)
-        return done
-    return _executor(2).submit(func)

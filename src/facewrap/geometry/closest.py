@@ -22,7 +22,7 @@ barycentric coordinates in float64.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, partial
+from functools import cached_property
 from typing import NamedTuple
 
 import igl
@@ -32,7 +32,6 @@ from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
 from facewrap.geometry.adjacency import triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows
 from facewrap.geometry.normals import trusted_vertex_normals
-from facewrap.parallel import in_background
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -177,10 +176,6 @@ class ClosestPointTree:
     vertex_normals : (n, 3) float64, optional
         Normals to interpolate in :meth:`query`; by default the angle-weighted
         :func:`~facewrap.geometry.vertex_normals` of the mesh.
-    background : bool
-        Build the tree (and the normals) on another thread, when a second core is
-        usable (:func:`facewrap.parallel.in_background`): the constructor returns at
-        once and the first query waits for the build.  The answers are the same.
 
     Attributes
     ----------
@@ -208,44 +203,23 @@ class ClosestPointTree:
     ([True], [3.0], [[0.25, 0.5, 0.25]])
     """
 
-    def __init__(self, V, T, vertex_normals=None, *, background: bool = False):
+    def __init__(self, V, T, vertex_normals=None):
         V, T = as_mesh_arrays(V, T)
         if len(T) == 0:
             raise ValueError("T must hold at least one triangle")
         self.vertices = _readonly(V)
         self.triangles = _readonly(T)
-        normals = None
-        if vertex_normals is not None:
+        if vertex_normals is None:
+            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
+        else:
             normals = as_vertices(vertex_normals, "vertex_normals")
             if normals.shape != V.shape:
                 raise ValueError(f"vertex_normals must have shape {V.shape}, "
                                  f"got {normals.shape}")
-        # the tree of a million triangles takes ~1 s to build (libigl, without the
-        # GIL): in the background, the caller reads its other inputs meanwhile
-        build = partial(self._build, normals)
-        self._built = in_background(build) if background else None
-        self._parts = None if background else build()
-
-    def _build(self, normals) -> tuple:
-        if normals is None:
-            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
-        tree = igl.AABB()
-        tree.init(self.vertices, self.triangles)
-        return _readonly(normals), tree
-
-    def _ready(self) -> tuple:
-        """(vertex normals, libigl tree), waiting for a background build."""
-        if self._parts is None:
-            self._parts = self._built.result()
-        return self._parts
-
-    @property
-    def vertex_normals(self) -> np.ndarray:
-        return self._ready()[0]
-
-    @property
-    def _tree(self):
-        return self._ready()[1]
+        self.vertex_normals = _readonly(normals)
+        # (libigl's build holds the GIL: a background thread would gain nothing)
+        self._tree = igl.AABB()
+        self._tree.init(self.vertices, self.triangles)
 
     def _onto_flat(self, P, sq_dist, closest, corners) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
@@ -304,9 +278,8 @@ class ClosestPointTree:
         if len(P) == 0:
             return ClosestPoints(np.zeros((0, 3)), np.zeros(0, np.int64),
                                  np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
-        # (libigl spreads the tree walks over the cores itself: measured 0.62 s of
-        # CPU in 0.33 s for 200k points, so splitting the rows over threads gains
-        # nothing)
+        # (libigl spreads the tree walks over the cores itself: 0.62 s of CPU in
+        # 0.33 s for 200k points; splitting the rows over threads measured slower)
         sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
                                                             self.triangles, P)
         sq_dist, closest = np.array(sq_dist, dtype=np.float64), np.array(closest)

@@ -329,11 +329,8 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     if template_size == 0:
         raise InputError("template is degenerate: all vertices at one point",
                          job.template)
-    scan, sl, welded = weld_duplicates(scan, sl, job.scan)
-    # the scan's tree (a second for a million triangles) builds on another core
-    # while the rest is checked and read; the landmark check below waits for it
-    tree = ClosestPointTree(scan.vertices, scan.triangles, background=True)
     notes += survey_mesh(template, job.template, "template", pieces=False)
+    scan, sl, welded = weld_duplicates(scan, sl, job.scan)
     notes += [welded] if welded else []
     notes += survey_mesh(scan, job.scan, "scan", areas=area2)
     if len(scan.triangles) < 100:
@@ -341,6 +338,9 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     check_landmark_spread(tl.positions(template), job.template_landmarks)
     scan_points = sl.positions(scan)
     check_landmark_spread(scan_points, job.scan_landmarks or job.scan)
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    notes += check_landmarks_on_scan(scan_points, sl.names, tree, scan_size,
+                                     job.scan_landmarks or job.scan)
 
     n = template.n_vertices
     exclude, fit_mask, pinned = (
@@ -369,8 +369,6 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         if template.uvs is None:
             raise InputError("the template has no UV layout to bake into", job.template)
         image = load_image(job.texture)
-    notes += check_landmarks_on_scan(scan_points, sl.names, tree, scan_size,
-                                     job.scan_landmarks or job.scan)
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
             "pinned": pinned, "profile": profile, "blendshapes": shapes,
