@@ -279,8 +279,9 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
         Blending of unprojected vertices: harmonic; or, for those that ``mask``
         allows but did not land, biharmonic (smooth where projected and blended
         vertices meet, so a blended gap follows the scan's curvature) except
-        where it would turn a triangle the harmonic blend leaves upright: there it
-        steps back toward the harmonic blend (:func:`step_back_new_folds`).  The
+        where it would turn a triangle, or crease two, that the harmonic blend
+        does not: there it steps back toward the harmonic blend
+        (:func:`~facewrap.wrapping.unfold.step_back_new_folds`).  The
         vertices ``mask`` leaves out, and the fold guard below, use the harmonic
         blend in both cases.
     fold_angle : float
@@ -326,7 +327,8 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     # overshoots; with blend_order 2 a biharmonic blend then fills the gaps among
     # the vertices that may be projected (a harmonic one sags between landing
     # points; a biharmonic one follows the scan's curvature), stepping back to the
-    # harmonic blend wherever it would turn a triangle the harmonic one left upright.
+    # harmonic blend wherever it would fold (turn or crease) what the harmonic one
+    # does not.
     # Vertices that may not be projected (parts, cavities) keep the harmonic blend:
     # a biharmonic one overshoots across such large regions.
     out, ok = _blend_without_folds(

@@ -54,11 +54,12 @@ class WrapSettings:
         How the projection blends the vertices it did not land: 1 harmonic; 2
         (default) biharmonic across the gaps among the vertices that may be
         projected, stepped back to harmonic wherever it would turn a triangle the
-        harmonic blend leaves upright (:func:`~facewrap.wrapping.projection.
-        project_to_surface`).  A harmonic blend sags between landing points; on
-        real scans the biharmonic fill halves the fit's p95 (ICT's face region onto
-        james: 1.47 -> 0.86 mm, no fold more; docs/benchmarks.md).  Parts and
-        cavities follow harmonically either way, and unfolding smooths harmonically.
+        harmonic blend leaves upright, or crease two neighbours it leaves facing
+        the same way (:func:`~facewrap.wrapping.projection.project_to_surface`).  A
+        harmonic blend sags between landing points: on ICT's face region onto
+        james the fill takes the fit's p95 from 1.47 to 0.94 mm with fewer folds
+        (docs/benchmarks.md, real scans).  Parts and cavities follow harmonically
+        either way, and unfolding smooths harmonically.
     stages : list of Stage, optional
         The non-rigid ICP schedule (stiff to loose); None = the model's default
         (see :func:`facewrap.wrapping.icp.schedule.default_schedule`).
