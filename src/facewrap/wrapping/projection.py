@@ -195,9 +195,9 @@ def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distan
     return method, tri, bary
 
 
-def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle: float,
+def _blend_without_folds(template: Mesh, Vt, P, ok, fold_angle: float,
                          fold_rounds: int, upright=None):
-    """Projected vertices at ``P``, the others blended; the fold guard.
+    """Projected vertices at ``P``, the others blended harmonically; the fold guard.
 
     On a coarse or faceted scan, neighbouring vertices can land on either side of a
     scan edge and turn a template triangle over.  Their vertices are not projected
@@ -211,7 +211,7 @@ def _blend_without_folds(template: Mesh, Vt, P, ok, blend_order: int, fold_angle
     T = template.triangles
     n0 = face_normals(Vt, T)
     ok = ok.copy()
-    operator = extension_operator(template, blend_order)   # one mesh, every round
+    operator = extension_operator(template, 1)   # harmonic; one mesh, every round
     adjacency = None
     for _ in range(fold_rounds + 1):
         out = Vt + smooth_extension(template, P - Vt, ok, operator=operator)
@@ -332,7 +332,7 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     # Vertices that may not be projected (parts, cavities) keep the harmonic blend:
     # a biharmonic one overshoots across such large regions.
     out, ok = _blend_without_folds(
-        template, Vt, P, ok, 1, fold_angle, fold_rounds,
+        template, Vt, P, ok, fold_angle, fold_rounds,
         upright=None if upright is None else face_normals(
             np.asarray(upright, dtype=np.float64), template.triangles))
     gaps = allowed & ~ok
