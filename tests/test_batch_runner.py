@@ -226,3 +226,29 @@ def test_killing_the_batch_alone_ends_its_workers(data, tmp_path, sig, engine):
     for k in range(n):
         assert read_mesh(out / f"r{k}.obj").n_vertices > 0
     assert not list(out.glob(".facewrap-staged-*")) or sig == signal.SIGKILL
+
+
+def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
+    """distributed's ``sync`` schedules a cancel on its loop thread as soon as the
+    interrupt reaches it, and that cancel can log a traceback from the other thread:
+    the loggers must already be quiet when KeyboardInterrupt is raised."""
+    import logging
+    from facewrap.batch.engines import _quiet_on_interrupt
+    loggers = [logging.getLogger(n) for n in ("distributed", "tornado")]
+    levels = [lg.level for lg in loggers]
+    before = signal.getsignal(signal.SIGINT)
+    seen = []
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with _quiet_on_interrupt():
+                try:
+                    os.kill(os.getpid(), signal.SIGINT)
+                    time.sleep(5)   # the handler interrupts this
+                except KeyboardInterrupt:
+                    seen = [lg.level for lg in loggers]
+                    raise
+        assert seen == [logging.CRITICAL, logging.CRITICAL]
+        assert signal.getsignal(signal.SIGINT) is before        # handler restored
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)

@@ -12,6 +12,7 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from multiprocessing.connection import wait
@@ -187,12 +188,42 @@ def _quiet_task(func, bj) -> dict:
     return func(bj)
 
 
+def _silence_dask_logs() -> None:
+    """No shutdown noise: Dask's own, and tornado's callbacks cancelled mid-close."""
+    for name in ("distributed", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+@contextlib.contextmanager
+def _quiet_on_interrupt():
+    """Silence Dask's logs the moment SIGINT arrives, before the interrupt unwinds.
+
+    A Ctrl-C inside ``distributed.utils.sync`` schedules a cancel callback on the
+    client's loop thread straight away; when the wait had not yet made its future,
+    that callback fails (``NameError: ... 'future'``) and tornado logs a traceback
+    from the other thread, racing our ``except KeyboardInterrupt``.  A signal
+    handler runs before the interrupt is raised, so the loggers are quiet in time.
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    if not callable(previous) or threading.current_thread() is not threading.main_thread():
+        yield   # SIGINT ignored or default, or not ours to handle: nothing to do
+        return
+
+    def on_sigint(signum, frame):
+        _silence_dask_logs()
+        previous(signum, frame)   # default_int_handler: raises KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _stop_local_workers() -> None:
     """Ctrl-C: end the LocalCluster's worker processes now (their jobs' outputs are
     staged, so nothing partial is left), before Dask's orderly close."""
-    # no shutdown noise: Dask's own, and tornado's callbacks cancelled mid-close
-    for name in ("distributed", "tornado"):
-        logging.getLogger(name).setLevel(logging.CRITICAL)
+    _silence_dask_logs()
     for worker in multiprocessing.active_children():
         worker.kill()
 
@@ -211,7 +242,6 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
         As for :func:`run_in_pool`.
     """
     from distributed import Client, LocalCluster  # optional dependency, slow to import
-    from distributed import as_completed as dask_completed
     cluster = None
     if address == "local":
         # the dashboard on a free port: another cluster on 8787 would print a warning
@@ -224,18 +254,8 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
         client, address = address, None
     task = _local_dask_task if cluster is not None else _quiet_task
     try:
-        futures = {}
-        for bj in jobs:
-            fut = client.submit(task, func, bj, key=f"facewrap-job-{bj.index}-"
-                                f"{os.getpid()}-{time.time_ns()}", pure=False)
-            futures[fut] = bj
-        for fut in dask_completed(list(futures)):
-            bj = futures[fut]
-            try:
-                report(fut.result())
-            except Exception as exc:  # noqa: BLE001 - worker lost, cancelled...
-                report(summary_row(bj, FAILED, error=f"{type(exc).__name__} on the Dask "
-                                   f"cluster: {' '.join(str(exc).split())}"))
+        with _quiet_on_interrupt():
+            _gather_on_dask(client, jobs, task, report, func)
     except KeyboardInterrupt:
         if cluster is not None:
             _stop_local_workers()
@@ -245,3 +265,20 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
             client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _gather_on_dask(client, jobs, task, report, func) -> None:
+    """Submit every job to ``client``; ``report`` each row as its job ends."""
+    from distributed import as_completed as dask_completed
+    futures = {}
+    for bj in jobs:
+        fut = client.submit(task, func, bj, key=f"facewrap-job-{bj.index}-"
+                            f"{os.getpid()}-{time.time_ns()}", pure=False)
+        futures[fut] = bj
+    for fut in dask_completed(list(futures)):
+        bj = futures[fut]
+        try:
+            report(fut.result())
+        except Exception as exc:  # noqa: BLE001 - worker lost, cancelled...
+            report(summary_row(bj, FAILED, error=f"{type(exc).__name__} on the Dask "
+                               f"cluster: {' '.join(str(exc).split())}"))
