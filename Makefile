@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --prefer-binary -e ".[test,bench,landmarks]"
+	$(PY) -m pip install --quiet --prefer-binary -e ".[test,bench,landmarks,flow]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -23,7 +23,7 @@ LOWEST := .venv-lowest
 test-lowest:
 	$(PYTHON) -m venv $(LOWEST)
 	$(LOWEST)/bin/python -m pip install --quiet --upgrade pip
-	$(LOWEST)/bin/python -m pip install --quiet --prefer-binary -e ".[test,landmarks]" \
+	$(LOWEST)/bin/python -m pip install --quiet --prefer-binary -e ".[test,landmarks,flow]" \
 		$$($(PYTHON) .ci/lowest_pins.py numpy scipy)
 	$(LOWEST)/bin/python -c "import numpy, scipy; print('lowest: numpy', numpy.__version__, 'scipy', scipy.__version__)"
 	$(LOWEST)/bin/python -m pytest -q
