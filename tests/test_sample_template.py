@@ -164,6 +164,10 @@ def test_template_faces_point_outward(tpl):
 
 
 def test_template_resolution_is_checked():
-    for bad in (4, 64.0, True, "64"):
+    for bad in (4, 12, 64.0, True, "64"):
         with pytest.raises(ValueError, match="resolution"):
             make_template(bad)
+    # the coarsest allowed grid still has 68 distinct landmark vertices
+    from facewrap.sample.template import MIN_TEMPLATE_RESOLUTION
+    tpl = make_template(MIN_TEMPLATE_RESOLUTION)
+    assert len(set(tpl.landmarks.vertex.tolist())) == 68

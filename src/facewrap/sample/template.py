@@ -142,8 +142,16 @@ def _pick_landmarks(s, t, pools):
     picked = np.empty(len(target), dtype=np.int64)
     for i in order.tolist():
         k = int(kind[i])
-        _, cand = trees[k].query(target[i], k=min(8, len(pools[k])))
-        free = [j for j in pools[k][np.atleast_1d(cand)].tolist() if j not in chosen]
+        free = []
+        # the 8 nearest first; on a coarse grid they can all be taken: then all
+        for many in sorted({min(8, len(pools[k])), len(pools[k])}):
+            _, cand = trees[k].query(target[i], k=many)
+            free = [j for j in pools[k][np.atleast_1d(cand)].tolist() if j not in chosen]
+            if free:
+                break
+        if not free:
+            raise ValueError("the grid is too coarse for 68 distinct landmark vertices: "
+                             "use a higher resolution")
         picked[i] = free[0]
         chosen.add(free[0])
     s, t = s.copy(), t.copy()
@@ -207,6 +215,10 @@ class SampleTemplate:
     params: np.ndarray
 
 
+#: the coarsest grid with 68 distinct landmark vertices
+MIN_TEMPLATE_RESOLUTION = 16
+
+
 def make_template(resolution: int = 64) -> SampleTemplate:
     """The built-in template head: the default face, with blendshapes.
 
@@ -215,7 +227,7 @@ def make_template(resolution: int = 64) -> SampleTemplate:
     resolution : int, default 64
         Grid cells across the face (about ``200 / resolution`` mm apart at the face
         centre, finer at the eyes and mouth, coarser toward the back and top).  The
-        default gives about 7,400 vertices.
+        default gives about 7,400 vertices; at least :data:`MIN_TEMPLATE_RESOLUTION`.
 
     Returns
     -------
@@ -224,7 +236,7 @@ def make_template(resolution: int = 64) -> SampleTemplate:
     Raises
     ------
     ValueError
-        If ``resolution`` is not an int >= 8.
+        If ``resolution`` is not an int >= :data:`MIN_TEMPLATE_RESOLUTION`.
 
     Examples
     --------
@@ -236,7 +248,8 @@ def make_template(resolution: int = 64) -> SampleTemplate:
     >>> bool(np.isnan(tpl.params[tpl.parts["eyeball_left"]]).all())
     True
     """
-    resolution = checked_resolution(resolution)
+    # below 16 cells the grid has too few vertices for 68 distinct landmarks
+    resolution = checked_resolution(resolution, low=MIN_TEMPLATE_RESOLUTION)
     s, t, quads, upper_edge, lower_edge = _face_grid(resolution)
     t, lid_up, lid_lo = _snap_lid_margins(s, t)
     every = np.arange(len(s))
