@@ -233,14 +233,14 @@ def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
     interrupt reaches it, and that cancel can log a traceback from the other thread:
     the loggers must already be quiet when KeyboardInterrupt is raised."""
     import logging
-    from facewrap.batch.engines import _quiet_on_interrupt
+    from facewrap.batch.engines import quiet_dask_on_interrupt
     loggers = [logging.getLogger(n) for n in ("distributed", "tornado")]
     levels = [lg.level for lg in loggers]
     before = signal.getsignal(signal.SIGINT)
     seen = []
     try:
         with pytest.raises(KeyboardInterrupt):
-            with _quiet_on_interrupt():
+            with quiet_dask_on_interrupt():
                 try:
                     os.kill(os.getpid(), signal.SIGINT)
                     time.sleep(5)   # the handler interrupts this

@@ -195,7 +195,7 @@ def _silence_dask_logs() -> None:
 
 
 @contextlib.contextmanager
-def _quiet_on_interrupt():
+def quiet_dask_on_interrupt():
     """Silence Dask's logs the moment SIGINT arrives, before the interrupt unwinds.
 
     A Ctrl-C inside ``distributed.utils.sync`` schedules a cancel callback on the
@@ -254,7 +254,7 @@ def run_on_dask(jobs, address, workers: int, report, func) -> None:
         client, address = address, None
     task = _local_dask_task if cluster is not None else _quiet_task
     try:
-        with _quiet_on_interrupt():
+        with quiet_dask_on_interrupt():
             _gather_on_dask(client, jobs, task, report, func)
     except KeyboardInterrupt:
         if cluster is not None:
