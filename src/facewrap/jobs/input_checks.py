@@ -11,10 +11,10 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
-from facewrap.geometry.adjacency import adjacency_matrix
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
@@ -79,8 +79,8 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
 
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
     teeth are separate pieces by design).  ``areas``: :func:`doubled_areas` of the
-    mesh when the caller has them.  Every step is a sort or linear: the edges are
-    built once, for the non-manifold count and the pieces alike.
+    mesh when the caller has them.  Every step is a sort or linear: one sort of the
+    edges for the non-manifold count; the pieces from two edges of each triangle.
     """
     out = []
     T = mesh.triangles
@@ -94,7 +94,7 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
     flat = (area2 <= 1e-12 * scale * scale) & ~repeated
     if flat.any():
         out.append(f"{path}: {what} has {int(flat.sum())} zero-area triangle(s)")
-    keys = _edge_keys(T[~repeated], n)
+    keys = _edge_keys(T[~repeated] if repeated.any() else T, n)
     # sorted keys: an edge's triangles are a run; runs longer than two are non-manifold
     cut = np.flatnonzero(keys[1:] != keys[:-1]) + 1
     runs = np.diff(np.concatenate([[0], cut, [len(keys)]])) if len(keys) else keys
@@ -104,12 +104,11 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
                    "than two triangles)")
     if not pieces:
         return out
-    unique = keys[np.concatenate([[0], cut])] if len(keys) else keys
-    if repeated.any():   # a triangle with a repeated vertex still joins the others
-        extra = _edge_keys(T[repeated], n)
-        unique = np.union1d(unique, extra[extra // n != extra % n])
-    E = np.stack([unique // n, unique % n], axis=1)
-    labels = csgraph.connected_components(adjacency_matrix(E, n), directed=False)[1]
+    # two edges of each triangle join its three corners: no unique edges needed
+    # (a triangle with a repeated vertex still joins the others)
+    a, b = T[:, :2].T.reshape(-1), T[:, 1:].T.reshape(-1)
+    links = sp.csr_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
+    labels = csgraph.connected_components(links, directed=False)[1]
     used = np.zeros(n, dtype=bool)
     used[T.ravel()] = True
     sizes = np.bincount(labels[used])
