@@ -272,6 +272,10 @@ def test_run_and_batch_detect_when_the_job_has_no_scan_landmarks(sample, tmp_pat
     assert report["scan_landmarks_source"] == "detected"
     found = report["detected_landmarks"]["scan"]
     assert len(found["names"]) == len(found["triangles"]) == 68
+    # detected landmarks weigh less than clicked ones, and are not pulled to
+    from facewrap.detection.for_wrap import DETECTED_LANDMARK_SCALE
+    assert report["settings"]["landmark_scale"] == pytest.approx(DETECTED_LANDMARK_SCALE)
+    assert report["settings"]["landmark_pull"] is False
     page = build_report_page(tmp_path / "out" / "run.json", tmp_path / "html")
     sets = {p["name"]: p["count"] for p in page_data(page)["points"]}
     low = len(found["low_confidence"])

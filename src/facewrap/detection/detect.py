@@ -80,8 +80,9 @@ class DetectedLandmarks:
 
 
 def _no_face(source, pictures: int) -> InputError:
-    return InputError(f"no face found on the mesh ({pictures} pictures from every "
-                      "direction); landmarks can only be detected on a face scan", source)
+    return InputError(f"no face found on the mesh ({pictures} picture"
+                      f"{'' if pictures == 1 else 's'} from every direction); landmarks "
+                      "can only be detected on a face scan", source)
 
 
 def _face_like(points, rotation, eyes: float, views) -> bool:
@@ -175,10 +176,13 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
     if found is None:
         raise _no_face(source, len(search_directions(V, T)))
     pictures = found.pictures
-    lifted, hit = found.view.lift(scene, found.face.points)
+    _, hit = found.view.lift(scene, found.face.points)
     skin = skin_triangles(V, T, hit)
     if skin is not None:        # lashes or tear films in front of the eyes: look through
         scene = replace(scene, skin=skin)
+    # the frame's points with reach: an eye opening without an eyeball (a face-region
+    # template, or scans made from one) shows the background behind the lid margins
+    lifted, _ = found.view.lift(scene, found.face.points, _REACH)
     if not _frame_points(lifted):
         raise _no_face(source, pictures)
     rotation, center, eyes = face_frame(lifted, found.view.camera.direction)
@@ -188,13 +192,21 @@ def detect_landmarks(mesh, texture=None, *, settings: DetectionSettings | None =
         face = _central_face(model, view)
         if face is None:
             break
-        pts, _ = view.lift(scene, face.points)
+        pts, _ = view.lift(scene, face.points, _REACH)
         if not _frame_points(pts):
             break
         rotation, center, eyes = face_frame(pts, view.camera.direction)
     t2 = time.perf_counter()
-    fused, views, reprojection = _refined(scene, model, rotation, center, eyes, settings)
+    fused, views, reprojection, landed = _refined(scene, model, rotation, center, eyes,
+                                                  settings)
     pictures += len(views)
+    if scene.skin is None and (skin := skin_triangles(V, T, landed)) is not None:
+        # the small search picture saw the skin, a refined one a lash or tear film
+        # in front of it: look through those and refine again
+        scene = replace(scene, skin=skin)
+        fused, views, reprojection, _ = _refined(scene, model, rotation, center, eyes,
+                                                 settings)
+        pictures += len(views)
     if fused is None or not _face_like(fused.points, rotation, eyes, views):
         raise _no_face(source, pictures)
     t3 = time.perf_counter()
@@ -232,12 +244,12 @@ def _rescored(found: DetectedLandmarks, scene, front, settings) -> DetectedLandm
 
 def _refined(scene, model, rotation, center, eyes, settings):
     """Fused points of the frontal, yawed and pitched views, the views, reprojection
-    (px)."""
+    (px), and the triangles the views' points landed on (-1: none)."""
     turns = [(0.0, 0.0)] + [(y, 0.0) for y in (settings.yaw, -settings.yaw) if y] \
         + [(0.0, p) for p in (settings.pitch, -settings.pitch) if p]
     normals = trusted_face_normals(scene.V, scene.T)
     normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    lifts, pixels, cameras, views = [], [], [], []
+    lifts, pixels, cameras, views, landed = [], [], [], [], []
     for yaw, pitch in turns:
         turned = rotation @ rotation_about(rotation[1], yaw) @ rotation_about(rotation[0],
                                                                               pitch)
@@ -249,17 +261,18 @@ def _refined(scene, model, rotation, center, eyes, settings):
         if face is None:
             continue
         pts, tri = view.lift(scene, face.points, _REACH)
+        landed.append(tri)
         lifts.append(seen_lifts(pts, tri, normals, cam.direction))
         pixels.append(face.points)
         cameras.append(cam)
     if not lifts:
-        return None, views, None
+        return None, views, None, np.zeros(0, dtype=np.int64)
     fused = fuse_views(np.stack(lifts), settings.agreement * eyes)
     errors = np.stack([np.linalg.norm(c.project(np.nan_to_num(fused.points)) - p, axis=1)
                        for c, p in zip(cameras, pixels)])
     reprojection = np.where(np.isfinite(fused.points).all(axis=1), errors.mean(axis=0),
                             np.nan)
-    return fused, views, reprojection
+    return fused, views, reprojection, np.concatenate(landed)
 
 
 def _snapped(scene, points, tree, eyes: float):

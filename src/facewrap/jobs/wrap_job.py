@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.datasets import load_shape_folder
-from facewrap.detection.for_wrap import confident_landmarks, detection_report
+from facewrap.detection.for_wrap import (confident_landmarks, detected_landmark_settings,
+                                         detection_report)
 from facewrap.errors import InputError
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh, write_mesh
@@ -544,6 +545,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     t0 = time.perf_counter()
     inputs = load_wrap_inputs(job, settings)
     read_seconds = time.perf_counter() - t0
+    if "scan" in inputs["detections"]:   # millimetres off: the surface leads
+        settings = detected_landmark_settings(settings)
     # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
     # here that becomes the file, in its warnings and in a refusal alike
     files = {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
