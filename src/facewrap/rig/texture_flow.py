@@ -25,7 +25,7 @@ before it by ``min_gain`` at least (the flow's own noise keeps the disagreement
 from reaching zero: a small drop only fits that noise); the first round that
 does not help ends the refinement, so a scan whose texture
 says nothing (no texture detail, a texture from another session) leaves the wrap
-as it is.
+as it is, and so does one whose pictures match in too few places to say much.
 
 Why a displacement solve of its own rather than the flow points as landmarks of
 the wrap's ICP: the ICP's landmark term is a mean over all landmarks with one
@@ -62,6 +62,10 @@ FLOW_EXTRA = "facewrap[flow]"
 _ROBUST = 3.0
 #: smallest robust scale, fraction of the mesh size (flow noise)
 _ROBUST_FLOOR = 2e-4
+#: fewest matches per skin vertex the pictures show for a round to be tried: a
+#: texture that says nothing (another session's, none at all) leaves a few chance
+#: matches only
+_MIN_MATCHES = 0.25
 
 
 @dataclass(frozen=True)
@@ -276,7 +280,7 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
     matches = matches_at(V)
     before = _disagreement(matches, V, T)
     for _ in range(s.rounds):
-        if len(matches) < 3:
+        if len(matches) < max(3.0, _MIN_MATCHES * len(seen)):
             break
         D = _solve_displacement(V, _match_rows(matches, T, n), matches.targets,
                                 matches.confidence, L, s.smoothness, movable, size)
