@@ -104,11 +104,11 @@ class TextureFlowSettings:
         (:func:`~facewrap.rig.build_rig`; the rig's written texture is baked apart).
     """
     enabled: bool = True
-    rounds: int = 2
-    views: int = 3
+    rounds: int = 1
+    views: int = 5
     image_size: int = 640
     method: str = "dis"
-    smoothness: float = 3.0
+    smoothness: float = 1.0
     consistency: float = 0.7
     min_gradient: float = 2.0
     max_angle: float = 65.0
