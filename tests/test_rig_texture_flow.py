@@ -158,8 +158,15 @@ def test_settings_are_checked_at_the_door():
                          ("max_angle", 90.0), ("enabled", "yes"), ("min_gain", 1.0)):
         with pytest.raises(SettingsError, match=f"TextureFlowSettings.{field}"):
             TextureFlowSettings(**{field: value})
+    small = make_template(24)
     with pytest.raises(ValueError, match="vertices must have shape"):
-        refine_by_texture(make_template(24).mesh, np.zeros((3, 3)), None, None, None)
+        refine_by_texture(small.mesh, np.zeros((3, 3)), None, None, None)
+    bare = Mesh(small.mesh.vertices, small.mesh.triangles)
+    image = np.zeros((8, 8, 3), np.uint8)
+    with pytest.raises(ValueError, match="scan_image must be an"):
+        refine_by_texture(small.mesh, small.mesh.vertices, image, bare, None)
+    with pytest.raises(ValueError, match="scan has no texture coordinates"):
+        refine_by_texture(small.mesh, small.mesh.vertices, image, bare, image)
 
 
 @pytest.fixture(scope="module")

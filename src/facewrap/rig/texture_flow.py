@@ -258,6 +258,14 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
     if V0.shape != (n, 3) or n != template.n_vertices:
         raise ValueError(f"vertices must have shape ({template.n_vertices}, 3), got "
                          f"{V0.shape}")
+    for name, image in (("reference_image", reference_image), ("scan_image", scan_image)):
+        shape = np.shape(image)
+        if len(shape) not in (2, 3) or min(shape[:2], default=0) < 2:
+            raise ValueError(f"{name} must be an (H, W) or (H, W, 3) image, got shape "
+                             f"{shape}")
+    for name, mesh in (("template", template), ("scan", scan)):
+        if mesh.uvs is None or mesh.triangle_uvs is None:
+            raise ValueError(f"{name} has no texture coordinates")
     movable = np.ones(n, dtype=bool) if movable is None else np.asarray(movable, bool)
     on_scan = movable if on_scan is None else np.asarray(on_scan, bool) & movable
     tree = scan_tree or ClosestPointTree(scan.vertices, scan.triangles)
