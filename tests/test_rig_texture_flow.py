@@ -185,6 +185,7 @@ def _rig(person, **kw):
                      expression_landmarks=[smile.landmarks], texture=neutral.texture, **kw)
 
 
+@pytest.mark.slow
 def test_build_rig_refines_textured_expressions_unless_told_not_to(person):
     on = _rig(person)
     off = _rig(person, texture_flow=TextureFlowSettings(enabled=False))
@@ -204,6 +205,7 @@ def test_without_opencv_one_warning_names_the_extra(person, monkeypatch):
     assert rig.texture_refinements == [None] and rig.examples is not None
 
 
+@pytest.mark.slow
 def test_the_command_line_flag_turns_it_off(tmp_path, person):
     tpl, neutral, smile = person
     n = write_sample(tmp_path / "neutral", tpl, neutral)
@@ -221,3 +223,18 @@ def test_the_command_line_flag_turns_it_off(tmp_path, person):
     assert facewrap(*base, "--expression-textures", x["scan_texture"], n["scan_texture"],
                     "-o", tmp_path / "bad") == 2
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_job_file_turns_it_off_in_outputs(tmp_path):
+    from facewrap.errors import InputError
+    from facewrap.jobs.jobfile import load_job
+    text = ('[inputs]\ntemplate = "t.obj"\nscan = "s.obj"\nblendshapes = "b"\n'
+            'expression_scans = ["x.obj"]\nexpression_textures = ["x.png"]\n'
+            '[outputs]\noutput = "out"\ntexture_flow = {}\n[rig]\nmodel = "hybrid"\n')
+    path = tmp_path / "rig.toml"
+    path.write_text(text.format("false"))
+    job, _ = load_job(path)
+    assert job.texture_flow is False and job.expression_textures == [str(tmp_path / "x.png")]
+    path.write_text(text.format('"no"'))
+    with pytest.raises(InputError, match="texture_flow"):
+        load_job(path)
