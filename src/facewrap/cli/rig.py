@@ -58,7 +58,9 @@ def cmd_rig(args) -> int:
                  template_landmarks=args.template_landmarks,
                  template_profile=args.template_profile, exclude=args.exclude,
                  fit_mask=args.fit_mask, pin=args.pin, texture=args.texture,
-                 texture_size=args.texture_size, method=args.method, units=args.units)
+                 texture_size=args.texture_size, method=args.method, units=args.units,
+                 expression_textures=list(args.expression_textures or ()),
+                 texture_flow=not args.no_texture_flow)
     run_rig_job_verbosely(job, wrap_settings_from_args(args), quiet=args.quiet)
     return 0
 
@@ -88,6 +90,13 @@ def register(subparsers, summary: str) -> None:
     p.add_argument("--expression-landmarks", nargs="+", metavar="FILE",
                    help="one landmark file per expression scan, in their order (as "
                         "--scan-landmarks; default: detected on each scan)")
+    p.add_argument("--expression-textures", nargs="+", metavar="IMAGE",
+                   help="one texture image per expression scan, in their order: with "
+                        "--texture, each expression's wrap is refined by matching the "
+                        "textures (optical flow; needs facewrap[flow])")
+    p.add_argument("--no-texture-flow", action="store_true",
+                   help="wrap the expression scans by geometry alone, even when "
+                        "textures are given")
     add_fit_options(p, blendshapes_required=True, output_frame=False)
     add_units_argument(p)
     p.add_argument("-q", "--quiet", action="store_true")

@@ -53,7 +53,7 @@ from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
 from facewrap.progress import progress
-from facewrap.rig import PERSONALISE_METHODS, build_rig
+from facewrap.rig import PERSONALISE_METHODS, TextureFlowSettings, build_rig
 from facewrap.texture.tiles import file_textures, material_images
 from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
@@ -107,11 +107,18 @@ class RigJob:
         Template vertex ids kept exactly where the landmark similarity puts them.
     texture : path, optional
         The neutral scan's texture image, baked into the template's UV layout.
+    expression_textures : list of path
+        One texture image per expression scan, in their order; with ``texture``,
+        each expression's wrap is refined by matching the textures (optical flow,
+        :func:`facewrap.rig.refine_by_texture`).  Empty: geometry only.
     texture_size : int
         Baked image size in pixels.
     method : {"deformation", "delta"}
         How the template's shapes are carried onto the person: deformation
         transfer, or the displacements as they are.
+    texture_flow : bool
+        Refine the expression wraps by texture where the textures are given (needs
+        OpenCV, the extra ``facewrap[flow]``; without it, a warning).
     units : str
         Unit of the scan's coordinates: auto (inferred from the head's size), mm,
         cm, m or in.
@@ -129,9 +136,11 @@ class RigJob:
     fit_mask: str | None = input_field(default=None)
     pin: str | None = input_field(default=None)
     texture: str | None = input_field(default=None)
+    expression_textures: list[str] = input_field(default_factory=list)
     texture_size: int = output_field(path=False, default=1024)
     # how the outputs are made, not a file: the [outputs] table, never resolved
     method: str = output_field(path=False, default="deformation")
+    texture_flow: bool = output_field(path=False, default=True)
     units: str = field(default="auto", metadata={"table": "inputs", "path": False})
 
 
@@ -150,8 +159,10 @@ def expression_wrap_job(job: RigJob, k: int) -> WrapJob:
     """The wrap of expression scan ``k``, for reading and checking its files (it
     writes nothing; the template's shapes and texture are the neutral's)."""
     landmarks = job.expression_landmarks[k] if job.expression_landmarks else None
+    texture = job.expression_textures[k] if job.expression_textures else None
     return WrapJob(template=job.template, scan=job.expression_scans[k],
-                   scan_landmarks=landmarks, output=os.path.join(job.output, NEUTRAL),
+                   scan_landmarks=landmarks, texture=texture,
+                   output=os.path.join(job.output, NEUTRAL),
                    template_landmarks=job.template_landmarks,
                    template_profile=job.template_profile, units=job.units)
 
@@ -160,7 +171,7 @@ def rig_job_inputs(job: RigJob) -> list[str]:
     """Input paths of ``job`` (files or folders): the neutral wrap's, then the
     expression scans and their landmarks."""
     return (job_inputs(neutral_wrap_job(job)) + list(job.expression_scans)
-            + list(job.expression_landmarks))
+            + list(job.expression_landmarks) + list(job.expression_textures))
 
 
 def _rig_files(job: RigJob) -> list[str]:
@@ -206,6 +217,15 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
                          f"(--expression-landmarks) for {len(job.expression_scans)} "
                          "expression scan(s); give one per scan, or none to detect them",
                          source or job.expression_landmarks[0])
+    if job.expression_textures and len(job.expression_textures) != len(
+            job.expression_scans):
+        raise InputError(f"{len(job.expression_textures)} expression texture(s) "
+                         f"(--expression-textures) for {len(job.expression_scans)} "
+                         "expression scan(s); give one per scan, or none",
+                         source or job.expression_textures[0])
+    if not isinstance(job.texture_flow, bool):
+        raise InputError(f"texture_flow must be true or false, got {job.texture_flow!r}",
+                         source or job.output)
     check_job_paths(neutral_wrap_job(job), source)
     check_output_paths(files=_rig_files(job),
                        folders=[job.output, os.path.join(job.output, SHAPES)],
@@ -248,6 +268,9 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                          rigid_vertices=None if profile is None else profile.rigid,
                          expression_scans=[e["scan"] for e in expressions],
                          expression_landmarks=[e["scan_landmarks"] for e in expressions],
+                         texture=inputs["texture"],
+                         expression_textures=[e["texture"] for e in expressions],
+                         texture_flow=TextureFlowSettings(enabled=job.texture_flow),
                          **options)
     except ValueError as exc:
         about, _, text = str(exc).partition(": ")
@@ -266,11 +289,23 @@ def _examples_report(job: RigJob, rig, expressions: list) -> list[dict]:
              "error": dict(error), "neutral_only_error": dict(prior),
              "pose": None if pose is None else pose.matrix.tolist(),
              "fit": {k: w.metrics[k] for k in ("fit_mean", "fit_p95", "landmark_mean")
-                     if k in w.metrics}}
-            for scan, e, weights, error, prior, pose, w in zip(
+                     if k in w.metrics},
+             "texture_flow": _flow_report(flow)}
+            for scan, e, weights, error, prior, pose, w, flow in zip(
                 job.expression_scans, expressions, fit.weights, fit.errors,
                 fit.prior_errors, fit.poses or [None] * len(expressions),
-                rig.expression_wraps)]
+                rig.expression_wraps,
+                rig.texture_refinements or [None] * len(expressions))]
+
+
+def _flow_report(refinement) -> dict | None:
+    """How the texture refined an expression's wrap (distances in the report's
+    units); None where it did not run."""
+    if refinement is None:
+        return None
+    return {"rounds_kept": sum(r["kept"] for r in refinement.rounds),
+            "matches": refinement.rounds[0]["matches"] if refinement.rounds else 0,
+            "moved_mean": refinement.moved, "seconds": refinement.seconds}
 
 
 def _write_shapes(folder: Path, rig, images: dict, library: bool) -> None:

@@ -12,6 +12,10 @@ neutral's moved along and snapped onto the scan, weighted low, as for a
 sequence).  Each wrap is stabilised (:mod:`.stabilise`: a robust fit on the
 skull-rigid vertices, then the prior rig's prediction of the expression registered
 onto its scan) and the shapes are corrected to reproduce them (:mod:`.examples`).
+Where the neutral scan and an expression scan both carry a texture, the
+expression's wrap is refined by it first (:mod:`.texture_flow`: the neutral's
+texture baked into the template's layout, matched to the expression scan's by
+optical flow), so that the skin sits on the same skin in both.
 """
 
 from __future__ import annotations
@@ -29,8 +33,11 @@ from facewrap.mesh import Mesh
 from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples, fit_weights
 from facewrap.rig.personalise import personalise_shapes
 from facewrap.rig.stabilise import Stabilised, least_moving, refine_pose, stabilise
+from facewrap.rig.texture_flow import TextureFlowSettings, flow_available, refine_by_texture
 from facewrap.wrapping import WrapResult, WrapSettings, wrap
 from facewrap.wrapping.align import rigid_icp
+from facewrap.wrapping.follow import follow_skin
+from facewrap.wrapping.roles import FITTED, PART
 from facewrap.wrapping.track import wrap_following
 
 __all__ = ["Rig", "build_rig"]
@@ -52,7 +59,8 @@ class Rig:
         How the shapes were carried (:data:`~facewrap.rig.PERSONALISE_METHODS`).
     timings : dict
         Seconds: ``wrap``, ``shapes``, ``total`` and, with expression scans,
-        ``expressions`` (their wraps), ``stabilise`` and ``examples``.
+        ``expressions`` (their wraps), ``stabilise``, ``examples`` and, when
+        textures refined them, ``texture_flow``.
     examples : ExampleFit or None
         With expression scans: their weights, reconstruction errors and rigid
         poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
@@ -61,6 +69,10 @@ class Rig:
         One per expression scan (in its scan's frame).
     prior : dict of str to (n, 3) float64
         The shapes before the examples corrected them (the neutral-only rig's).
+    texture_refinements : list of (TextureRefinement or None)
+        One per expression scan: how its texture refined its wrap
+        (:class:`~facewrap.rig.TextureRefinement`); None where it did not (no
+        texture, refinement off, OpenCV missing).  Empty without expression scans.
     """
 
     neutral: Mesh
@@ -71,6 +83,7 @@ class Rig:
     examples: ExampleFit | None = None
     expression_wraps: list = field(default_factory=list)
     prior: dict = field(default_factory=dict)
+    texture_refinements: list = field(default_factory=list)
 
     def shape_mesh(self, name: str) -> Mesh:
         """Shape ``name`` as a mesh in the template's exact topology."""
@@ -119,6 +132,46 @@ def _expression_wraps(template, result, template_landmarks, scans, landmarks, ri
                                     **wrap_options))
         trees.append(tree)
     return wraps, trees
+
+
+def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
+                 scans, textures) -> bool:
+    """Whether the texture refines the expression wraps: on, both the neutral and
+    some expression scan textured (with texture coordinates), and OpenCV there
+    (else one warning naming the extra to install)."""
+    if not settings.enabled or texture is None or template.uvs is None \
+            or scan.uvs is None:
+        return False
+    if not any(t is not None and s.uvs is not None for s, t in zip(scans, textures)):
+        return False
+    return flow_available(warn=True)
+
+
+def _texture_refined(template: Mesh, neutral: WrapResult, scan: Mesh, texture, wraps,
+                     scans, textures, trees, settings: TextureFlowSettings):
+    """Each textured expression scan's wrap refined by its texture against the
+    neutral's, baked into the template's layout once.  Returns the wraps and the
+    refinements (None where a scan has no texture)."""
+    from facewrap.texture.bake import bake_texture
+
+    baked = bake_texture(neutral.mesh, scan, texture, size=settings.texture_size).image
+    out, refinements = [], []
+    for w, s, image, tree in zip(wraps, scans, textures, trees):
+        if image is None or s.uvs is None:
+            out.append(w)
+            refinements.append(None)
+            continue
+        roles = w.roles if w.roles is not None else np.zeros(template.n_vertices, np.int8)
+        aligned = w.transform.apply(template.vertices)
+        follow = ((lambda V, a=aligned, r=roles: follow_skin(template.triangles, a, V, r))
+                  if (roles == PART).any() else None)
+        on_scan = None if w.projection is None else w.projection.projected
+        r = refine_by_texture(template, w.vertices, baked, s, image, settings,
+                              movable=roles == FITTED, on_scan=on_scan, scan_tree=tree,
+                              follow=follow)
+        out.append(replace(w, mesh=w.mesh.with_vertices(r.vertices)))
+        refinements.append(r)
+    return out, refinements
 
 
 #: rounds of (prior-rig weights, surface registration) in :func:`_stabilised`
@@ -172,14 +225,16 @@ def _checked_rigid(rigid, n: int):
     return ids.astype(np.int64)
 
 
-def _checked_expressions(scans, landmarks, weights):
+def _checked_expressions(scans, landmarks, weights, textures):
     scans = list(scans)
     landmarks = list(landmarks) or [None] * len(scans)
     weights = list(weights) or [None] * len(scans)
-    for what, items in (("expression_landmarks", landmarks), ("expression_weights", weights)):
+    textures = list(textures) or [None] * len(scans)
+    for what, items in (("expression_landmarks", landmarks), ("expression_weights", weights),
+                        ("expression_textures", textures)):
         if len(items) != len(scans):
             raise ValueError(f"{len(scans)} expression scans but {len(items)} {what}")
-    return scans, landmarks, weights
+    return scans, landmarks, weights, textures
 
 
 def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
@@ -188,7 +243,9 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
               anchors=None, expression_scans: Sequence[Mesh] = (),
               expression_landmarks: Sequence[Landmarks | None] = (),
               expression_weights: Sequence[dict | None] = (), rigid_vertices=None,
-              example_settings: ExampleSettings | None = None, **wrap_options) -> Rig:
+              example_settings: ExampleSettings | None = None, texture=None,
+              expression_textures: Sequence[np.ndarray | None] = (),
+              texture_flow: TextureFlowSettings | None = None, **wrap_options) -> Rig:
     """Wrap ``template`` onto a person's scans and make its shapes theirs.
 
     Parameters
@@ -223,6 +280,15 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         the profile).  Default: :func:`~facewrap.rig.least_moving` over the
         template's shapes, among the vertices the neutral scan saw.
     example_settings : ExampleSettings, optional
+    texture : (H, W, 3) uint8, optional
+        The neutral scan's texture (``scan`` has texture coordinates into it).
+    expression_textures : sequence of ((h, w, 3) uint8 or None), optional
+        One per expression scan, its texture.  Where the neutral's and an
+        expression's are both given, the expression's wrap is refined by them
+        (:func:`~facewrap.rig.refine_by_texture`) unless ``texture_flow`` is off.
+    texture_flow : TextureFlowSettings, optional
+        Default: on (needs OpenCV, the extra ``facewrap[flow]``; without it a
+        warning and the geometric wraps).
     **wrap_options
         Passed to :func:`~facewrap.wrapping.wrap` (``exclude``, ``fit_mask``, ...).
 
@@ -242,8 +308,12 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     >>> rig.examples is None
     True
     """
-    scans, exp_landmarks, exp_weights = _checked_expressions(
-        expression_scans, expression_landmarks, expression_weights)
+    scans, exp_landmarks, exp_weights, exp_textures = _checked_expressions(
+        expression_scans, expression_landmarks, expression_weights, expression_textures)
+    texture_flow = texture_flow or TextureFlowSettings()
+    if not isinstance(texture_flow, TextureFlowSettings):
+        raise ValueError("texture_flow must be a TextureFlowSettings, got "
+                         f"{type(texture_flow).__name__}")
     rigid_vertices = _checked_rigid(rigid_vertices, template.n_vertices)
     t0 = time.perf_counter()
     settings = settings or WrapSettings(model="hybrid")
@@ -267,6 +337,12 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     wraps, trees = _expression_wraps(template, result, template_landmarks, scans,
                                      exp_landmarks, rigid, blendshapes, settings,
                                      wrap_options)
+    refinements = [None] * len(wraps)
+    t_flow = time.perf_counter()
+    if _flow_wanted(texture_flow, template, scan, texture, scans, exp_textures):
+        wraps, refinements = _texture_refined(template, result, scan, texture, wraps,
+                                              scans, exp_textures, trees, texture_flow)
+        timings["texture_flow"] = time.perf_counter() - t_flow
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
     example_settings = example_settings or ExampleSettings()
@@ -278,6 +354,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                        settings=example_settings)
     fit = replace(fit, poses=[x.pose for x in stable])
     t5 = time.perf_counter()
-    timings.update(expressions=t3 - t2, stabilise=t4 - t3, examples=t5 - t4,
+    timings.update(expressions=t_flow - t2, stabilise=t4 - t3, examples=t5 - t4,
                    total=t5 - t0)
-    return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes)
+    return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes,
+               refinements)
