@@ -50,7 +50,14 @@ def test_outputs_are_the_neutral_its_shapes_a_glb_and_a_report(sample, textured)
     names = sorted(sample["template"].blendshapes)
     assert sorted(p.stem for p in (out / "shapes").iterdir()) == names
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["neutral.obj", "neutral.mtl", "neutral.png", "shapes", "rig.glb", "rig.json"])
+        ["neutral.obj", "neutral.mtl", "neutral.png", "shapes", "rig.glb", "rig.json",
+         "rig.html"])
+    # the page: the rig with a slider per shape, its texture
+    from test_report_page import page_data
+    data = page_data(out / "rig.html")
+    assert data["blendshapes"]["mesh"] == "rig" and len(data["textures"]) == 1
+    assert len(data["blendshapes"]["shapes"]) == len(names)
+    assert report["outputs"]["page"] == str(out / "rig.html")
     # nothing staged is left beside the folder
     assert [p.name for p in out.parent.iterdir()] == ["anna"]
     template = read_mesh(sample["paths"]["template"])

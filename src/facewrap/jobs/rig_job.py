@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facewrap.detection.for_wrap import detection_report
+from facewrap.detection.for_wrap import detected_landmark_settings, detection_report
 from facewrap.errors import InputError
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
@@ -60,10 +60,12 @@ from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
 
 __all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
            "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL",
-           "SHAPES", "GLB", "REPORT"]
+           "SHAPES", "GLB", "REPORT", "PAGE"]
 
 #: The files and folder written inside a rig job's output folder.
 NEUTRAL, SHAPES, GLB, REPORT = "neutral.obj", "shapes", "rig.glb", "rig.json"
+#: the rig's HTML page (:func:`facewrap.report.rig_page.write_rig_page`)
+PAGE = "rig.html"
 
 
 @dataclass
@@ -180,7 +182,7 @@ def _rig_files(job: RigJob) -> list[str]:
     folder = Path(job.blendshapes)
     names = sorted(p.stem for p in folder.iterdir()
                    if p.suffix.lower() == ".obj") if folder.is_dir() else []
-    return ([os.path.join(job.output, name) for name in (GLB, REPORT)]
+    return ([os.path.join(job.output, name) for name in (GLB, REPORT, PAGE)]
             + [os.path.join(job.output, SHAPES, f"{name}.obj") for name in names])
 
 
@@ -323,8 +325,10 @@ def _final(path, staged: Path, output: str) -> str:
     return os.path.join(output, os.path.relpath(os.fspath(path), staged))
 
 
-def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict) -> None:
-    """Neutral, shapes, GLB and report, staged in one folder moved into place whole."""
+def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict,
+                       expression_scans=()) -> None:
+    """Neutral, shapes, GLB, report and page, staged in one folder moved into place
+    whole."""
     t0 = time.perf_counter()
     with staged_outputs() as stage:
         staged = stage.folder(job.output)
@@ -355,7 +359,12 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict) -> None:
             "shapes": {k: os.path.join(job.output, SHAPES, f"{k}.obj") for k in rig.shapes},
             "gltf": {"path": os.path.join(job.output, GLB), "scale": metres or 1.0,
                      "units": "m" if metres else report["units"]},
-            "report": os.path.join(job.output, REPORT)}
+            "report": os.path.join(job.output, REPORT),
+            "page": os.path.join(job.output, PAGE)}
+        from facewrap.report.rig_page import write_rig_page   # only a rig needs it
+        write_rig_page(staged, rig, inputs["scan"], expression_scans=expression_scans,
+                       units=report["units"], textures=textures,
+                       warnings=report["warnings"], filename=PAGE)
         timings = report["timings"]
         timings["texture"] = neutral["timings"].get("bake", 0.0)
         timings["writing"] = time.perf_counter() - t0 - timings["texture"]
@@ -440,6 +449,8 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
         expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
                        for k in range(len(job.expression_scans))]
         read_seconds = time.perf_counter() - t0
+        if "scan" in inputs["detections"]:   # millimetres off: the surface leads
+            settings = detected_landmark_settings(settings)
         bar.update(completed=1, description="rig: wrapping, making the shapes")
         rig = _build(job, settings, inputs, expressions, graph_cache)
         bar.update(completed=2, description="rig: writing")
@@ -463,5 +474,5 @@ def _finish(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
     for note in notes:
         warnings.warn(note, InputWarning, stacklevel=3)
     report = _report(job, rig, inputs, expressions, read_seconds, notes)
-    _write_rig_outputs(job, rig, inputs, report)
+    _write_rig_outputs(job, rig, inputs, report, [e["scan"] for e in expressions])
     return report
