@@ -172,3 +172,18 @@ def test_track_with_a_closed_form_model_fits_every_frame():
     result = track(tpl.mesh, meshes, tpl.landmarks, [seq[0].landmarks, None, None],
                    WrapSettings(model="rbf"))
     assert len(result.frames) == 3
+
+
+def test_first_settings_are_the_first_frames_only(ramp):
+    """Detected first-frame landmarks weigh less; the frames after carry the fit's
+    landmarks over at the sequence's own weight."""
+    from facewrap.wrapping import WrapSettings
+    from facewrap.wrapping.track import PROPAGATED_LANDMARKS
+    template, seq = ramp
+    first = WrapSettings(model="hybrid", landmark_scale=0.03, landmark_pull=False)
+    result = track(template.mesh, [s.mesh for s in seq[:3]], template.landmarks,
+                   [seq[0].landmarks, None, None], WrapSettings(model="hybrid"),
+                   blendshapes=template.blendshapes, first_settings=first)
+    scales = [f.settings.landmark_scale for f in result.frames]
+    assert scales[0] == pytest.approx(0.03) and not result.frames[0].settings.landmark_pull
+    assert scales[1:] == pytest.approx([PROPAGATED_LANDMARKS] * 2)

@@ -25,6 +25,7 @@ from pathlib import Path
 from facewrap.cli.fit_options import add_fit_options, wrap_settings_from_args
 from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
+from facewrap.detection.for_wrap import detected_landmark_settings
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
@@ -147,8 +148,11 @@ def cmd_track(args) -> int:
                      result.timings["total"])
             bar.advance()
 
-        result = track(template, meshes, tl, lms, wrap_settings_from_args(args),
-                       blendshapes=shapes, exclude=exclude, progress=say)
+        settings = wrap_settings_from_args(args)
+        first = (detected_landmark_settings(settings) if "frame 0" in detections
+                 else None)                    # millimetres off: the surface leads
+        result = track(template, meshes, tl, lms, settings, blendshapes=shapes,
+                       exclude=exclude, progress=say, first_settings=first)
     notes = frame_warnings(result, scans)
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)

@@ -137,7 +137,8 @@ def wrap_following(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
 
 def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
           settings: WrapSettings | None = None, *, blendshapes=None, exclude=None,
-          progress=None, graph_cache: GraphCache | None = None) -> TrackResult:
+          progress=None, graph_cache: GraphCache | None = None,
+          first_settings: WrapSettings | None = None) -> TrackResult:
     """Register ``template`` to every scan of a sequence.
 
     Parameters
@@ -157,6 +158,10 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
         Called after each frame.
     graph_cache : GraphCache, optional
         Passed to every :func:`~facewrap.wrapping.wrap` (default: the shared cache).
+    first_settings : WrapSettings, optional
+        The first frame's wrap alone (default ``settings``): detected landmarks
+        weigh less there (:func:`~facewrap.detection.for_wrap.detected_landmark_settings`)
+        than the fitted landmarks the later frames carry over.
 
     Returns
     -------
@@ -178,7 +183,8 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
         lm = scan_landmarks[i]
         given.append(lm is not None)
         if previous is None:
-            result = wrap(template, scan, template_landmarks, lm, s0, exclude=exclude,
+            result = wrap(template, scan, template_landmarks, lm, first_settings or s0,
+                          exclude=exclude,
                           blendshapes=blendshapes, scan_tree=tree, graph_cache=graph_cache)
         else:
             result = wrap_following(template, scan, template_landmarks, lm, previous, s0,
