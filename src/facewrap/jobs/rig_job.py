@@ -213,18 +213,15 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
     if job.method not in PERSONALISE_METHODS:
         raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
                          f"{job.method!r}", source or job.output)
-    if job.expression_landmarks and len(job.expression_landmarks) != len(
-            job.expression_scans):
-        raise InputError(f"{len(job.expression_landmarks)} expression landmark file(s) "
-                         f"(--expression-landmarks) for {len(job.expression_scans)} "
-                         "expression scan(s); give one per scan, or none to detect them",
-                         source or job.expression_landmarks[0])
-    if job.expression_textures and len(job.expression_textures) != len(
-            job.expression_scans):
-        raise InputError(f"{len(job.expression_textures)} expression texture(s) "
-                         f"(--expression-textures) for {len(job.expression_scans)} "
-                         "expression scan(s); give one per scan, or none",
-                         source or job.expression_textures[0])
+    for files, what, flag, none in (
+            (job.expression_landmarks, "expression landmark file(s)",
+             "--expression-landmarks", "none to detect them"),
+            (job.expression_textures, "expression texture(s)", "--expression-textures",
+             "none")):
+        if files and len(files) != len(job.expression_scans):
+            raise InputError(f"{len(files)} {what} ({flag}) for "
+                             f"{len(job.expression_scans)} expression scan(s); give one "
+                             f"per scan, or {none}", source or files[0])
     if not isinstance(job.texture_flow, bool):
         raise InputError(f"texture_flow must be true or false, got {job.texture_flow!r}",
                          source or job.output)
