@@ -63,7 +63,7 @@ def wrap_comparison(found) -> dict:
     (the confident points): fit, flipped triangles, and the manual landmarks (a
     check only) on each result (``bench_realscan``'s measures)."""
     from bench_realscan import _cases, measures
-    from facewrap.detection.for_wrap import confident_landmarks
+    from facewrap.detection.for_wrap import confident_landmarks, detected_landmark_settings
     from facewrap.wrapping import WrapSettings, wrap
     cases = [c for c, _ in _cases() if c.name.startswith("ICT face")]
     if not cases:
@@ -71,12 +71,68 @@ def wrap_comparison(found) -> dict:
     case = cases[0]
     out = {}
     tl, sl = confident_landmarks(case.landmarks, found)
-    for name, (a, b) in (("manual", (case.landmarks, case.scan_landmarks)),
-                         ("detected", (tl, sl))):
+    plain = WrapSettings(model="graph")
+    # detected landmarks weigh as `facewrap wrap` weighs them (DETECTED_LANDMARK_SCALE)
+    for name, (a, b), settings in (
+            ("manual", (case.landmarks, case.scan_landmarks), plain),
+            ("detected", (tl, sl), detected_landmark_settings(plain))):
         t = time.perf_counter()
-        res = wrap(case.template, case.scan, a, b, WrapSettings(model="graph"))
+        res = wrap(case.template, case.scan, a, b, settings)
         out[name] = {"seconds": time.perf_counter() - t, "landmarks": len(b),
                      **measures(res.vertices, case)}
+    return out
+
+
+#: ground-truth scans made as bench_nicp makes them, of identities and expressions
+#: no choice of the detection or of its weighting looked at (seed 5)
+HELD_OUT_WRAPS = [("identity005", {"browInnerUp_L": 1.0, "browInnerUp_R": 1.0,
+                                   "mouthSmile_L": 0.5}),
+                  ("identity006", {"jawOpen": 0.5, "mouthFunnel": 0.5}),
+                  ("identity007", {"eyeBlink_L": 1.0}),
+                  ("identity008", {})]
+
+
+def ground_truth_wraps() -> list[dict]:
+    """Hybrid wraps of ground-truth scans from their true (noisy) landmarks and from
+    detected ones, at the detected weighting and at full weight: mean / p95 error to
+    the truth (mm) over the vertices the scan sees.  The built-in sample's scan (the
+    demo's), then held-out ICT-FaceKit cases."""
+    import _nicp_cases as cases
+    from facewrap.detection.for_wrap import confident_landmarks, detected_landmark_settings
+    from facewrap.sample import make_scan, make_template
+    from facewrap.wrapping import WrapSettings, wrap
+    tpl = make_template()
+    scan = make_scan(tpl)
+    face = np.asarray(tpl.parts["face"])
+    seen = np.zeros(tpl.mesh.n_vertices, bool)
+    seen[face] = True
+    runs = [("sample (the demo's scan, textured)", tpl.mesh, tpl.landmarks,
+             scan.landmarks, scan.mesh, scan.texture, tpl.blendshapes, scan.ground_truth,
+             seen)]
+    if cases.ict_available():
+        for identity, expression in HELD_OUT_WRAPS:
+            c = cases.ict_case(f"detection {identity}", identity, expression, seed=5)
+            name = f"ICT {identity} + " + (" + ".join(f"{k} {w:g}" for k, w in
+                                                      expression.items()) or "neutral")
+            runs.append((name + " (shaded)", c.template, c.landmarks, c.scan_landmarks,
+                         c.scan, None, c.blendshapes, c.truth, c.mask))
+    out = []
+    for name, template, tl, sl, mesh, texture, shapes, truth, mask in runs:
+        try:
+            found = detect_landmarks(mesh, texture)
+        except ValueError as exc:
+            out.append({"case": name, "error": str(exc)})
+            continue
+        dt, ds = confident_landmarks(tl, found)
+        row = {"case": name, "confident": len(ds)}
+        plain = WrapSettings(model="hybrid")
+        for key, (a, b), settings in (("true", (tl, sl), plain),
+                                      ("detected", (dt, ds), detected_landmark_settings(plain)),
+                                      ("full_weight", (dt, ds), plain)):
+            res = wrap(template, mesh, a, b, settings, blendshapes=shapes)
+            e = np.linalg.norm(res.vertices - truth, axis=1)[mask]
+            row[key] = [float(e.mean()), float(np.percentile(e, 95))]
+        out.append(row)
     return out
 
 
@@ -98,6 +154,7 @@ def run() -> dict:
     t = time.perf_counter()
     face_model()
     out = {"model_load_s": time.perf_counter() - t, "cases": {}, "turns": {}}
+    out["ground_truth_wraps"] = ground_truth_wraps()
     with tempfile.TemporaryDirectory() as tmp:
         cli_main(["sample", tmp])
         scan = read_mesh(Path(tmp) / "scan.obj")
@@ -176,6 +233,21 @@ def markdown(r: dict) -> str:
             lines.append(f"| {name} | {w['landmarks']} | {w['fit_p95']:.2f} | "
                          f"{w['flipped']} | {w['landmark_mean']:.2f} / "
                          f"{w['landmark_max']:.2f} | {w['seconds']:.1f} |")
+    if r.get("ground_truth_wraps"):
+        lines += ["", "Wraps against ground truth (hybrid model, mean / p95 error in mm "
+                  "over the vertices the scan sees), from the scan's true landmarks "
+                  "(with their noise), from the detected ones as `facewrap wrap` uses "
+                  "them (confident points at `DETECTED_LANDMARK_SCALE` of the weight, "
+                  "no pull) and from the same points at full weight:", "",
+                  "| case | confident points | true landmarks | detected | detected, "
+                  "full weight |", "|---|---|---|---|---|"]
+        for w in r["ground_truth_wraps"]:
+            if "error" in w:
+                lines.append(f"| {w['case']} | – | {w['error']} | | |")
+                continue
+            lines.append(f"| {w['case']} | {w['confident']} | " + " | ".join(
+                f"{w[k][0]:.2f} / {w[k][1]:.2f}" for k in ("true", "detected",
+                                                           "full_weight")) + " |")
     if "detect_200k_s" in r:
         lines += ["", f"Time: model load {r['model_load_s']:.1f} s (once per process); "
                   f"detection on james {r['detect_james_s']:.2f} s, on a "
