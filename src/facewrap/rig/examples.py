@@ -190,18 +190,35 @@ def _gradient_corrections(A, R, trusted, reg) -> np.ndarray:
     """Per triangle ``min Σ_j c_jt ‖Σ_i A_ji Δ_it − R_jt‖² + Σ_i reg_it ‖Δ_it‖²``.
 
     ``A`` (k, s) weights of the shapes solved for, ``R`` (k, t, 9) the examples'
-    residuals under the prior, ``trusted`` (k, t) the data weights, ``reg`` (s, t).
-    Returns Δ (s, t, 9); every triangle's s × s system in one batched solve.
+    residuals under the prior, ``trusted`` (k, t) the data weights, ``reg`` (s, t),
+    positive.  Returns Δ (s, t, 9); every triangle's system in one batched solve.
+
+    With fewer examples than shapes (the usual capture: a handful of scans, dozens
+    of shapes) each triangle's s × s system ``(D + Ãᵀ Ã) Δ = Ãᵀ R̃`` (``D`` =
+    diag(reg), ``Ã`` = C^½ A, ``R̃`` = C^½ R) is solved through its k × k dual,
+    ``Δ = D⁻¹ Ãᵀ (I + Ã D⁻¹ Ãᵀ)⁻¹ R̃`` (the push-through identity): the same
+    answer, from systems the size of the example count.
     """
     k, s = A.shape
     t = R.shape[1]
     out = np.empty((s, t, 9))
-    batch = max(1, _BATCH_ENTRIES // max(s * s, 1))
+    dual = k < s
+    batch = max(1, _BATCH_ENTRIES // max(k * s if dual else s * s, 1))
+    eye = np.eye(k)
     for lo in range(0, t, batch):     # batches bound the memory, not a Python loop per triangle
         hi = min(t, lo + batch)
+        c = trusted[:, lo:hi].T                                   # (b, k)
+        if dual:
+            root = np.sqrt(c)[:, :, None]
+            At = root * A[None]                                   # (b, k, s)
+            AD = At / reg[:, lo:hi].T[:, None, :]                 # Ã D⁻¹
+            K = AD @ At.transpose(0, 2, 1) + eye                  # (b, k, k)
+            Y = np.linalg.solve(K, root * R[:, lo:hi].transpose(1, 0, 2))
+            out[:, lo:hi] = (AD.transpose(0, 2, 1) @ Y).transpose(1, 0, 2)
+            continue
         # X[b, i, j] = c_jb A_ji: both sums over the examples are batched matrix
         # products (BLAS), not an einsum over three indices
-        X = trusted[:, lo:hi].T[:, None, :] * A.T[None]          # (b, s, k)
+        X = c[:, None, :] * A.T[None]                            # (b, s, k)
         M = X @ A
         M[:, np.arange(s), np.arange(s)] += reg[:, lo:hi].T
         rhs = X @ R[:, lo:hi].transpose(1, 0, 2)                 # (b, s, 9)
