@@ -233,45 +233,47 @@ class NormalEquations:
         return -factorize(Hd, check=False, solves="few").solve(g)
 
 
-def _bordered_parts(S_rows, D, b) -> dict:
+def _bordered_parts(S_rows, D_rows, b_rows) -> dict:
     """The blocks of the bordered system: sparse ``A = SᵀS``, ``B = SᵀD``,
-    dense ``C = DᵀD`` and the gradients ``g1 = Sᵀb``, ``g2 = Dᵀb``."""
-    n_sparse, K = S_rows[0].shape[1], D.shape[1]
-    A = sp.csr_matrix((n_sparse, n_sparse))
-    g1 = np.zeros(n_sparse)
-    Bm = np.zeros((n_sparse, K))
-    start = 0
-    for S in S_rows:
-        rows = slice(start, start + S.shape[0])
-        start += S.shape[0]
+    dense ``C = DᵀD`` and the gradients ``g1 = Sᵀb``, ``g2 = Dᵀb``, summed term
+    by term (the terms' rows are never stacked)."""
+    n_sparse, K = S_rows[0].shape[1], D_rows[0].shape[1]
+    A = None
+    g1, Bm = np.zeros(n_sparse), np.zeros((n_sparse, K))
+    C, g2 = np.zeros((K, K)), np.zeros(K)
+    for S, D, b in zip(S_rows, D_rows, b_rows):
         if S.nnz:
-            A = A + sparse_gram_matrix(S)
+            gram = sparse_gram_matrix(S)
+            A = gram if A is None else A + gram
             St = S.T
-            g1 += St @ b[rows]
+            g1 += St @ b
             if K:
-                Bm += St @ D[rows]
-    return {"A": A, "g1": g1, "B": Bm, "C": D.T @ D, "g2": D.T @ b}
+                Bm += St @ D
+        if K:
+            C += D.T @ D
+            g2 += D.T @ b
+    if A is None:
+        A = sp.csr_matrix((n_sparse, n_sparse))
+    return {"A": A, "g1": g1, "B": Bm, "C": C, "g2": g2}
 
 
-def _dense_parts(S_rows, D, b) -> dict:
-    """``H = JᵀJ`` and ``g = Jᵀb`` assembled densely (small parameter counts)."""
-    n_sparse = S_rows[0].shape[1]
-    P = n_sparse + D.shape[1]
-    H = np.zeros((P, P))
-    g = np.zeros(P)
-    start = 0
-    for S in S_rows:
-        rows = slice(start, start + S.shape[0])
-        start += S.shape[0]
+def _dense_parts(S_rows, D_rows, b_rows) -> dict:
+    """``H = JᵀJ`` and ``g = Jᵀb`` assembled densely (small parameter counts),
+    term by term."""
+    n_sparse, K = S_rows[0].shape[1], D_rows[0].shape[1]
+    H = np.zeros((n_sparse + K, n_sparse + K))
+    g = np.zeros(n_sparse + K)
+    for S, D, b in zip(S_rows, D_rows, b_rows):
         if S.nnz:
             H[:n_sparse, :n_sparse] += gram_matrix(S)
-            g[:n_sparse] += S.T @ b[rows]
-            if D.shape[1]:
-                H[:n_sparse, n_sparse:] += S.T @ D[rows]
-    if D.shape[1]:
+            g[:n_sparse] += S.T @ b
+            if K:
+                H[:n_sparse, n_sparse:] += S.T @ D
+        if K:
+            H[n_sparse:, n_sparse:] += D.T @ D
+            g[n_sparse:] += D.T @ b
+    if K:
         H[n_sparse:, :n_sparse] = H[:n_sparse, n_sparse:].T
-        H[n_sparse:, n_sparse:] = D.T @ D
-        g[n_sparse:] = D.T @ b
     return {"H": H, "g": g}
 
 
@@ -289,10 +291,11 @@ def _dense_solve(H, g, damping: float) -> np.ndarray:
         return -np.linalg.lstsq(Hd, g, rcond=None)[0]
 
 
-def _sparse_parts(S_rows, D, b) -> dict:
+def _sparse_parts(S_rows, D_rows, b_rows) -> dict:
     """One stacked least-squares system: a single sparse product for the sparse
     block, BLAS for the dense (blend) block."""
     S = sp.vstack(S_rows, format="csr")
+    D, b = np.vstack(D_rows), np.concatenate(b_rows)
     St = S.T.tocsr()
     H = (St @ S).tocsr()
     g = St @ b
@@ -339,15 +342,15 @@ def normal_equations(terms, n_params: int | None = None, method: str = "cg",
     if not S_rows:
         return NormalEquations(n_params or 0, 0.0, "zero", {}, **options)
     n_sparse = S_rows[0].shape[1]
-    D = np.vstack(D_rows)
-    b = np.concatenate(b_rows)
-    P = n_sparse + D.shape[1]
+    P = n_sparse + D_rows[0].shape[1]
     if P <= DENSE_LIMIT:
         path = "bordered" if n_sparse >= BORDERED_FROM else "dense"
-        parts = (_bordered_parts if path == "bordered" else _dense_parts)(S_rows, D, b)
+        parts = (_bordered_parts if path == "bordered" else _dense_parts)(S_rows, D_rows,
+                                                                          b_rows)
     else:
-        path, parts = "sparse", _sparse_parts(S_rows, D, b)
-    return NormalEquations(P, float(b @ b), path, parts, **options)
+        path, parts = "sparse", _sparse_parts(S_rows, D_rows, b_rows)
+    energy = float(sum(b @ b for b in b_rows))
+    return NormalEquations(P, energy, path, parts, **options)
 
 
 def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,
