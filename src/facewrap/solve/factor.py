@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 # Both back ends are dependencies; without one the other (or SuperLU) is used.
 try:
@@ -150,6 +149,7 @@ def factorize(A, *, check: bool = True, solves: str = "many") -> Factor:
     # Semi-definite systems (a free translation, an unused vertex): a tiny ridge
     # relative to the diagonal makes them solvable and barely changes the answer.
     ridge = 1e-10 * max(float(abs(A.diagonal()).max(initial=0.0)), 1e-300)
+    import scipy.sparse.linalg as spla      # the rare fallback: its import costs ~0.05 s
     lu = spla.splu((A + ridge * sp.identity(n, format="csr")).tocsc())
     return Factor(n, "lu", lu)
 
