@@ -80,6 +80,35 @@ class Factor:
             return np.array(x).reshape(b.shape)
         return self._solver.solve(b)
 
+    def forward(self, b) -> np.ndarray | None:
+        """Half a solve: ``Y = L⁻¹ P b`` of the factor ``A = Pᵀ L Lᵀ P``, so that
+        ``YᵀY = bᵀ A⁻¹ b`` (a Schur complement from half the work of a solve); None
+        when the back end does not split its solves (only CHOLMOD does).
+
+        Parameters
+        ----------
+        b : (n, k) float
+        """
+        if self.method != "cholmod":
+            return None
+        y = cvxopt_matrix(np.asfortranarray(np.asarray(b, dtype=np.float64)))
+        cholmod.solve(self._solver, y, sys=7)          # P
+        cholmod.solve(self._solver, y, sys=4)          # L
+        return np.array(y)
+
+    def backward(self, y) -> np.ndarray:
+        """The other half, ``x = Pᵀ L⁻ᵀ y``: ``backward(forward(b)) = A⁻¹ b``
+        (only after :meth:`forward` gave an answer).
+
+        Parameters
+        ----------
+        y : (n,) float
+        """
+        x = cvxopt_matrix(np.asfortranarray(np.asarray(y, dtype=np.float64)))
+        cholmod.solve(self._solver, x, sys=5)          # Lᵀ
+        cholmod.solve(self._solver, x, sys=8)          # Pᵀ
+        return np.array(x).reshape(np.shape(y))
+
 
 def refactorize(factor: Factor, A, *, check: bool = True) -> Factor:
     """Factor ``A``, which has the sparsity pattern of the matrix ``factor`` was

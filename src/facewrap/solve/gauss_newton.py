@@ -201,17 +201,35 @@ class NormalEquations:
         Cd[np.diag_indices(K)] += damping * dC + floor
         self._factor = (factorize(Ad, check=False, solves="few") if self._factor is None
                         else refactorize(self._factor, Ad, check=False))
+        halves = self._half_solves(Ad, g1, Bm, Cd, g2)
+        if halves is not None:
+            return halves
         X = self._factor.solve(np.column_stack([g1, Bm]))
         Ainv_g, Ainv_B = X[:, 0], X[:, 1:]
         if K:
-            Sc, rhs = Cd - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g
-            try:
-                x2 = np.linalg.solve(Sc, rhs)
-            except np.linalg.LinAlgError:
-                x2 = np.linalg.lstsq(Sc, rhs, rcond=None)[0]
+            x2 = _solve_small(Cd - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g)
             x1 = Ainv_g - Ainv_B @ x2
         else:
             x1, x2 = Ainv_g, np.zeros(0)
+        return -np.concatenate([x1, x2])
+
+    def _half_solves(self, Ad, g1, Bm, Cd, g2):
+        """The bordered step from a forward solve of ``[g1 B]`` and one backward
+        solve: ``C − Bᵀ A⁻¹ B = C − YᵀY`` with ``Y = L⁻¹ P B`` (half the triangular
+        work of solving for ``A⁻¹ B``, K+1 columns).  None when the factor does not
+        split its solves, or the answer does not solve the system (then the caller
+        solves it whole)."""
+        Y = self._factor.forward(np.column_stack([g1, Bm]))
+        if Y is None or not Bm.shape[1]:
+            return None
+        y_g, Y_B = Y[:, 0], Y[:, 1:]
+        x2 = _solve_small(Cd - Y_B.T @ Y_B, g2 - Y_B.T @ y_g)
+        x1 = self._factor.backward(y_g - Y_B @ x2)
+        # the first block row, A x1 + B x2 = g1, checks the halves (a matrix-vector
+        # product: cheap beside the solves)
+        scale = max(float(np.linalg.norm(g1)) + float(np.linalg.norm(Bm @ x2)), 1e-300)
+        if not float(np.linalg.norm(Ad @ x1 + Bm @ x2 - g1)) <= 1e-8 * scale:
+            return None
         return -np.concatenate([x1, x2])
 
     def _sparse_solve(self, damping: float, x0) -> np.ndarray:
@@ -275,6 +293,14 @@ def _dense_parts(S_rows, D_rows, b_rows) -> dict:
     if K:
         H[n_sparse:, :n_sparse] = H[:n_sparse, n_sparse:].T
     return {"H": H, "g": g}
+
+
+def _solve_small(M, rhs) -> np.ndarray:
+    """A small dense system (a Schur complement); least squares if singular."""
+    try:
+        return np.linalg.solve(M, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(M, rhs, rcond=None)[0]
 
 
 def _dense_solve(H, g, damping: float) -> np.ndarray:
