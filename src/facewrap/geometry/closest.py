@@ -225,9 +225,12 @@ class ClosestPointTree:
     @cached_property
     def flat_triangles(self) -> np.ndarray:
         """(t,) bool: triangles that are segments (see ``_FLAT``), found once."""
-        corners = self.vertices[self.triangles]
-        n = cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        return _readonly(_is_flat(np.einsum("ij,ij->i", n, n), _edge_lengths_sq(corners)))
+        V, T = self.vertices, self.triangles
+        a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]      # (three gathers: faster
+        n = cross_rows(b - a, c - a)                        # than one (t, 3, 3) one)
+        longest_sq = np.max([np.einsum("ij,ij->i", e, e) for e in (b - a, c - b, a - c)],
+                            axis=0)
+        return _readonly(np.einsum("ij,ij->i", n, n) <= (_FLAT * longest_sq) ** 2)
 
     def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
