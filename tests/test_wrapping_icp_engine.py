@@ -93,3 +93,25 @@ def test_scan_pairs_follow_the_frame_and_the_sample():
                                atol=1e-12)
     problem = _problem(model, T, tree, NormalisedFrame(np.zeros(3), 1.0))
     assert len(icp.scan_pairs(problem, Stage(sample=0.25), V).vertices) <= 21
+
+
+def test_triangles_around_a_sample_give_its_vertices_the_whole_mesh_normals():
+    from facewrap.geometry import vertex_normals
+    V, T = grid(15, 1.0)
+    V = V + np.random.default_rng(3).normal(0, 0.02, V.shape)     # a bumpy sheet
+    model = GraphModel(V, build_graph(V, T, spacing=0.3))
+    rng = np.random.default_rng(0)
+    candidates = np.arange(model.n_vertices)
+    problem = ICPProblem(model, T, cylinder_scan(), NormalisedFrame(np.zeros(3), 1.0),
+                         candidates, rng.permutation(candidates), None, None,
+                         np.zeros(0, np.int64))
+    for fraction in (0.1, 0.3, 1.0):
+        used = problem.sampled(fraction)
+        around = problem.triangles_around(fraction)
+        assert problem.triangles_around(fraction) is around        # found once
+        # every triangle with a sampled corner, and none without
+        assert set(map(tuple, around)) == {tuple(t) for t in T if np.isin(t, used).any()}
+        if fraction < 1:
+            assert len(around) < len(T)
+        np.testing.assert_allclose(vertex_normals(V, around)[used],
+                                   vertex_normals(V, T)[used], rtol=0, atol=1e-12)

@@ -14,6 +14,8 @@ print one line ``facewrap: error: <file>:<line>: <problem>`` and exit with statu
 from __future__ import annotations
 
 import argparse
+import atexit
+import gc
 import sys
 from importlib import import_module
 
@@ -86,11 +88,28 @@ def build_parser(command: str | None = None, *, every: bool = True
     return parser
 
 
+def _spare_the_collector() -> None:
+    """Keep the cyclic garbage collector off the objects the imports made.
+
+    The imports leave a few hundred thousand long-lived objects (modules, functions,
+    classes) that every full collection walks again, and the interpreter's exit
+    walks them once more (an ICT ``facewrap wrap`` spent 0.07-0.2 s from the end of
+    :func:`main` to its exit; 0.03 s frozen).  Frozen, they are skipped; objects are still freed by reference counting, and
+    exit handlers still run.  Only for a process's own command line: a caller
+    that runs :func:`main` many times would keep its frozen cycles.
+    """
+    gc.freeze()
+    atexit.register(gc.freeze)      # what the command made is not walked at exit
+
+
 def main(argv=None) -> int:
     """Entry point of the ``facewrap`` console script; returns the exit status."""
+    entry = argv is None        # the process's own command line: it ends after this
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(chosen_command(argv), every=False)
     args = parser.parse_args(argv)
+    if entry:
+        _spare_the_collector()
     # progress bars draw only on a terminal; logs go to standard error
     configure_logging(args.log_verbose - args.log_quiet
                       - (1 if getattr(args, "quiet", False) else 0))

@@ -100,7 +100,7 @@ class RayHits(NamedTuple):
     t: np.ndarray
 
 
-def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
+def _barycentric(X: np.ndarray, corners: np.ndarray, flat=None) -> np.ndarray:
     """(k, 3) barycentric coordinates of points ``X`` (k, 3) on triangles ``corners``.
 
     ``corners`` is (k, 3, 3) (triangle, corner, coordinate).  Points are assumed to
@@ -108,7 +108,8 @@ def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
     set to 0 (so points on edges and vertices get exact zeros) and the rest
     renormalised.  Near-degenerate triangles (see ``_FLAT``) are
     treated as their longest edge, and a triangle shrunk to a point as its first
-    corner, so the result is always finite.
+    corner, so the result is always finite.  ``flat`` (k,) bool says which
+    triangles are near-degenerate when the caller knows it already.
     """
     a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e0, e1, p = b - a, c - a, X - a
@@ -118,13 +119,13 @@ def _barycentric(X: np.ndarray, corners: np.ndarray) -> np.ndarray:
     # points in the plane, and well conditioned (no Gram-determinant cancellation)
     l1 = np.einsum("ij,ij->i", cross_rows(p, e1), n)
     l2 = np.einsum("ij,ij->i", cross_rows(e0, p), n)
-    edge_sq = _edge_lengths_sq(corners)
-    flat = _is_flat(nn, edge_sq)
+    if flat is None:
+        flat = _is_flat(nn, _edge_lengths_sq(corners))
     inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=~flat)
     bary = np.stack([nn - l1 - l2, l1, l2], axis=1) * inv[:, None]
     if np.any(flat):
         bary[flat] = _barycentric_on_longest_edge(X[flat], corners[flat],
-                                                  edge_sq[flat])
+                                                  _edge_lengths_sq(corners[flat]))
     bary[bary < _SNAP] = 0.0
     bary /= bary.sum(axis=1, keepdims=True)
     return bary
@@ -221,17 +222,26 @@ class ClosestPointTree:
         self._tree = igl.AABB()
         self._tree.init(self.vertices, self.triangles)
 
-    def _onto_flat(self, P, sq_dist, closest, corners) -> None:
+    @cached_property
+    def flat_triangles(self) -> np.ndarray:
+        """(t,) bool: triangles that are segments (see ``_FLAT``), found once."""
+        V, T = self.vertices, self.triangles
+        a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]      # (three gathers: faster
+        n = cross_rows(b - a, c - a)                        # than one (t, 3, 3) one)
+        longest_sq = np.max([np.einsum("ij,ij->i", e, e) for e in (b - a, c - b, a - c)],
+                            axis=0)
+        return _readonly(np.einsum("ij,ij->i", n, n) <= (_FLAT * longest_sq) ** 2)
+
+    def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
         place): libigl's closest point on a triangle of zero area can be off by
         1e-3 of its size (seen on a collinear triangle).  ``corners`` (k, 3, 3) are
-        the triangles met; only they are tested, not the whole mesh."""
-        edge_sq = _edge_lengths_sq(corners)
-        n = cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        rows = np.flatnonzero(_is_flat(np.einsum("ij,ij->i", n, n), edge_sq))
+        the triangles met and ``flat`` (k,) which of them are segments."""
+        rows = np.flatnonzero(flat)
         if not len(rows):
             return
-        bary = _barycentric_on_longest_edge(P[rows], corners[rows], edge_sq[rows])
+        bary = _barycentric_on_longest_edge(P[rows], corners[rows],
+                                            _edge_lengths_sq(corners[rows]))
         on_edge = np.einsum("kc,kcd->kd", bary, corners[rows])
         d = np.einsum("ij,ij->i", on_edge - P[rows], on_edge - P[rows])
         better = d < sq_dist[rows]
@@ -285,8 +295,9 @@ class ClosestPointTree:
         sq_dist, closest = np.array(sq_dist, dtype=np.float64), np.array(closest)
         ids = self.triangles[tri]
         corners = self.vertices[ids]
-        self._onto_flat(P, sq_dist, closest, corners)
-        bary = _barycentric(closest, corners)
+        flat = self.flat_triangles[tri]
+        self._onto_flat(P, sq_dist, closest, corners, flat)
+        bary = _barycentric(closest, corners, flat)
         normals = self._interpolate_normals(ids, bary)
         return ClosestPoints(points=closest, triangles=tri, barycentric=bary,
                              normals=normals,
@@ -369,7 +380,8 @@ class ClosestPointTree:
         points = O + t[:, None] * D
         bary = np.zeros((len(O), 3))
         if np.any(hit):
-            bary[hit] = _barycentric(points[hit], self.vertices[self.triangles[tri[hit]]])
+            bary[hit] = _barycentric(points[hit], self.vertices[self.triangles[tri[hit]]],
+                                     self.flat_triangles[tri[hit]])
         return RayHits(hit=hit, triangles=tri, barycentric=bary, points=points, t=t)
 
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 # Both back ends are dependencies; without one the other (or SuperLU) is used.
 try:
@@ -80,6 +79,35 @@ class Factor:
             cholmod.solve(self._solver, x)
             return np.array(x).reshape(b.shape)
         return self._solver.solve(b)
+
+    def forward(self, b) -> np.ndarray | None:
+        """Half a solve: ``Y = L⁻¹ P b`` of the factor ``A = Pᵀ L Lᵀ P``, so that
+        ``YᵀY = bᵀ A⁻¹ b`` (a Schur complement from half the work of a solve); None
+        when the back end does not split its solves (only CHOLMOD does).
+
+        Parameters
+        ----------
+        b : (n, k) float
+        """
+        if self.method != "cholmod":
+            return None
+        y = cvxopt_matrix(np.asfortranarray(np.asarray(b, dtype=np.float64)))
+        cholmod.solve(self._solver, y, sys=7)          # P
+        cholmod.solve(self._solver, y, sys=4)          # L
+        return np.array(y)
+
+    def backward(self, y) -> np.ndarray:
+        """The other half, ``x = Pᵀ L⁻ᵀ y``: ``backward(forward(b)) = A⁻¹ b``
+        (only after :meth:`forward` gave an answer).
+
+        Parameters
+        ----------
+        y : (n,) float
+        """
+        x = cvxopt_matrix(np.asfortranarray(np.asarray(y, dtype=np.float64)))
+        cholmod.solve(self._solver, x, sys=5)          # Lᵀ
+        cholmod.solve(self._solver, x, sys=8)          # Pᵀ
+        return np.array(x).reshape(np.shape(y))
 
 
 def refactorize(factor: Factor, A, *, check: bool = True) -> Factor:
@@ -150,6 +178,7 @@ def factorize(A, *, check: bool = True, solves: str = "many") -> Factor:
     # Semi-definite systems (a free translation, an unused vertex): a tiny ridge
     # relative to the diagonal makes them solvable and barely changes the answer.
     ridge = 1e-10 * max(float(abs(A.diagonal()).max(initial=0.0)), 1e-300)
+    import scipy.sparse.linalg as spla      # the rare fallback: its import costs ~0.05 s
     lu = spla.splu((A + ridge * sp.identity(n, format="csr")).tocsc())
     return Factor(n, "lu", lu)
 

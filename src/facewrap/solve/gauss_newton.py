@@ -201,17 +201,35 @@ class NormalEquations:
         Cd[np.diag_indices(K)] += damping * dC + floor
         self._factor = (factorize(Ad, check=False, solves="few") if self._factor is None
                         else refactorize(self._factor, Ad, check=False))
+        halves = self._half_solves(Ad, g1, Bm, Cd, g2)
+        if halves is not None:
+            return halves
         X = self._factor.solve(np.column_stack([g1, Bm]))
         Ainv_g, Ainv_B = X[:, 0], X[:, 1:]
         if K:
-            Sc, rhs = Cd - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g
-            try:
-                x2 = np.linalg.solve(Sc, rhs)
-            except np.linalg.LinAlgError:
-                x2 = np.linalg.lstsq(Sc, rhs, rcond=None)[0]
+            x2 = _solve_small(Cd - Bm.T @ Ainv_B, g2 - Bm.T @ Ainv_g)
             x1 = Ainv_g - Ainv_B @ x2
         else:
             x1, x2 = Ainv_g, np.zeros(0)
+        return -np.concatenate([x1, x2])
+
+    def _half_solves(self, Ad, g1, Bm, Cd, g2):
+        """The bordered step from a forward solve of ``[g1 B]`` and one backward
+        solve: ``C − Bᵀ A⁻¹ B = C − YᵀY`` with ``Y = L⁻¹ P B`` (half the triangular
+        work of solving for ``A⁻¹ B``, K+1 columns).  None when the factor does not
+        split its solves, or the answer does not solve the system (then the caller
+        solves it whole)."""
+        Y = self._factor.forward(np.column_stack([g1, Bm]))
+        if Y is None or not Bm.shape[1]:
+            return None
+        y_g, Y_B = Y[:, 0], Y[:, 1:]
+        x2 = _solve_small(Cd - Y_B.T @ Y_B, g2 - Y_B.T @ y_g)
+        x1 = self._factor.backward(y_g - Y_B @ x2)
+        # the first block row, A x1 + B x2 = g1, checks the halves (a matrix-vector
+        # product: cheap beside the solves)
+        scale = max(float(np.linalg.norm(g1)) + float(np.linalg.norm(Bm @ x2)), 1e-300)
+        if not float(np.linalg.norm(Ad @ x1 + Bm @ x2 - g1)) <= 1e-8 * scale:
+            return None
         return -np.concatenate([x1, x2])
 
     def _sparse_solve(self, damping: float, x0) -> np.ndarray:
@@ -233,46 +251,56 @@ class NormalEquations:
         return -factorize(Hd, check=False, solves="few").solve(g)
 
 
-def _bordered_parts(S_rows, D, b) -> dict:
+def _bordered_parts(S_rows, D_rows, b_rows) -> dict:
     """The blocks of the bordered system: sparse ``A = SᵀS``, ``B = SᵀD``,
-    dense ``C = DᵀD`` and the gradients ``g1 = Sᵀb``, ``g2 = Dᵀb``."""
-    n_sparse, K = S_rows[0].shape[1], D.shape[1]
-    A = sp.csr_matrix((n_sparse, n_sparse))
-    g1 = np.zeros(n_sparse)
-    Bm = np.zeros((n_sparse, K))
-    start = 0
-    for S in S_rows:
-        rows = slice(start, start + S.shape[0])
-        start += S.shape[0]
+    dense ``C = DᵀD`` and the gradients ``g1 = Sᵀb``, ``g2 = Dᵀb``, summed term
+    by term (the terms' rows are never stacked)."""
+    n_sparse, K = S_rows[0].shape[1], D_rows[0].shape[1]
+    A = None
+    g1, Bm = np.zeros(n_sparse), np.zeros((n_sparse, K))
+    C, g2 = np.zeros((K, K)), np.zeros(K)
+    for S, D, b in zip(S_rows, D_rows, b_rows):
         if S.nnz:
-            A = A + sparse_gram_matrix(S)
+            gram = sparse_gram_matrix(S)
+            A = gram if A is None else A + gram
             St = S.T
-            g1 += St @ b[rows]
+            g1 += St @ b
             if K:
-                Bm += St @ D[rows]
-    return {"A": A, "g1": g1, "B": Bm, "C": D.T @ D, "g2": D.T @ b}
+                Bm += St @ D
+        if K:
+            C += D.T @ D
+            g2 += D.T @ b
+    if A is None:
+        A = sp.csr_matrix((n_sparse, n_sparse))
+    return {"A": A, "g1": g1, "B": Bm, "C": C, "g2": g2}
 
 
-def _dense_parts(S_rows, D, b) -> dict:
-    """``H = JᵀJ`` and ``g = Jᵀb`` assembled densely (small parameter counts)."""
-    n_sparse = S_rows[0].shape[1]
-    P = n_sparse + D.shape[1]
-    H = np.zeros((P, P))
-    g = np.zeros(P)
-    start = 0
-    for S in S_rows:
-        rows = slice(start, start + S.shape[0])
-        start += S.shape[0]
+def _dense_parts(S_rows, D_rows, b_rows) -> dict:
+    """``H = JᵀJ`` and ``g = Jᵀb`` assembled densely (small parameter counts),
+    term by term."""
+    n_sparse, K = S_rows[0].shape[1], D_rows[0].shape[1]
+    H = np.zeros((n_sparse + K, n_sparse + K))
+    g = np.zeros(n_sparse + K)
+    for S, D, b in zip(S_rows, D_rows, b_rows):
         if S.nnz:
             H[:n_sparse, :n_sparse] += gram_matrix(S)
-            g[:n_sparse] += S.T @ b[rows]
-            if D.shape[1]:
-                H[:n_sparse, n_sparse:] += S.T @ D[rows]
-    if D.shape[1]:
+            g[:n_sparse] += S.T @ b
+            if K:
+                H[:n_sparse, n_sparse:] += S.T @ D
+        if K:
+            H[n_sparse:, n_sparse:] += D.T @ D
+            g[n_sparse:] += D.T @ b
+    if K:
         H[n_sparse:, :n_sparse] = H[:n_sparse, n_sparse:].T
-        H[n_sparse:, n_sparse:] = D.T @ D
-        g[n_sparse:] = D.T @ b
     return {"H": H, "g": g}
+
+
+def _solve_small(M, rhs) -> np.ndarray:
+    """A small dense system (a Schur complement); least squares if singular."""
+    try:
+        return np.linalg.solve(M, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(M, rhs, rcond=None)[0]
 
 
 def _dense_solve(H, g, damping: float) -> np.ndarray:
@@ -289,10 +317,11 @@ def _dense_solve(H, g, damping: float) -> np.ndarray:
         return -np.linalg.lstsq(Hd, g, rcond=None)[0]
 
 
-def _sparse_parts(S_rows, D, b) -> dict:
+def _sparse_parts(S_rows, D_rows, b_rows) -> dict:
     """One stacked least-squares system: a single sparse product for the sparse
     block, BLAS for the dense (blend) block."""
     S = sp.vstack(S_rows, format="csr")
+    D, b = np.vstack(D_rows), np.concatenate(b_rows)
     St = S.T.tocsr()
     H = (St @ S).tocsr()
     g = St @ b
@@ -339,15 +368,15 @@ def normal_equations(terms, n_params: int | None = None, method: str = "cg",
     if not S_rows:
         return NormalEquations(n_params or 0, 0.0, "zero", {}, **options)
     n_sparse = S_rows[0].shape[1]
-    D = np.vstack(D_rows)
-    b = np.concatenate(b_rows)
-    P = n_sparse + D.shape[1]
+    P = n_sparse + D_rows[0].shape[1]
     if P <= DENSE_LIMIT:
         path = "bordered" if n_sparse >= BORDERED_FROM else "dense"
-        parts = (_bordered_parts if path == "bordered" else _dense_parts)(S_rows, D, b)
+        parts = (_bordered_parts if path == "bordered" else _dense_parts)(S_rows, D_rows,
+                                                                          b_rows)
     else:
-        path, parts = "sparse", _sparse_parts(S_rows, D, b)
-    return NormalEquations(P, float(b @ b), path, parts, **options)
+        path, parts = "sparse", _sparse_parts(S_rows, D_rows, b_rows)
+    energy = float(sum(b @ b for b in b_rows))
+    return NormalEquations(P, energy, path, parts, **options)
 
 
 def gauss_newton_step(terms, damping: float = 0.0, n_params: int | None = None,

@@ -22,7 +22,6 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 __all__ = ["block_jacobi", "conjugate_gradients", "CGResult"]
 
@@ -174,6 +173,9 @@ def block_jacobi(H, block: int, n_blocked: int | None = None):
     -------
     scipy.sparse.linalg.LinearOperator applying the inverse blocks.
     """
+    # (imported here: scipy.sparse.linalg and the scipy.linalg it loads cost a
+    # process ~0.05 s, and only the sparse path of a large system comes here)
+    import scipy.sparse.linalg as spla
     H = sp.csr_matrix(H)
     P = H.shape[0]
     nb = (P if n_blocked is None else n_blocked) // block

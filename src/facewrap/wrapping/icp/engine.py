@@ -27,14 +27,16 @@ the scan's units.  The linear algebra is :func:`facewrap.solve.normal_equations`
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
-from facewrap.geometry import ClosestPointTree, vertex_normals
+from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.checks import as_triangles
 from facewrap.geometry.frames import NormalisedFrame
+from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.geometry.matching import Matches, closest_compatible_points
 from facewrap.progress import progress
 from facewrap.solve import normal_equations
@@ -104,6 +106,7 @@ class ICPProblem:
     landmark_matrix: object
     landmark_targets: np.ndarray | None
     landmark_vertices: np.ndarray
+    _around: dict = field(default_factory=dict, repr=False)   # triangles_around's
 
     @property
     def has_landmarks(self) -> bool:
@@ -115,6 +118,19 @@ class ICPProblem:
             return self.candidates
         count = max(1, int(np.ceil(fraction * len(self.candidates))))
         return np.sort(self.sample_order[:count])
+
+    def triangles_around(self, fraction: float) -> np.ndarray:
+        """(t', 3) int64: the triangles with a corner among :meth:`sampled`
+        (``fraction``), in their order; found once per fraction.
+
+        The normals of the sampled vertices need no other triangle, and summed over
+        these in the same order they are the very normals of the whole mesh.
+        """
+        if fraction not in self._around:
+            corner = np.zeros(self.model.n_vertices, dtype=bool)
+            corner[self.sampled(fraction)] = True
+            self._around[fraction] = self.triangles[corner[self.triangles].any(axis=1)]
+        return self._around[fraction]
 
 
 class NonRigidICP:
@@ -209,7 +225,7 @@ class NonRigidICP:
         sample_order = candidates[np.random.default_rng(0).permutation(len(candidates))]
         lm_vertices = (np.unique(sp.csr_matrix(landmark_matrix).indices)
                        if landmark_matrix is not None else np.zeros(0, np.int64))
-        problem = ICPProblem(model, np.asarray(triangles, dtype=np.int64), tree, frame,
+        problem = ICPProblem(model, as_triangles(triangles, n), tree, frame,
                              candidates, sample_order, landmark_matrix, landmark_targets,
                              lm_vertices)
         # Many small vector operations: BLAS threads only contend on a loaded
@@ -272,8 +288,10 @@ class NonRigidICP:
             aligned).
         """
         used = problem.sampled(stage.sample)
+        # (the triangles were checked once in fit; query checks that V is finite)
+        normals = trusted_vertex_normals(V, problem.triangles_around(stage.sample))[used]
         matches = closest_compatible_points(
-            problem.tree, V[used], vertex_normals(V, problem.triangles)[used],
+            problem.tree, V[used], normals,
             frame=problem.frame, max_distance=self.max_distance,
             max_normal_angle=self.max_normal_angle, reject_border=self.reject_boundary)
         if len(matches) == 0:

@@ -33,7 +33,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _components
 from scipy.sparse.csgraph import dijkstra
-from scipy.spatial import cKDTree
 
 from facewrap.geometry import edges as mesh_edges
 from facewrap.geometry import poisson_disk_vertices
@@ -114,6 +113,7 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
     # with Euclidean nearest nodes so every vertex is skinned
     missing = ~np.isfinite(dist[:, k - 1])
     if missing.any():
+        from scipy.spatial import cKDTree   # building only: a cached graph needs none
         d_e, j_e = cKDTree(V[nodes]).query(V[missing], k=k + 1)
         d_e, j_e = d_e.reshape(-1, k + 1), j_e.reshape(-1, k + 1)
         nearest[missing], dist[missing] = j_e, d_e
@@ -170,6 +170,7 @@ def _nearest_nodes_on_surface(G, V, nodes, count, limit):
     best_j, best_d = _nearest_within(G, nodes, count, 0.75 * limit)
     short = np.flatnonzero(~np.isfinite(best_d[:, -1]))
     if len(short):
+        from scipy.spatial import cKDTree   # building only (see build_graph)
         hits = cKDTree(V[short]).query_ball_point(V[nodes], r=limit)
         near = np.flatnonzero([len(h) > 0 for h in hits])
         if len(near):
@@ -210,6 +211,7 @@ def _tie_components(pairs, X, ties: int = 3):
     main = np.bincount(label).argmax()
     inside = np.flatnonzero(label == main)
     other = np.flatnonzero(label != main)
+    from scipy.spatial import cKDTree       # building only (see build_graph)
     _, j = cKDTree(X[inside]).query(X[other], k=min(ties, len(inside)))
     j = inside[np.asarray(j).reshape(len(other), -1)]
     extra = np.stack([np.repeat(other, j.shape[1]), j.ravel()], 1)

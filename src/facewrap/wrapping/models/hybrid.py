@@ -74,6 +74,11 @@ class HybridModel(DeformationModel):
         self.n_params = self.n_graph + self.n_shapes
         # deltas at the nodes, (m, 3, K), and per vertex, (n, 3, K)
         self._D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
+        self._D_nodes = self._D[graph.nodes]
+        # along each graph edge: D_xk − D_xj, (e, 3, K), what the smoothness's
+        # w-columns rotate (fixed by the graph)
+        self._D_edges = (self._D_nodes[graph.edges[:, 1]]
+                         - self._D_nodes[graph.edges[:, 0]])
         # skinning weights as an (n, m) matrix: Σ_j a_ij f(node j) is one product
         k = graph.vertex_nodes.shape[1]
         self._skin = sp.csr_matrix(
@@ -115,8 +120,7 @@ class HybridModel(DeformationModel):
             J, W, Dv, skin = J[vertices], W[vertices], Dv[vertices], skin[vertices]
         R = p.graph.R
         M = np.einsum("nk,nkab->nab", W, R[J])
-        Dn = self._D[self.graph.nodes]                              # (m, 3, K)
-        node_term = np.matmul(np.eye(3) - R, Dn)                    # (m, 3, K)
+        node_term = np.matmul(np.eye(3) - R, self._D_nodes)         # (m, 3, K)
         Jw = np.matmul(M, Dv) + (skin @ node_term.reshape(len(R), -1)).reshape(Dv.shape)
         return BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
 
@@ -127,9 +131,8 @@ class HybridModel(DeformationModel):
         out = {}
         if self.n_shapes:
             # d e_jk / dw = (R_j − I)(D_xk − D_xj)
-            j, k = self.graph.edges[:, 0], self.graph.edges[:, 1]
-            Dn = self._D[self.graph.nodes]
-            Jw = np.einsum("eab,ebk->eak", p.graph.R[j] - np.eye(3), Dn[k] - Dn[j])
+            j = self.graph.edges[:, 0]
+            Jw = np.einsum("eab,ebk->eak", p.graph.R[j] - np.eye(3), self._D_edges)
             out["smooth"] = (r * scale, BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
                              * scale)
             Jb = BlockJacobian(sp.csr_matrix((self.n_shapes, self.n_graph)),
