@@ -90,3 +90,13 @@ def test_pull_to_landmarks_shortens_offsets_by_the_tolerance():
     assert np.allclose(both[60] - P[60], [0.1, 0.1, 0])
     with pytest.raises(ValueError, match="tolerance"):
         pull_to_landmarks(P, P[lm], targets, -1.0)
+
+
+def test_nearest_other_distances_against_a_brute_force_oracle():
+    from facewrap.wrapping.warp import nearest_other_distances
+    rng = np.random.default_rng(3)
+    for n in (2, 50, 2500):          # the table, and past it the KD-tree
+        C = rng.normal(size=(n, 3))
+        want = np.array([np.min(np.linalg.norm(np.delete(C, i, axis=0) - C[i], axis=1))
+                         for i in range(n)])
+        np.testing.assert_allclose(nearest_other_distances(C), want, rtol=1e-12)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from facewrap.geometry.checks import as_count, as_mesh_arrays, as_vertices
 from facewrap.geometry.normals import trusted_face_areas
@@ -164,6 +163,7 @@ def poisson_disk_vertices(V, radius, seed=0) -> np.ndarray:
     n = len(V)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
+    from scipy.spatial import cKDTree   # a graph build only (a cached graph skips it)
     tree = cKDTree(V)
     order = np.random.default_rng(seed).permutation(n)
     covered = np.zeros(n, dtype=bool)

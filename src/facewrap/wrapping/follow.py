@@ -22,7 +22,6 @@ than ``2e-4`` of its size) have no side to keep.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from facewrap.geometry import (boundary_edges, connected_components, farthest_point_sampling,
                                similarity_transform)
@@ -130,6 +129,7 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
     if len(part) == 0 or len(skin) == 0:
         return X
     k = min(_ANCHORS, len(skin))
+    from scipy.spatial import cKDTree   # only a template with parts needs it
     _, near = cKDTree(R[skin]).query(R[part], k=k)
     near = skin[np.asarray(near).reshape(len(part), k)]
     labels = connected_components(T, len(X))

@@ -27,6 +27,7 @@ import numpy as np
 from facewrap.geometry import (ClosestPointTree, face_normals, turned, vertex_adjacency,
                                vertex_normals)
 from facewrap.geometry.matching import compatible
+from facewrap.geometry.arrays import cross_rows
 from facewrap.mesh import Mesh
 from facewrap.wrapping.blend import extension_operator, smooth_extension
 from facewrap.wrapping.unfold import step_back_new_folds
@@ -110,12 +111,12 @@ def prism_projection(points, tree: ClosestPointTree, candidates, iterations: int
     NA, NB, NC = (N[T[tri, k]] for k in range(3))
     e1, e2, n1, n2 = B - A, C - A, NB - NA, NC - NA
     # start: projection onto the triangle plane
-    fn = np.cross(e1, e2)
+    fn = cross_rows(e1, e2)
     area2 = np.einsum("ij,ij->i", fn, fn)
     scale = np.sqrt(np.maximum(area2, 1e-300))
     w = Q - A
-    b1 = np.einsum("ij,ij->i", np.cross(w, e2), fn) / np.maximum(area2, 1e-300)
-    b2 = np.einsum("ij,ij->i", np.cross(e1, w), fn) / np.maximum(area2, 1e-300)
+    b1 = np.einsum("ij,ij->i", cross_rows(w, e2), fn) / np.maximum(area2, 1e-300)
+    b2 = np.einsum("ij,ij->i", cross_rows(e1, w), fn) / np.maximum(area2, 1e-300)
     s = np.zeros(len(Q))
     for _ in range(iterations):
         Np = NA + b1[:, None] * n1 + b2[:, None] * n2
@@ -123,13 +124,13 @@ def prism_projection(points, tree: ClosestPointTree, candidates, iterations: int
         # J = [ja jb jc] (columns); Cramer's rule, vectorised: numpy's batched
         # LAPACK solve of many 3x3 systems is ~10x slower than these products
         ja, jb, jc = e1 + s[:, None] * n1, e2 + s[:, None] * n2, Np
-        bc = np.cross(jb, jc)
+        bc = cross_rows(jb, jc)
         det = np.einsum("ij,ij->i", ja, bc)
         ok = np.abs(det) > 1e-14 * scale ** 3
         inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
         b1 = b1 - np.einsum("ij,ij->i", r, bc) * inv
-        b2 = b2 - np.einsum("ij,ij->i", ja, np.cross(r, jc)) * inv
-        s = s - np.einsum("ij,ij->i", ja, np.cross(jb, r)) * inv
+        b2 = b2 - np.einsum("ij,ij->i", ja, cross_rows(r, jc)) * inv
+        s = s - np.einsum("ij,ij->i", ja, cross_rows(jb, r)) * inv
     Np = NA + b1[:, None] * n1 + b2[:, None] * n2
     r = A + b1[:, None] * e1 + b2[:, None] * e2 + s[:, None] * Np - Q
     b0 = 1.0 - b1 - b2

@@ -12,9 +12,8 @@ landmarks are approximated instead of interpolated.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-__all__ = ["RBFWarp", "rbf_kernel", "pull_to_landmarks", "KERNELS"]
+__all__ = ["RBFWarp", "rbf_kernel", "pull_to_landmarks", "nearest_other_distances", "KERNELS"]
 
 KERNELS = ("biharmonic", "thin_plate", "exponential", "gaussian")
 
@@ -113,8 +112,7 @@ class RBFWarp:
         if self.width is not None:
             width = float(self.width)
         elif k > 1:
-            d, _ = cKDTree(C).query(C, k=2)
-            width = 2.0 * float(d[:, 1].mean())
+            width = 2.0 * float(nearest_other_distances(C).mean())
         else:
             width = 1.0
         self.width_ = width
@@ -220,9 +218,38 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float
     shifts = np.stack([np.bincount(group, D[:, c], len(centers)) for c in range(3)],
                       axis=1) / counts[:, None]
     if len(centers) > 1:
-        width = float(np.median(cKDTree(centers).query(centers, k=2)[0][:, 1]))
+        width = float(np.median(nearest_other_distances(centers)))
     else:
         width = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) * 0.1 or 1.0
     warp = RBFWarp(kernel="gaussian", width=width, smoothing=1e-9, affine=False)
     return warp.fit(centers, shifts).transform(X), pulls
 
+
+#: below this many points a distance table beats building a KD-tree (and a wrap
+#: then never imports scipy.spatial: 0.08 s of its start-up)
+_TABLE_POINTS = 2000
+
+
+def nearest_other_distances(C) -> np.ndarray:
+    """(k,) distance from each of k >= 2 points to the nearest other one.
+
+    Parameters
+    ----------
+    C : (k, 3) float64
+
+    Returns
+    -------
+    (k,) float64
+
+    Examples
+    --------
+    >>> nearest_other_distances(np.array([[0, 0, 0], [1, 0, 0], [3, 0, 0.]])).tolist()
+    [1.0, 1.0, 2.0]
+    """
+    C = np.asarray(C, dtype=np.float64)
+    if len(C) > _TABLE_POINTS:
+        from scipy.spatial import cKDTree
+        return cKDTree(C).query(C, k=2)[0][:, 1]
+    D = np.linalg.norm(C[:, None] - C[None], axis=2)
+    np.fill_diagonal(D, np.inf)
+    return D.min(axis=1)
