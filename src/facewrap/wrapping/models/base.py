@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DeformationModel", "skew", "rotation_exp", "cross_matrix_blocks",
+__all__ = ["DeformationModel", "LastBlend", "skew", "rotation_exp", "cross_matrix_blocks",
            "nearest_rotations"]
 
 
@@ -66,6 +66,34 @@ class DeformationModel:
     def summary(self, params) -> dict:
         """JSON-able description of the parameters (for reports)."""
         return {}
+
+
+class LastBlend:
+    """``base + deltas @ w`` as (n, 3), remembering the last ``w``.
+
+    The ICP engine asks a blendshape model for the same weights several times per
+    iteration (the step's vertices, the next Jacobian, regularisers, energy): the
+    last blend is kept and returned read-only.
+
+    Examples
+    --------
+    >>> blend = LastBlend(np.zeros((2, 3)), np.ones((6, 1)))
+    >>> a = blend([2.0]); a.tolist(), blend([2.0]) is a
+    ([[2.0, 2.0, 2.0], [2.0, 2.0, 2.0]], True)
+    """
+
+    def __init__(self, base, deltas):
+        self.base, self.deltas = base, deltas
+        self._w, self._blend = None, None
+
+    def __call__(self, w) -> np.ndarray:
+        w = np.asarray(w, dtype=np.float64)
+        if self._w is not None and np.array_equal(self._w, w):
+            return self._blend
+        B = self.base + (self.deltas @ w).reshape(-1, 3)
+        B.setflags(write=False)
+        self._w, self._blend = w.copy(), B
+        return B
 
 
 def skew(v) -> np.ndarray:

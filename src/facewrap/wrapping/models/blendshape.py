@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from facewrap.solve import BlockJacobian
-from facewrap.wrapping.models.base import DeformationModel, cross_matrix_blocks, rotation_exp
+from facewrap.wrapping.models.base import (DeformationModel, LastBlend, cross_matrix_blocks,
+                                           rotation_exp)
 
 __all__ = ["BlendshapeParams", "BlendshapeModel", "RigidModel", "blendshape_basis"]
 
@@ -119,7 +120,7 @@ class BlendshapeModel(DeformationModel):
         self.n_vertices = len(self.base)
         self.n_shapes = self.deltas.shape[1]
         self.n_params = 7 + self.n_shapes
-        self._last_blend = (None, None)
+        self._last_blend = LastBlend(self.base, self.deltas)
 
     def initial_params(self, weights=None) -> BlendshapeParams:
         """Identity pose; blend weights ``weights`` (K,) or zeros."""
@@ -128,16 +129,7 @@ class BlendshapeModel(DeformationModel):
 
     def blended(self, w) -> np.ndarray:
         """Neutral plus weighted deltas, before the pose: (n, 3), read-only."""
-        # the engine asks for the same w several times per iteration (the step's
-        # vertices, then the next Jacobian): keep the last one
-        w = np.asarray(w, dtype=np.float64)
-        last_w, last_B = self._last_blend
-        if last_w is not None and np.array_equal(last_w, w):
-            return last_B
-        B = self.base + (self.deltas @ w).reshape(-1, 3)
-        B.setflags(write=False)
-        self._last_blend = (w.copy(), B)
-        return B
+        return self._last_blend(w)
 
     def vertices(self, p: BlendshapeParams) -> np.ndarray:
         local = self.blended(p.w) - self.center

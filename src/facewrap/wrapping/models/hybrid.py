@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from facewrap.solve import BlockJacobian
-from facewrap.wrapping.models.base import DeformationModel
+from facewrap.wrapping.models.base import DeformationModel, LastBlend
 from facewrap.wrapping.models.blendshape import bound_violation
 from facewrap.wrapping.models.graph import (DeformationGraph, GraphParams, graph_jacobian, graph_smoothness,
                     graph_vertices, resample_params)
@@ -85,7 +85,7 @@ class HybridModel(DeformationModel):
             (graph.vertex_weights.ravel(), graph.vertex_nodes.ravel(),
              np.arange(0, k * self.n_vertices + 1, k)),
             shape=(self.n_vertices, graph.n_nodes))
-        self._last_blend = (None, None)
+        self._last_blend = LastBlend(self.base, self.deltas)
 
     def initial_params(self, weights=None) -> HybridParams:
         """Identity graph; blend weights ``weights`` (K,) or zeros."""
@@ -93,16 +93,8 @@ class HybridModel(DeformationModel):
         return HybridParams(GraphParams.identity(self.graph.n_nodes), w)
 
     def blended(self, w) -> np.ndarray:
-        # the engine asks for the same w several times per iteration (vertices,
-        # Jacobian, regularisers, energy): keep the last one
-        w = np.asarray(w, dtype=np.float64)
-        last_w, last_B = self._last_blend
-        if last_w is not None and np.array_equal(last_w, w):
-            return last_B
-        B = self.base + (self.deltas @ w).reshape(-1, 3)
-        B.setflags(write=False)
-        self._last_blend = (w.copy(), B)
-        return B
+        """Neutral plus weighted deltas, before the pose: (n, 3), read-only."""
+        return self._last_blend(w)
 
     def vertices(self, p: HybridParams) -> np.ndarray:
         return graph_vertices(self.blended(p.w), self.graph, p.graph)
