@@ -19,7 +19,7 @@ from multiprocessing.connection import wait
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 
-from facewrap.batch.summary import FAILED, summary_row
+from facewrap.batch.summary import DONE, FAILED, SKIPPED, summary_row
 from facewrap.parallel import usable_cores
 
 __all__ = ["default_workers", "single_threaded_blas", "run_in_pool", "run_on_dask"]
@@ -150,6 +150,10 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
             for fut in as_completed(futures):
                 row = fut.result()
                 finished.add(row["index"])
+                if alone and row["status"] == SKIPPED:
+                    # it had finished (done-record written) in the pool that broke,
+                    # before its result reached us: done in this run, not before it
+                    row = {**row, "status": DONE}
                 report(row)
         except KeyboardInterrupt:
             # Ctrl-C: stop the workers now rather than after their running jobs
