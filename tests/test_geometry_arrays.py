@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from facewrap.geometry.arrays import (blocks_by_budget, column_norms, cross_columns, cross_rows,
-                                      edge_vectors, normalize_rows, safe_inverse)
+                                      edge_vectors, normalize_rows, safe_inverse,
+                                      stable_sort_order, unique_integers)
 
 
 def test_cross_products_match_numpy():
@@ -41,3 +42,22 @@ def test_blocks_cover_every_nonempty_item_once_in_order(budget):
     for block in blocks:                    # about the budget: over it by less than one item
         assert counts[block].sum() < budget + counts.max()
     assert list(blocks_by_budget(np.zeros(4, int), budget)) == []
+
+
+@pytest.mark.parametrize("values", [
+    np.array([5, 1, 5, 3, 1, 1]),                     # ties: input order kept
+    np.random.default_rng(3).integers(-50, 50, 2000),
+    np.array([2 ** 62, -2 ** 62, 0, 2 ** 62]),         # codes would overflow: argsort
+    np.zeros(0, np.int64)])
+def test_stable_sort_order_is_the_stable_argsort(values):
+    order, s = stable_sort_order(values)
+    np.testing.assert_array_equal(order, np.argsort(values, kind="stable"))
+    np.testing.assert_array_equal(s, values[np.argsort(values, kind="stable")])
+
+
+def test_unique_integers_gives_what_np_unique_gives():
+    a = np.random.default_rng(4).integers(0, 300, 5000)
+    got = unique_integers(a, return_index=True, return_inverse=True, return_counts=True)
+    want = np.unique(a, return_index=True, return_inverse=True, return_counts=True)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w.reshape(-1))

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from facewrap.geometry.arrays import unique_integers
+from facewrap.geometry.arrays import stable_sort_order, unique_integers
 from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
 
 __all__ = [
@@ -213,8 +213,7 @@ def triangle_adjacency(T) -> np.ndarray:
     n = int(T.max()) + 1
     key = np.minimum(a, b) * n + np.maximum(a, b)
     key[a == b] = -1 - np.arange(np.count_nonzero(a == b))   # self-loops: unique keys
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
+    order, sorted_key = stable_sort_order(key)
     start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
     group_start = np.maximum.accumulate(np.where(start, np.arange(3 * t), 0))
     last = np.r_[start[1:], True]
