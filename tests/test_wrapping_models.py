@@ -163,6 +163,34 @@ def test_blendshape_and_rigid_jacobians(face):
     assert rigid.regularizers(pr) == {}
 
 
+def test_stretching_pose_jacobians_and_what_it_stretches(face):
+    rng = np.random.default_rng(5)
+    _, base, D, _, _ = face
+    stretch = np.array([0.05, -0.08, 0.03])
+    model = BlendshapeModel(base, D, stretch=True)
+    assert model.n_params == 10 + D.shape[1]
+    p = BlendshapeParams(rotation_exp([0.2, -0.1, 0.3]), np.array([0.1, 0, -0.1]), 1.05,
+                         rng.normal(0, 0.3, D.shape[1]), stretch)
+    check_jacobian(model, p, rng)                  # vertices and the "stretch" term
+    rigid = RigidModel(base, stretch=True)
+    check_jacobian(rigid, BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.zeros(0),
+                                           stretch), rng)
+    assert list(rigid.regularizers(p)) == ["stretch"]
+    # the stretch scales the centred base along its principal axes by exp(λ)
+    still = BlendshapeParams(np.eye(3), np.zeros(3), 1.0, np.zeros(0), stretch)
+    Q, c = rigid.axes, base.mean(0)
+    got = (rigid.vertices(still) - c) @ Q
+    np.testing.assert_allclose(got, ((base - c) @ Q) * np.exp(stretch), atol=1e-12)
+    # the posed deltas are what the pose does to the weighted shapes
+    w = rng.normal(0, 0.3, D.shape[1])
+    pw = BlendshapeParams(p.R, p.t, p.s, w, stretch)
+    p0 = BlendshapeParams(p.R, p.t, p.s, np.zeros_like(w), stretch)
+    np.testing.assert_allclose(model.vertices(pw) - model.vertices(p0),
+                               (model.posed_deltas(pw) @ w).reshape(-1, 3), atol=1e-12)
+    # no scale, no stretch: a pose that may not scale may not stretch either
+    assert not BlendshapeModel(base, D, scale=False, stretch=True).stretch
+
+
 def test_affine_jacobian_and_identity():
     rng = np.random.default_rng(4)
     V, T = folded_strip(n=8)   # small: the dense Jacobian check is (3n, 12n)

@@ -27,7 +27,7 @@ from facewrap.progress import progress
 from facewrap.wrapping.icp.engine import NonRigidICP
 from facewrap.wrapping.icp.terms import landmark_rows
 from facewrap.wrapping.models import MODEL_REGISTRY, ModelParts, ModelSpec
-from facewrap.wrapping.models.blendshape import BlendshapeParams, blendshape_basis
+from facewrap.wrapping.models.blendshape import blendshape_basis
 from facewrap.wrapping.models.graph import GraphCache
 
 __all__ = ["IcpStart", "ModelFit", "icp_start", "coarse_fit", "icp_fit", "stage_groups"]
@@ -179,7 +179,11 @@ def coarse_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, exclu
         return start, []
     coarse = MODEL_REGISTRY[spec.coarse]
     pre = coarse.build(ModelParts(start.base, template.triangles, start.deltas,
-                                  scale=settings.scale, bounds=settings.blend_bounds()))
+                                  scale=settings.scale, bounds=settings.blend_bounds(),
+                                  # with blendshapes only: without them the stretch
+                                  # takes the expression (ICT's scream, graph model:
+                                  # 1.41 -> 1.77 mm mean)
+                                  stretch=settings.stretch and coarse.needs_blendshapes))
     p_init = None
     if coarse.needs_blendshapes and warm_weights is not None \
             and len(warm_weights) == start.deltas.shape[1]:
@@ -194,11 +198,8 @@ def coarse_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, exclu
     if not coarse.needs_blendshapes:
         return replace(start, base=start.frame.to_frame(icp.vertices_)), history
     # the pose moves into the neutral and the deltas; the weights start the main fit
-    n = len(start.base)
-    base = pre.vertices(BlendshapeParams(p0.R, p0.t, p0.s, np.zeros_like(p0.w)))
-    D = start.deltas.reshape(n, 3, -1)
-    deltas = (p0.s * np.einsum("ab,nbk->nak", p0.R, D)).reshape(3 * n, -1)
-    return replace(start, base=base, deltas=deltas, weights=p0.w), history
+    base = pre.vertices(replace(p0, w=np.zeros_like(p0.w)))
+    return replace(start, base=base, deltas=pre.posed_deltas(p0), weights=p0.w), history
 
 
 def stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:

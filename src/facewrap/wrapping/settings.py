@@ -39,6 +39,10 @@ class WrapSettings:
         "auto" is "hybrid" when blendshapes are given, else "graph".
     scale : bool
         Let the similarity scale the template.
+    stretch : bool
+        Let the hybrid's blendshape pre-fit stretch the template along its
+        principal axes too, as heads differ in proportions
+        (:mod:`~facewrap.wrapping.models.blendshape`); only with ``scale``.
     rigid_refine : bool
         Refine the similarity with trimmed point-to-plane ICP (good when landmarks
         are few or noisy; off by default because expressions bias it).
@@ -117,6 +121,7 @@ class WrapSettings:
     """
     model: str = "auto"
     scale: bool = True
+    stretch: bool = True
     rigid_refine: bool = False
     kernel: str = "biharmonic"
     smoothing: float = 0.0
@@ -143,6 +148,7 @@ class WrapSettings:
     constraints = {
         "model": Options(*MODELS),
         "scale": Flag(),
+        "stretch": Flag(),
         "rigid_refine": Flag(),
         "kernel": Options(*KERNELS),
         "smoothing": Interval(float, 0, None),

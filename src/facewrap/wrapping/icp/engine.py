@@ -328,7 +328,7 @@ class NonRigidICP:
     def _term_weights(self, problem: ICPProblem, stage: Stage, pairs) -> dict:
         """Weight of each term: data and landmarks as means over their rows."""
         weights = {"smooth": stage.smooth_weight, "blend": stage.blend_weight,
-                   "bounds": stage.bound_weight}
+                   "bounds": stage.bound_weight, "stretch": stage.stretch_weight}
         if pairs is not None:
             weights["data"] = stage.data_weight / max(len(pairs.vertices), 1)
         if problem.has_landmarks and stage.landmark_weight > 0:

@@ -57,6 +57,9 @@ class ModelParts:
         Whether a pose may scale.
     bounds : (lo, hi) or None
         Range of the blend weights.
+    stretch : bool
+        Whether a pose may stretch along the face's principal axes (the coarse
+        pre-fits; see :mod:`.blendshape`).
     """
     base: np.ndarray
     triangles: np.ndarray
@@ -64,6 +67,7 @@ class ModelParts:
     graph: DeformationGraph | None = None
     scale: bool = True
     bounds: tuple | None = None
+    stretch: bool = False
 
 
 @dataclass(frozen=True)
@@ -118,7 +122,7 @@ def _rbf_warp(vertices, landmarks, targets, settings) -> np.ndarray:
 #: every model a wrap can use, by ``WrapSettings.model`` value (in the order the
 #: CLI lists them)
 MODEL_REGISTRY: dict[str, ModelSpec] = {spec.name: spec for spec in [
-    ModelSpec("rigid", build=lambda m: RigidModel(m.base, scale=m.scale),
+    ModelSpec("rigid", build=lambda m: RigidModel(m.base, scale=m.scale, stretch=m.stretch),
               schedule=rigid_schedule, closed_form=_unchanged),
     ModelSpec("rbf", closed_form=_rbf_warp),
     ModelSpec("affine", build=lambda m: AffineModel(m.base, m.triangles),
@@ -127,7 +131,7 @@ MODEL_REGISTRY: dict[str, ModelSpec] = {spec.name: spec for spec in [
               schedule=graph_schedule, uses_graph=True, coarse="rigid"),
     ModelSpec("blendshape",
               build=lambda m: BlendshapeModel(m.base, m.deltas, scale=m.scale,
-                                              bounds=m.bounds),
+                                              bounds=m.bounds, stretch=m.stretch),
               schedule=blendshape_schedule, needs_blendshapes=True),
     ModelSpec("hybrid",
               build=lambda m: HybridModel(m.base, m.deltas, m.graph, bounds=m.bounds),

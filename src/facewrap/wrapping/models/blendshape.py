@@ -7,6 +7,17 @@
 rotates about the face, which keeps rotation and translation decoupled).  The
 pose is updated multiplicatively: ``R ← exp([δθ]×) R``, ``s ← s·exp(δσ)``.
 
+Beyond the SPEC, a pose may also **stretch**: ``E = Q diag(exp(λ)) Qᵀ`` scales the
+face along its own principal axes ``Q`` (height, width, depth) before ``s R``:
+
+    v_i = s R E ((n_i − c) + Σ_k w_k d_ik) + c + t,   E_stretch = |λ|²
+
+because heads differ in proportions, not only in size (a face 8 % wider and 7 %
+shorter than the template is within two standard deviations), and the local
+deformation that follows resists a global stretch as it resists a global scale
+(its rotation term).  The Tikhonov term keeps ``λ`` at 0 unless the scan's surface
+asks for more.
+
 With no shapes this is the **rigid** model (rotation, translation, optional
 scale).  :func:`blendshape_basis` turns a shape dict into a delta matrix, raw or
 as principal components scaled by their standard deviation (so the Tikhonov
@@ -15,7 +26,7 @@ term is a Gaussian prior on the coefficients, SPEC §2.2's PCA variant).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,11 +89,13 @@ def bound_violation(w, bounds) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class BlendshapeParams:
-    """Pose (``R`` (3, 3), ``t`` (3,), ``s``) and blend weights ``w`` (K,)."""
+    """Pose (``R`` (3, 3), ``t`` (3,), ``s``), blend weights ``w`` (K,) and the
+    log-stretch ``stretch`` (3,) along the model's principal axes (zeros: none)."""
     R: np.ndarray
     t: np.ndarray
     s: float
     w: np.ndarray
+    stretch: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 class BlendshapeModel(DeformationModel):
@@ -101,26 +114,42 @@ class BlendshapeModel(DeformationModel):
     bounds : (lo, hi), optional
         Range of the weights (an expression rig's [0, 1]); outside it the
         ``"bounds"`` regulariser (:func:`bound_violation`) pulls them back.
+    stretch : bool
+        Optimise a stretch along the base's principal axes too (with ``scale``
+        and ``pose`` only): the coarse pre-fits of the local models do.
 
-    Parameter increment order: [δθ (3), δt (3), δσ (1), δw (K)].
-    Regulariser ``"blend"``: the weights themselves (eq. 5); ``"bounds"``.
+    Parameter increment order: [δθ (3), δt (3), δσ (1), δλ (3, with ``stretch``),
+    δw (K)].  Regularisers: ``"blend"``, the weights themselves (eq. 5);
+    ``"bounds"``; ``"stretch"``, the log-stretch λ.
     """
 
-    regularizer_names = ("blend", "bounds")
+    regularizer_names = ("blend", "bounds", "stretch")
     solver = "direct"  # a small dense system
 
     def __init__(self, base, deltas, *, scale: bool = True, pose: bool = True,
-                 bounds=None):
+                 bounds=None, stretch: bool = False):
         self.bounds = None if bounds is None else (float(bounds[0]), float(bounds[1]))
         self.base = np.asarray(base, dtype=np.float64)
         self.deltas = np.asarray(deltas, dtype=np.float64)
         self.center = self.base.mean(axis=0)
         self.scale = scale
         self.pose = pose
+        self.stretch = bool(stretch and scale and pose)
+        # principal axes of the base (columns): the directions a face stretches in
+        self.axes = np.linalg.eigh(np.cov((self.base - self.center).T))[1] \
+            if self.stretch else np.eye(3)
         self.n_vertices = len(self.base)
         self.n_shapes = self.deltas.shape[1]
-        self.n_params = 7 + self.n_shapes
+        self._w0 = 10 if self.stretch else 7        # first blend-weight column
+        self.n_params = self._w0 + self.n_shapes
         self._last_blend = LastBlend(self.base, self.deltas)
+
+    def _stretched(self, X, p: BlendshapeParams) -> np.ndarray:
+        """``E X`` for rows ``X`` (m, 3): the stretch along the principal axes."""
+        if not self.stretch:
+            return X
+        Q = self.axes
+        return X + ((X @ Q) * np.expm1(p.stretch)) @ Q.T
 
     def initial_params(self, weights=None) -> BlendshapeParams:
         """Identity pose; blend weights ``weights`` (K,) or zeros."""
@@ -132,12 +161,21 @@ class BlendshapeModel(DeformationModel):
         return self._last_blend(w)
 
     def vertices(self, p: BlendshapeParams) -> np.ndarray:
-        local = self.blended(p.w) - self.center
+        local = self._stretched(self.blended(p.w) - self.center, p)
         return p.s * local @ p.R.T + self.center + p.t
+
+    def posed_deltas(self, p: BlendshapeParams) -> np.ndarray:
+        """(3n, K): the deltas as the pose moves them (``s R E d``)."""
+        D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
+        if self.stretch:
+            D = self._stretched(D.transpose(0, 2, 1).reshape(-1, 3), p).reshape(
+                self.n_vertices, self.n_shapes, 3).transpose(0, 2, 1)
+        return (p.s * np.einsum("ab,nbk->nak", p.R, D)).reshape(3 * self.n_vertices, -1)
 
     def jacobian(self, p: BlendshapeParams, vertices=None):
         sel = slice(None) if vertices is None else np.asarray(vertices)
-        moved = p.s * (self.blended(p.w)[sel] - self.center) @ p.R.T
+        local = self.blended(p.w)[sel] - self.center
+        moved = p.s * self._stretched(local, p) @ p.R.T
         n = len(moved)
         J = np.zeros((n, 3, self.n_params))
         if self.pose:
@@ -145,46 +183,67 @@ class BlendshapeModel(DeformationModel):
             J[:, :, 3:6] = np.eye(3)
             if self.scale:
                 J[:, :, 6] = moved
+            if self.stretch:
+                # d(E x)/dλ_k = exp(λ_k) (q_k · x) q_k, then s R
+                Q = self.axes
+                along = (local @ Q) * np.exp(p.stretch)                    # (n, 3)
+                dirs = p.s * Q.T @ p.R.T                                    # (3, 3)
+                J[:, :, 7:10] = along[:, None, :] * dirs.T[None, :, :]
         if self.n_shapes:
             Dw = self.deltas.reshape(-1, 3, self.n_shapes)[sel]
-            J[:, :, 7:] = p.s * np.einsum("ab,nbk->nak", p.R, Dw)
+            if self.stretch:
+                Dw = self._stretched(Dw.transpose(0, 2, 1).reshape(-1, 3), p).reshape(
+                    n, self.n_shapes, 3).transpose(0, 2, 1)
+            J[:, :, self._w0:] = p.s * np.einsum("ab,nbk->nak", p.R, Dw)
         return BlockJacobian(None, J.reshape(3 * n, self.n_params))
 
     def regularizers(self, p: BlendshapeParams) -> dict:
-        J = np.hstack([np.zeros((self.n_shapes, 7)), np.eye(self.n_shapes)])
+        J = np.hstack([np.zeros((self.n_shapes, self._w0)), np.eye(self.n_shapes)])
         out = {"blend": (np.asarray(p.w, dtype=np.float64), BlockJacobian(None, J))}
         if self.bounds is not None:
             r, d = bound_violation(p.w, self.bounds)
-            out["bounds"] = (r, BlockJacobian(None, J * np.r_[np.zeros(7), d]))
+            out["bounds"] = (r, BlockJacobian(None, J * np.r_[np.zeros(self._w0), d]))
+        if self.stretch:
+            Js = np.zeros((3, self.n_params))
+            Js[:, 7:10] = np.eye(3)
+            out["stretch"] = (np.asarray(p.stretch, dtype=np.float64),
+                              BlockJacobian(None, Js))
         return out
 
     def regularizer_residuals(self, p: BlendshapeParams) -> dict:
         out = {"blend": np.asarray(p.w, dtype=np.float64)}
         if self.bounds is not None:
             out["bounds"] = bound_violation(p.w, self.bounds)[0]
+        if self.stretch:
+            out["stretch"] = np.asarray(p.stretch, dtype=np.float64)
         return out
 
     def update(self, p: BlendshapeParams, delta) -> BlendshapeParams:
         d = np.asarray(delta, dtype=np.float64)
+        stretch = p.stretch + d[7:10] if self.stretch else p.stretch
         return BlendshapeParams(rotation_exp(d[:3]) @ p.R, p.t + d[3:6],
-                                float(p.s * np.exp(d[6])), p.w + d[7:])
+                                float(p.s * np.exp(d[6])), p.w + d[self._w0:], stretch)
 
     def summary(self, p: BlendshapeParams) -> dict:
-        return {"shapes": self.n_shapes, "scale": float(p.s),
-                "rotation_degrees": float(np.degrees(np.arccos(
-                    np.clip((np.trace(p.R) - 1) / 2, -1, 1))))}
+        out = {"shapes": self.n_shapes, "scale": float(p.s),
+               "rotation_degrees": float(np.degrees(np.arccos(
+                   np.clip((np.trace(p.R) - 1) / 2, -1, 1))))}
+        if self.stretch:
+            out["stretch"] = np.exp(p.stretch).round(6).tolist()
+        return out
 
 
 class RigidModel(BlendshapeModel):
     """Rotation, translation and (optionally) scale of the whole template."""
 
-    regularizer_names = ()
+    regularizer_names = ("stretch",)
 
-    def __init__(self, base, *, scale: bool = True):
-        super().__init__(base, np.zeros((3 * len(base), 0)), scale=scale)
+    def __init__(self, base, *, scale: bool = True, stretch: bool = False):
+        super().__init__(base, np.zeros((3 * len(base), 0)), scale=scale, stretch=stretch)
 
     def regularizers(self, p) -> dict:
-        return {}
+        return {k: v for k, v in super().regularizers(p).items() if k == "stretch"}
 
     def regularizer_residuals(self, p) -> dict:
-        return {}
+        return {k: v for k, v in super().regularizer_residuals(p).items()
+                if k == "stretch"}
