@@ -61,7 +61,11 @@ def _moved(mesh: Mesh, R, scale) -> Mesh:
 def wrap_comparison(found) -> dict:
     """ICT's face onto james from the manual landmarks and from the detected ones
     (the confident points): fit, flipped triangles, and the manual landmarks (a
-    check only) on each result (``bench_realscan``'s measures)."""
+    check only) on each result (``bench_realscan``'s measures).
+
+    Two more rows take the landmarks and their weighting apart: the manual
+    landmarks weighted as detected ones are (:func:`detected_landmark_settings`),
+    and the detected ones weighted as clicked ones (full weight, pulled)."""
     from bench_realscan import _cases, measures
     from facewrap.detection.for_wrap import confident_landmarks, detected_landmark_settings
     from facewrap.wrapping import WrapSettings, wrap
@@ -73,12 +77,21 @@ def wrap_comparison(found) -> dict:
     tl, sl = confident_landmarks(case.landmarks, found)
     plain = WrapSettings(model="graph")
     # detected landmarks weigh as `facewrap wrap` weighs them (DETECTED_LANDMARK_SCALE)
+    manual = (case.landmarks, case.scan_landmarks)
     for name, (a, b), settings in (
-            ("manual", (case.landmarks, case.scan_landmarks), plain),
-            ("detected", (tl, sl), detected_landmark_settings(plain))):
+            ("manual", manual, plain),
+            ("detected", (tl, sl), detected_landmark_settings(plain)),
+            ("manual, weighted as detected", manual, detected_landmark_settings(plain)),
+            ("detected, weighted as manual", (tl, sl), plain)):
         t = time.perf_counter()
         res = wrap(case.template, case.scan, a, b, settings)
+        # the manual landmarks on the result, per group: where the check is off
+        check = np.linalg.norm(
+            case.landmarks.positions(res.vertices, case.template.triangles)
+            - case.scan_landmarks.positions(case.scan.vertices, case.scan.triangles),
+            axis=1)
         out[name] = {"seconds": time.perf_counter() - t, "landmarks": len(b),
+                     "check_by_group": {g: float(check[s].mean()) for g, s in GROUPS.items()},
                      **measures(res.vertices, case)}
     return out
 
@@ -226,13 +239,17 @@ def markdown(r: dict) -> str:
     if r.get("wrap"):
         lines += ["", "ICT's face onto james (graph model), from the manual landmarks and "
                   "from the detected ones (confident points only); the manual landmarks "
-                  "are the check in both rows:", "",
+                  "are the check in every row.  The last two rows swap the weightings: "
+                  "detected landmarks weigh `DETECTED_LANDMARK_SCALE` and are not "
+                  "pulled, clicked ones weigh fully and are pulled:", "",
                   "| landmarks | used | fit p95 (mm) | flipped | manual landmarks mean / "
-                  "max (mm) | s |", "|---|---|---|---|---|---|"]
+                  "max (mm) | their mean per group (mm) | s |",
+                  "|---|---|---|---|---|---|---|"]
         for name, w in r["wrap"].items():
+            groups = ", ".join(f"{g} {e:.1f}" for g, e in w["check_by_group"].items())
             lines.append(f"| {name} | {w['landmarks']} | {w['fit_p95']:.2f} | "
                          f"{w['flipped']} | {w['landmark_mean']:.2f} / "
-                         f"{w['landmark_max']:.2f} | {w['seconds']:.1f} |")
+                         f"{w['landmark_max']:.2f} | {groups} | {w['seconds']:.1f} |")
     if r.get("ground_truth_wraps"):
         lines += ["", "Wraps against ground truth (hybrid model, mean / p95 error in mm "
                   "over the vertices the scan sees), from the scan's true landmarks "

@@ -7,6 +7,13 @@ default settings (alignment, hybrid non-rigid ICP, projection, texture baking,
 JSON report), measures the result against the sample's known ground truth, draws
 a heatmap of that error and before/after pictures, and builds the HTML report
 (as ``facewrap report`` does), whose path it prints last.
+
+Then it wraps the same scan once more with no scan landmarks, as ``facewrap wrap``
+does without ``--scan-landmarks`` (the 68 points detected on the textured scan,
+issue 18), into ``OUT/landmark_free``, and prints that wrap's ground-truth error
+beside the landmarked one's and the detected landmarks' distance to the sample's
+true ones.  Without the optional extra ``facewrap[landmarks]`` (dlib) this section
+is skipped with one line saying so; the exit status stays 0.
 """
 
 from __future__ import annotations
@@ -27,7 +34,10 @@ from facewrap.landmarks import Landmarks
 from facewrap.units import format_distance
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["register", "cmd_demo", "run_demo"]
+__all__ = ["register", "cmd_demo", "run_demo", "LANDMARK_FREE"]
+
+#: Sub-folder of the demo's output with the wrap from detected landmarks.
+LANDMARK_FREE = "landmark_free"
 
 
 def _ground_truth_error(template, scan, fitted):
@@ -50,13 +60,19 @@ def _error_stats(err, seen) -> dict:
     return stats
 
 
+def _distance_stats(d) -> dict:
+    """Count, mean, p95 and max of the (n,) distances ``d``."""
+    return {"count": int(len(d)), "mean": float(d.mean()),
+            "p95": float(np.percentile(d, 95)), "max": float(d.max())}
+
+
 def run_demo(out: Path, verbose: bool = True) -> int:
     """Run the demo into folder ``out``; returns the exit status (0)."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.report.page import build_report_page
     from facewrap.sample import make_scan, make_template, write_sample
     out = Path(out)
-    check_writable(folders=[out, out / "input", out / "report"])
+    check_writable(folders=[out, out / "input", out / "report", out / LANDMARK_FREE])
     out.mkdir(parents=True, exist_ok=True)
     template = make_template()
     scan = make_scan(template)
@@ -67,12 +83,13 @@ def run_demo(out: Path, verbose: bool = True) -> int:
         [template.parts["eyeball_left"], template.parts["eyeball_right"]])))
     wrapped = out / "wrapped.obj"
     report = out / "report.json"
-    job = WrapJob(template=str(paths["template"]), scan=str(paths["scan"]),
+    inputs = dict(template=str(paths["template"]), scan=str(paths["scan"]),
                   template_landmarks=str(paths["template_landmarks"]),
-                  scan_landmarks=str(paths["scan_landmarks"]), output=str(wrapped),
                   blendshapes=str(paths["blendshapes/blink"].parent),
                   exclude=str(exclude), texture=str(paths["scan_texture"]),
-                  texture_size=512, report=str(report))
+                  texture_size=512)
+    job = WrapJob(**inputs, scan_landmarks=str(paths["scan_landmarks"]),
+                  output=str(wrapped), report=str(report))
     run_wrap_job_verbosely(job, WrapSettings(), quiet=not verbose)
     # ground truth is known for the sample: how far is each vertex from where it
     # truly belongs on the scan?
@@ -94,11 +111,59 @@ def run_demo(out: Path, verbose: bool = True) -> int:
                   f"({st['vertices']} vertices): mean "
                   f"{format_distance(st['mean'], data['units'])}, p95 "
                   f"{format_distance(st['p95'], data['units'])}")
+    line = _landmark_free(out / LANDMARK_FREE, inputs, template, scan, stats)
+    if verbose:
+        print(line)
         print(f"outputs in {out.resolve()}:")
         for p in sorted(out.iterdir()):
             print(f"  {p.name}")
         print(f"HTML report: {(page_dir / 'index.html').resolve()}")
     return 0
+
+
+def _landmark_free(folder: Path, inputs: dict, template, scan, landmarked: dict) -> str:
+    """The sample wrapped from detected landmarks into ``folder``; the line to print.
+
+    The job is the landmarked one with no scan landmarks: the wrap job detects them
+    on the textured scan and weighs them as detected ones.  Its report gains the
+    ground-truth error and the detected landmarks' distances to the sample's true
+    landmarks (all 68, and the confident ones the wrap used).  Without the extra
+    ``facewrap[landmarks]`` nothing is written and the line says why.
+    """
+    from facewrap.detection.backend import face_model   # dlib loads on use
+    from facewrap.errors import InputError
+    try:
+        face_model()    # the one failure that skips: the extra is not installed
+    except InputError as exc:
+        return f"landmark-free wrap skipped: {exc}"
+    wrapped, report = folder / "wrapped.obj", folder / "report.json"
+    job = WrapJob(**inputs, output=str(wrapped), report=str(report))
+    data = run_wrap_job_verbosely(job, WrapSettings(), quiet=True)
+    fitted = read_mesh(wrapped).vertices
+    _, err, seen = _ground_truth_error(template, scan, fitted)
+    stats = _error_stats(err, seen)
+    found = data["detected_landmarks"]["scan"]
+    # the sample's landmarks are the true positions of the template's, by name
+    true = dict(zip(scan.landmarks.names, scan.landmarks.points))
+    lm_err = np.linalg.norm(np.asarray(found["positions"])
+                            - np.array([true[n] for n in found["names"]]), axis=1)
+    confident = ~np.isin(found["names"], found["low_confidence"])
+    data["ground_truth_error_mm"] = stats
+    data["detected_landmark_error_mm"] = {
+        "all": _distance_stats(lm_err), "confident": _distance_stats(lm_err[confident])}
+    with atomic_write(report, "w") as fh:
+        json.dump(data, fh, indent=1)
+    unit = data["units"]
+    mine, theirs = stats["face_seen_by_scan"], landmarked["face_seen_by_scan"]
+    return (f"landmark-free wrap ({int(confident.sum())} of {len(lm_err)} detected "
+            f"landmarks confident, used): ground-truth vertex error, face seen by scan: "
+            f"mean {format_distance(mine['mean'], unit)}, p95 "
+            f"{format_distance(mine['p95'], unit)} (landmarked: mean "
+            f"{format_distance(theirs['mean'], unit)}, p95 "
+            f"{format_distance(theirs['p95'], unit)}); detected landmarks to the true "
+            f"ones: mean {format_distance(lm_err.mean(), unit)} (confident ones "
+            f"{format_distance(lm_err[confident].mean(), unit)}, at most "
+            f"{format_distance(lm_err[confident].max(), unit)})")
 
 
 def _pictures(out: Path, template, scan, fitted, face, seen, err) -> list[Path]:
