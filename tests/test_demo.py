@@ -76,6 +76,10 @@ def test_without_the_extra_the_demo_says_in_one_line_that_it_skips_that_part(tmp
             "from facewrap.cli import main\n"
             f"sys.exit(main(['demo', '--out', {str(tmp_path / 'demo')!r}]))")
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    stale = tmp_path / "demo" / "landmark_free"          # an earlier run's, with dlib
+    stale.mkdir(parents=True)
+    (stale / "wrapped.obj").write_text("v 0 0 0\n")
+    (stale / "report.json").write_text("{}")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env=env)
     assert run.returncode == 0, run.stderr

@@ -18,6 +18,7 @@ is skipped with one line saying so; the exit status stays 0.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -132,11 +133,17 @@ def _landmark_free(folder: Path, inputs: dict, template, scan, landmarked: dict)
     """
     from facewrap.detection.backend import face_model   # dlib loads on use
     from facewrap.errors import InputError
+    wrapped, report = folder / "wrapped.obj", folder / "report.json"
     try:
         face_model()    # the one failure that skips: the extra is not installed
     except InputError as exc:
+        # an earlier demo's section must not pass for this one's: its files go
+        for old in (wrapped, wrapped.with_suffix(".png"), wrapped.with_suffix(".mtl"),
+                    report):
+            old.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):      # (kept when something else is in it)
+            folder.rmdir()
         return f"landmark-free wrap skipped: {exc}"
-    wrapped, report = folder / "wrapped.obj", folder / "report.json"
     job = WrapJob(**inputs, output=str(wrapped), report=str(report))
     data = run_wrap_job_verbosely(job, WrapSettings(), quiet=True)
     fitted = read_mesh(wrapped).vertices
