@@ -144,12 +144,13 @@ class BlendshapeModel(DeformationModel):
         self.n_params = self._w0 + self.n_shapes
         self._last_blend = LastBlend(self.base, self.deltas)
 
-    def _stretched(self, X, p: BlendshapeParams) -> np.ndarray:
-        """``E X`` for rows ``X`` (m, 3): the stretch along the principal axes."""
+    def _linear(self, p: BlendshapeParams) -> np.ndarray:
+        """(3, 3) ``s R E``: the pose's linear part (``E``, the stretch along the
+        principal axes, is the identity without ``stretch``)."""
         if not self.stretch:
-            return X
+            return p.s * p.R
         Q = self.axes
-        return X + ((X @ Q) * np.expm1(p.stretch)) @ Q.T
+        return p.s * p.R @ (Q * np.exp(p.stretch)) @ Q.T
 
     def initial_params(self, weights=None) -> BlendshapeParams:
         """Identity pose; blend weights ``weights`` (K,) or zeros."""
@@ -161,21 +162,18 @@ class BlendshapeModel(DeformationModel):
         return self._last_blend(w)
 
     def vertices(self, p: BlendshapeParams) -> np.ndarray:
-        local = self._stretched(self.blended(p.w) - self.center, p)
-        return p.s * local @ p.R.T + self.center + p.t
+        return (self.blended(p.w) - self.center) @ self._linear(p).T + self.center + p.t
 
     def posed_deltas(self, p: BlendshapeParams) -> np.ndarray:
         """(3n, K): the deltas as the pose moves them (``s R E d``)."""
         D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
-        if self.stretch:
-            D = self._stretched(D.transpose(0, 2, 1).reshape(-1, 3), p).reshape(
-                self.n_vertices, self.n_shapes, 3).transpose(0, 2, 1)
-        return (p.s * np.einsum("ab,nbk->nak", p.R, D)).reshape(3 * self.n_vertices, -1)
+        return np.einsum("ab,nbk->nak", self._linear(p), D).reshape(3 * self.n_vertices, -1)
 
     def jacobian(self, p: BlendshapeParams, vertices=None):
         sel = slice(None) if vertices is None else np.asarray(vertices)
         local = self.blended(p.w)[sel] - self.center
-        moved = p.s * self._stretched(local, p) @ p.R.T
+        M = self._linear(p)
+        moved = local @ M.T
         n = len(moved)
         J = np.zeros((n, 3, self.n_params))
         if self.pose:
@@ -191,10 +189,7 @@ class BlendshapeModel(DeformationModel):
                 J[:, :, 7:10] = along[:, None, :] * dirs.T[None, :, :]
         if self.n_shapes:
             Dw = self.deltas.reshape(-1, 3, self.n_shapes)[sel]
-            if self.stretch:
-                Dw = self._stretched(Dw.transpose(0, 2, 1).reshape(-1, 3), p).reshape(
-                    n, self.n_shapes, 3).transpose(0, 2, 1)
-            J[:, :, self._w0:] = p.s * np.einsum("ab,nbk->nak", p.R, Dw)
+            J[:, :, self._w0:] = np.einsum("ab,nbk->nak", M, Dw)
         return BlockJacobian(None, J.reshape(3 * n, self.n_params))
 
     def regularizers(self, p: BlendshapeParams) -> dict:
