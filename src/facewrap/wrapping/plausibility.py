@@ -37,7 +37,8 @@ from facewrap.mesh import Mesh
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OPPOSED_SAMPLE",
            "landmark_spread", "robust_similarity", "check_reflection",
            "swapped_pairs", "mispaired_landmarks", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
-           "unique_faces", "opposed_normal_fraction", "checked_scan", "check_scale"]
+           "unique_faces", "opposed_normal_fraction", "checked_scan", "check_scale",
+           "UNSCALED_LIMIT", "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
 
 #: refuse a landmark similarity when the best mirrored fit's residual is below this
 #: fraction of the best proper fit's (nearly planar or few landmarks fit both alike)
@@ -53,6 +54,14 @@ SCALE_RANGE = (0.05, 20.0)
 OPPOSED_LIMIT = 0.5
 #: about this many template vertices (every k-th) estimate that fraction
 OPPOSED_SAMPLE = 2000
+#: with scaling off, warn when the landmarks put the scan this much larger or
+#: smaller than the template (a relative size): the fit cannot make up for it
+#: (the sample's scan 10 % larger: 0.37 -> 6.2 mm median error)
+UNSCALED_LIMIT = 0.05
+#: a scan with more than this fraction of its triangles on a border (one full of
+#: holes, a triangle soup) keeps its border correspondences: rejecting them
+#: would leave none (the sample's scan with half its triangles dropped)
+LACY_LIMIT = 0.5
 #: landmarks off by less than this (fraction of the spread) are never called swapped
 SWAP_MINIMUM = 0.3
 #: landmarks closer than this (fraction of the landmarks' spread) are the same point
@@ -465,3 +474,39 @@ def check_scale(scale: float) -> list[str]:
         return []
     return [f"scan: the template was scaled by {scale:.4g} to fit the scan (more than "
             f"{1 / lo:g} times up or down): are both in the same units?"]
+
+
+def check_unscaled_size(sources, targets, weights=None) -> list[str]:
+    """A warning when scaling is off but the landmarks say the sizes differ.
+
+    Parameters
+    ----------
+    sources, targets : (k, 3) float
+        Paired template and scan landmark positions.
+    weights : (k,) float, optional
+
+    Returns
+    -------
+    list of str
+        One line when the robust similarity with a free scale scales by more than
+        ``UNSCALED_LIMIT`` (relative) either way, else none.
+
+    Examples
+    --------
+    >>> X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.]])
+    >>> check_unscaled_size(X, 1.02 * X), len(check_unscaled_size(X, 1.2 * X))
+    ([], 1)
+    """
+    free = robust_similarity(np.asarray(sources, np.float64), np.asarray(targets, np.float64),
+                             weights, scale=True)[0].scale
+    if abs(np.log(free)) <= np.log1p(UNSCALED_LIMIT):
+        return []
+    return [f"scan landmarks: they put the scan at {free:.3g} times the template's size, "
+            "but scaling is off (scale = false): the fit cannot make up the difference "
+            "(other units, or another head size?)"]
+
+
+def border_fraction(tree: ClosestPointTree) -> float:
+    """Fraction of the scan's triangles with a corner on a border (see
+    :attr:`~facewrap.geometry.ClosestPointTree.boundary_triangles`)."""
+    return float(np.mean(tree.boundary_triangles))

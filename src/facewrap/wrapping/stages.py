@@ -32,7 +32,8 @@ from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.follow import follow_skin
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
-from facewrap.wrapping.plausibility import check_landmarks, check_scale, checked_scan
+from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
+                                           check_scale, check_unscaled_size, checked_scan)
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.blend import smooth_extension
@@ -227,8 +228,16 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if similarity is not None:
         notes += check_scale(similarity.scale)
         aligned = similarity.apply(template.vertices)
+    if not s.scale:
+        notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
     scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
                                           mask=~excluded)
+    if s.reject_boundary and border_fraction(tree) > LACY_LIMIT:
+        s.reject_boundary = False
+        scan_notes.append(f"scan: {100 * border_fraction(tree):.0f} % of its triangles "
+                          "touch a border (full of holes, or a triangle soup?): the ICP "
+                          "keeps scan points near borders (reject_boundary off), the "
+                          "projection still leaves them")
     return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
                        template_points[ia], scan_points[ib], weights, roles, excluded,
                        blendshapes, s, spec,
