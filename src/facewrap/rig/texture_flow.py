@@ -101,7 +101,9 @@ class TextureFlowSettings:
         A round is kept when it cuts the flow's disagreement by this fraction.
     texture_size : int
         Size of the neutral's texture baked into the template's layout, pixels
-        (:func:`~facewrap.rig.build_rig`; the rig's written texture is baked apart).
+        (:func:`~facewrap.rig.build_rig`: the reference of the refinement and the
+        rig's texture, :attr:`~facewrap.rig.Rig.texture`; a rig job's
+        ``texture_size``).
     """
     enabled: bool = True
     rounds: int = 1
@@ -124,7 +126,7 @@ class TextureFlowSettings:
                    "max_angle": Interval(float, 0, 90, closed="neither"),
                    "max_distance": Interval(float, 0, 1, closed="right"),
                    "min_gain": Interval(float, 0, 1, closed="left"),
-                   "texture_size": Interval(int, 16, 16384)}
+                   "texture_size": Interval(int, 1, 16384)}
 
     def __post_init__(self):
         validate(self)
