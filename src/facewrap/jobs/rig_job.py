@@ -368,8 +368,10 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict,
                        units=report["units"], textures=textures,
                        warnings=report["warnings"], filename=PAGE)
         timings = report["timings"]
-        timings["texture"] = neutral["timings"].get("bake", 0.0)
-        timings["writing"] = time.perf_counter() - t0 - timings["texture"]
+        # the neutral's bake: the rig's (for its refinement), else the writing's
+        bake = neutral["timings"].get("bake", 0.0)
+        timings["texture"] = timings.get("texture", 0.0) + bake
+        timings["writing"] = time.perf_counter() - t0 - bake
         timings["total"] = sum(v for k, v in timings.items() if k != "total")
         with atomic_write(staged / REPORT, "w") as fh:
             json.dump(report, fh, indent=1)
@@ -428,8 +430,9 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     dict
         What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
         ``shapes``, ``texture``, ``writing``, ``total`` and, with expression scans,
-        ``expressions``, ``stabilise``, ``examples``; seconds), ``metrics`` (the
-        neutral's fit, in ``units``), ``method``, ``shapes`` (names), ``outputs``,
+        ``expressions``, ``stabilise``, ``examples``, ``texture_flow``; seconds),
+        ``metrics`` (the neutral's fit, in ``units``), ``method``, ``shapes``
+        (names), ``outputs``,
         ``warnings`` (each also issued as an :class:`InputWarning`) and, with
         expression scans, ``examples``: per scan its ``weights`` (name → [0, 1]),
         ``error`` (``mean``, ``p95``: the rig at those weights against the scan's

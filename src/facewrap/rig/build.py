@@ -65,7 +65,8 @@ class Rig:
     timings : dict
         Seconds: ``wrap``, ``shapes``, ``total`` and, with expression scans,
         ``expressions`` (their wraps), ``stabilise``, ``examples`` and, when
-        textures refined them, ``texture_flow``.
+        textures refined them, ``texture`` (the neutral's bake) and
+        ``texture_flow`` (the refinements).
     examples : ExampleFit or None
         With expression scans: their weights, reconstruction errors and rigid
         poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
@@ -373,9 +374,10 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if _flow_wanted(texture_flow, template, scan, texture, scans, exp_textures):
         baked = bake_tiles(result.mesh, scan, texture, size=texture_flow.texture_size,
                            tree=scan_tree)
+        timings["texture"] = time.perf_counter() - t_flow
         wraps, refinements = _texture_refined(template, _reference_image(baked), wraps,
                                               scans, exp_textures, trees, texture_flow)
-        timings["texture_flow"] = time.perf_counter() - t_flow
+        timings["texture_flow"] = time.perf_counter() - t_flow - timings["texture"]
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
     example_settings = example_settings or ExampleSettings()

@@ -30,6 +30,7 @@ import numpy as np
 from facewrap.detection.views import Camera, RenderedView, SceneArrays, rotation_about
 from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.mesh import Mesh
+from facewrap.parallel import thread_map
 from facewrap.report.raster import Raster, trusted_rasterize
 
 __all__ = ["TexturedSurface", "FlowMatches", "MatchRules", "face_cameras", "render_albedo",
@@ -271,10 +272,13 @@ def _sample(field: np.ndarray, xy: np.ndarray) -> np.ndarray:
     x0 = np.minimum(x.astype(np.int64), W - 2)
     y0 = np.minimum(y.astype(np.int64), H - 2)
     fx, fy = x - x0, y - y0
+    # four gathers from the flat field: one index array, not four pairs of them
+    flat = field.reshape(H * W, *field.shape[2:])
+    i = y0 * W + x0
     if field.ndim == 3:
         fx, fy = fx[:, None], fy[:, None]
-    top = field[y0, x0] * (1 - fx) + field[y0, x0 + 1] * fx
-    bottom = field[y0 + 1, x0] * (1 - fx) + field[y0 + 1, x0 + 1] * fx
+    top = flat.take(i, axis=0) * (1 - fx) + flat.take(i + 1, axis=0) * fx
+    bottom = flat.take(i + W, axis=0) * (1 - fx) + flat.take(i + W + 1, axis=0) * fx
     return top * (1 - fy) + bottom * fy
 
 
@@ -307,18 +311,26 @@ class ScanViews:
     inner: list
     scene: SceneArrays
 
+    @property
+    def pixel_size(self) -> float:
+        """The cameras' mean pixel size, mesh units (what :func:`prefiltered` blurs
+        to)."""
+        return float(np.mean([cam.pixel_size for cam in self.cameras]))
+
     @classmethod
     def of(cls, scan: TexturedSurface, cameras) -> "ScanViews":
         pixel = float(np.mean([cam.pixel_size for cam in cameras]))
         scan = prefiltered(scan, pixel)
-        drawn = [render_albedo(scan, cam) for cam in cameras]
+        drawn = thread_map(lambda cam: render_albedo(scan, cam), cameras)
         return cls(list(cameras), [d[0] for d in drawn], [d[1] for d in drawn],
                    [_inner(d[1].mask) for d in drawn], SceneArrays.of(scan.V, scan.T))
 
 
 def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: MatchRules,
-                  normals: np.ndarray, rejected: dict):
-    """Camera ``k``'s matches: (triangle, barycentric, targets, confidence)."""
+                  normals: np.ndarray):
+    """Camera ``k``'s matches: (triangle, barycentric, targets, confidence, rejected),
+    ``rejected`` its pixels dropped per reason."""
+    rejected: dict = {}
     camera, b, rb, inner_b = views.cameras[k], views.pictures[k], views.rasters[k], \
         views.inner[k]
     a, ra = render_albedo(template, camera)
@@ -359,11 +371,12 @@ def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: Ma
     confidence = (np.exp(-(error[ok] / rules.consistency) ** 2)
                   * np.minimum(1.0, gradient[ok] / (4.0 * rules.min_gradient))
                   * cos[ok])[near]
-    return tri[ok][near], bary[ok][near], targets[near], confidence
+    return tri[ok][near], bary[ok][near], targets[near], confidence, rejected
 
 
 def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
-                 cameras=None, rules: MatchRules | None = None) -> FlowMatches:
+                 cameras=None, rules: MatchRules | None = None, *,
+                 prefilter: bool = True) -> FlowMatches:
     """Correspondences from the template's surface to the scan's, by optical flow
     in every camera (see the module's docstring).
 
@@ -377,6 +390,9 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
     cameras : sequence of Camera
         Needed when ``scan`` is a surface; a ScanViews has its own.
     rules : MatchRules, optional
+    prefilter : bool
+        False: the template's image is already :func:`prefiltered` for these
+        cameras (rounds of matching the same template blur its image once).
 
     Returns
     -------
@@ -384,12 +400,16 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
     """
     rules = rules or MatchRules()
     views = scan if isinstance(scan, ScanViews) else ScanViews.of(scan, cameras)
-    pixel = float(np.mean([cam.pixel_size for cam in views.cameras]))
-    template = prefiltered(template, pixel)
+    if prefilter:
+        template = prefiltered(template, views.pixel_size)
     normals = trusted_vertex_normals(template.V, template.T, "angle")
+    # the views are independent, and their flow, rasters and filters release the GIL
+    parts = thread_map(lambda k: _view_matches(template, views, k, rules, normals),
+                       range(len(views.cameras)))
     rejected: dict = {}
-    parts = [_view_matches(template, views, k, rules, normals, rejected)
-             for k in range(len(views.cameras))]
+    for p in parts:
+        for reason, count in p[4].items():
+            rejected[reason] = rejected.get(reason, 0) + count
     view = np.concatenate([np.full(len(p[0]), k, dtype=np.int64)
                            for k, p in enumerate(parts)])
     tri, bary, targets, confidence = (np.concatenate([p[i] for p in parts])

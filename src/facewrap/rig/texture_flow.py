@@ -50,7 +50,8 @@ from facewrap.mesh import Mesh
 from facewrap.params import Flag, Interval, Options, validate
 from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.rig.flow_match import (FLOW_METHODS, FlowMatches, MatchRules, ScanViews,
-                                     TexturedSurface, face_cameras, flow_matches)
+                                     TexturedSurface, face_cameras, flow_matches,
+                                     prefiltered)
 from facewrap.solve.factor import factorize
 
 __all__ = ["TextureFlowSettings", "TextureRefinement", "refine_by_texture",
@@ -282,10 +283,14 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
     cameras = face_cameras(V0[seen], trusted_vertex_normals(V0, T)[seen], s.views,
                            s.image_size)
     views = ScanViews.of(TexturedSurface.of(scan, scan_image), cameras)
+    # the reference is blurred once, to the detail the pictures show of the geometric
+    # wrap (a round moves the skin too little to change that)
+    reference = prefiltered(TexturedSurface.of(template, reference_image, V0, skin),
+                            views.pixel_size).image
 
     def matches_at(X):
-        return flow_matches(TexturedSurface.of(template, reference_image, X, skin),
-                            views, rules=rules)
+        return flow_matches(TexturedSurface.of(template, reference, X, skin), views,
+                            rules=rules, prefilter=False)
 
     matches = matches_at(V)
     before = _disagreement(matches, V, T)
