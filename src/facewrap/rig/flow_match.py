@@ -31,6 +31,7 @@ from facewrap.detection.views import Camera, RenderedView, SceneArrays, rotation
 from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.mesh import Mesh
 from facewrap.parallel import thread_map
+from facewrap.params import Interval, Options, validate
 from facewrap.report.raster import Raster, trusted_rasterize
 
 __all__ = ["TexturedSurface", "FlowMatches", "MatchRules", "face_cameras", "render_albedo",
@@ -141,20 +142,26 @@ class FlowMatches:
 
 @dataclass(frozen=True)
 class MatchRules:
-    """What a flow match must pass (see :func:`flow_matches`).
+    """What a flow match must pass (see :func:`flow_matches`); checked when made.
+
+    The one home of these rules: :class:`~facewrap.rig.TextureFlowSettings`
+    derives from this class, so a refinement's settings are its match rules too.
 
     Attributes
     ----------
     method : {"dis", "farneback"}
+        The optical flow (OpenCV's DIS or Farnebäck).
     consistency : float
-        Largest forward-backward disagreement, pixels.
+        Largest forward-backward disagreement of a match, pixels.
     min_gradient : float
         Smallest albedo gradient (grey levels per pixel, smoothed) where a match
         counts; the confidence grows to 1 at four times it.
     max_angle : float
         Largest angle between a surface normal and the camera's direction, degrees.
     max_distance : float
-        Largest distance between matched surface points, mesh units.
+        Largest distance between a match's two points, fraction of the template's
+        size (the ``size`` of :func:`flow_matches`: by default the bounding-box
+        diagonal of the part it draws).
     step : int
         Every ``step``-th pixel in each direction is matched (neighbouring pixels'
         flow is nearly the same: more of them only cost).
@@ -163,8 +170,18 @@ class MatchRules:
     consistency: float = 0.7
     min_gradient: float = 2.0
     max_angle: float = 65.0
-    max_distance: float = 1.0
+    max_distance: float = 0.02
     step: int = 2
+    constraints = {"method": Options(*FLOW_METHODS),
+                   "consistency": Interval(float, 0, None, closed="neither"),
+                   # a confidence is the gradient over four times this: not zero
+                   "min_gradient": Interval(float, 0, None, closed="neither"),
+                   "max_angle": Interval(float, 0, 90, closed="neither"),
+                   "max_distance": Interval(float, 0, 1, closed="right"),
+                   "step": Interval(int, 1, 16)}
+
+    def __post_init__(self):
+        validate(self)
 
 
 def face_cameras(V, normals, count: int, size: int) -> list[Camera]:
@@ -327,9 +344,9 @@ class ScanViews:
 
 
 def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: MatchRules,
-                  normals: np.ndarray):
+                  normals: np.ndarray, max_distance: float):
     """Camera ``k``'s matches: (triangle, barycentric, targets, confidence, rejected),
-    ``rejected`` its pixels dropped per reason."""
+    ``rejected`` its pixels dropped per reason; ``max_distance`` in mesh units."""
     rejected: dict = {}
     camera, b, rb, inner_b = views.cameras[k], views.pictures[k], views.rasters[k], \
         views.inner[k]
@@ -365,7 +382,7 @@ def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: Ma
     view = RenderedView(camera, np.zeros((h, w), dtype=np.uint8), rb)
     targets, hit = view.lift(views.scene, q[ok])
     sources = np.einsum("kj,kjd->kd", bary[ok], template.V[template.T[tri[ok]]])
-    near = (hit >= 0) & (np.linalg.norm(targets - sources, axis=1) <= rules.max_distance)
+    near = (hit >= 0) & (np.linalg.norm(targets - sources, axis=1) <= max_distance)
     rejected["distance"] = rejected.get("distance", 0) + int(np.count_nonzero(~near))
     # consistency, gradient and view angle each scale the trust in a match
     confidence = (np.exp(-(error[ok] / rules.consistency) ** 2)
@@ -376,7 +393,7 @@ def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: Ma
 
 def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
                  cameras=None, rules: MatchRules | None = None, *,
-                 prefilter: bool = True) -> FlowMatches:
+                 prefilter: bool = True, size: float | None = None) -> FlowMatches:
     """Correspondences from the template's surface to the scan's, by optical flow
     in every camera (see the module's docstring).
 
@@ -393,6 +410,9 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
     prefilter : bool
         False: the template's image is already :func:`prefiltered` for these
         cameras (rounds of matching the same template blur its image once).
+    size : float, optional
+        What ``rules.max_distance`` is a fraction of, mesh units; default the
+        bounding-box diagonal of the template's drawn vertices.
 
     Returns
     -------
@@ -404,7 +424,11 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
         template = prefiltered(template, views.pixel_size)
     normals = trusted_vertex_normals(template.V, template.T, "angle")
     # the views are independent, and their flow, rasters and filters release the GIL
-    parts = thread_map(lambda k: _view_matches(template, views, k, rules, normals),
+    if size is None:
+        drawn = template.T if template.triangles is None else template.T[template.triangles]
+        size = float(np.linalg.norm(np.ptp(template.V[np.unique(drawn)], axis=0)))
+    reach = rules.max_distance * size
+    parts = thread_map(lambda k: _view_matches(template, views, k, rules, normals, reach),
                        range(len(views.cameras)))
     rejected: dict = {}
     for p in parts:
