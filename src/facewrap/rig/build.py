@@ -28,6 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.similarity import Similarity
@@ -375,18 +376,23 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         baked = bake_tiles(result.mesh, scan, texture, size=texture_flow.texture_size,
                            tree=scan_tree)
         timings["texture"] = time.perf_counter() - t_flow
-        wraps, refinements = _texture_refined(template, _reference_image(baked), wraps,
-                                              scans, exp_textures, trees, texture_flow)
+        with threadpool_limits(limits=1, user_api="blas"):   # the views run on threads
+            wraps, refinements = _texture_refined(template, _reference_image(baked),
+                                                  wraps, scans, exp_textures, trees,
+                                                  texture_flow)
         timings["texture_flow"] = time.perf_counter() - t_flow - timings["texture"]
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
     example_settings = example_settings or ExampleSettings()
-    stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks, exp_weights,
-                         example_settings.weight_prior)
-    t4 = time.perf_counter()
-    fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
-                       masks=masks, weights=exp_weights, rigid=rigid,
-                       settings=example_settings)
+    # small dense products (s x s normal matrices, a few examples): BLAS threads only
+    # contend on a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
+    with threadpool_limits(limits=1, user_api="blas"):
+        stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
+                             exp_weights, example_settings.weight_prior)
+        t4 = time.perf_counter()
+        fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
+                           masks=masks, weights=exp_weights, rigid=rigid,
+                           settings=example_settings)
     fit = replace(fit, poses=[x.pose for x in stable])
     t5 = time.perf_counter()
     timings.update(expressions=t_flow - t2, stabilise=t4 - t3, examples=t5 - t4,
