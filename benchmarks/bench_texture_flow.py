@@ -24,7 +24,10 @@ made on identity 1; (b) ICT-FaceKit identity 004 made a person whose expressions
 are not ICT's (``bench_rig``: a 1.4× one-sided smile, brows rising unevenly, a
 twisting jaw), scanned in another topology with noise and a hole, each scan
 given a procedural skin in ICT's UV layout (each scan vertex takes the UV of its
-source point on the truth).
+source point on the truth).  Each case's rig is also built with the refinement on,
+as ``build_rig`` runs it, and timed: beyond the neutral (its wrap, shapes and
+baked texture), the seconds per expression scan (its wrap, its refinement, its
+share of the stabilisation and the example fit).
 """
 
 from __future__ import annotations
@@ -63,6 +66,23 @@ def _carried(neutral_wrap, neutral_truth, truth, T):
     the true neutral (triangle + barycentric), in the expression's truth."""
     cp = ClosestPointTree(np.nan_to_num(neutral_truth), T).query(neutral_wrap)
     return np.einsum("kj,kjd->kd", cp.barycentric, np.nan_to_num(truth)[T[cp.triangles]])
+
+
+def _rigs(template, neutral_scan, neutral_image, landmarks, scan_landmarks, shapes,
+          scans, images, expression_landmarks, weights):
+    """The rig by geometry alone (whose expression wraps the rows refine) and the
+    seconds of the rig built with the refinement on, as ``build_rig`` runs it (the
+    neutral's bake, then each expression's wrap, refinement, stabilisation, fit)."""
+    common = dict(expression_scans=scans, expression_landmarks=expression_landmarks,
+                  expression_weights=weights)
+    rig = build_rig(template, neutral_scan, landmarks, scan_landmarks, shapes,
+                    texture_flow=OFF, **common)
+    on = build_rig(template, neutral_scan, landmarks, scan_landmarks, shapes,
+                   texture=neutral_image, expression_textures=images, **common)
+    t = dict(on.timings)
+    t["per_expression"] = (t["total"] - t["wrap"] - t["shapes"] - t.get("texture", 0.0)
+                           ) / len(scans)
+    return rig, t
 
 
 def _refined(template, w, reference, scan, image, settings):
@@ -110,10 +130,10 @@ def run_sample(settings=None) -> dict:
     tpl = make_template()
     neutral = make_scan(tpl, weights={}, seed=0)
     scans = [make_scan(tpl, weights=w, seed=j + 1) for j, w in enumerate(SAMPLE_EXPRESSIONS)]
-    rig = build_rig(tpl.mesh, neutral.mesh, tpl.landmarks, neutral.landmarks,
-                    tpl.blendshapes, expression_scans=[s.mesh for s in scans],
-                    expression_landmarks=[s.landmarks for s in scans],
-                    expression_weights=list(SAMPLE_EXPRESSIONS), texture_flow=OFF)
+    rig, timed = _rigs(tpl.mesh, neutral.mesh, neutral.texture, tpl.landmarks,
+                       neutral.landmarks, tpl.blendshapes, [s.mesh for s in scans],
+                       [s.texture for s in scans], [s.landmarks for s in scans],
+                       list(SAMPLE_EXPRESSIONS))
     n_face = len(tpl.parts["face"])
     T = tpl.mesh.triangles
     face_T = T[(T < n_face).all(axis=1)]
@@ -124,7 +144,7 @@ def run_sample(settings=None) -> dict:
     # the sample template's UVs are the scans' parameter layout: the skin's own image
     rows, bake_s = _rows(tpl.mesh, rig, neutral.mesh, neutral.texture, neutral.texture,
                          items, face_T, settings)
-    return {"case": "sample", "rows": rows, "bake_s": bake_s,
+    return {"case": "sample", "rows": rows, "bake_s": bake_s, "rig_timings": timed,
             "neutral": _errors(rig.wrap.vertices, neutral.ground_truth, T,
                                face & np.isfinite(neutral.ground_truth).all(axis=1)
                                & rig.wrap.projection.projected)}
@@ -187,10 +207,9 @@ def run_ict(k: int = 3, settings=None) -> dict:
     image = skin_image()
     n_scan = _textured_scan(neutral.scan, neutral.truth, template)
     scans = [_textured_scan(c.scan, c.truth, template) for c, _ in made]
-    rig = build_rig(template, n_scan, neutral.landmarks, neutral.scan_landmarks,
-                    neutral.blendshapes, expression_scans=scans,
-                    expression_landmarks=[c.scan_landmarks for c, _ in made],
-                    expression_weights=list(examples), texture_flow=OFF)
+    rig, timed = _rigs(template, n_scan, image, neutral.landmarks, neutral.scan_landmarks,
+                       neutral.blendshapes, scans, [image] * len(scans),
+                       [c.scan_landmarks for c, _ in made], list(examples))
     # the neutral correspondence is found in the template's topology, so each
     # expression's truth may stay in its own (moved) frame
     items = [(", ".join(f"{n} {v:g}" for n, v in w.items()), s, image, c.truth, c.mask,
@@ -198,6 +217,7 @@ def run_ict(k: int = 3, settings=None) -> dict:
     rows, bake_s = _rows(template, rig, n_scan, image, image, items,
                          template.triangles, settings)
     return {"case": f"ICT {bench_rig.EXAMPLE_IDENTITY}", "rows": rows, "bake_s": bake_s,
+            "rig_timings": timed,
             "neutral": _errors(rig.wrap.vertices, neutral.truth, template.triangles,
                                neutral.mask & rig.wrap.projection.projected)}
 
@@ -214,8 +234,9 @@ def run(quick: bool = False, log=print) -> dict:
 
 
 def _summary(case: dict) -> str:
-    return ", ".join(f"{r['geometry']['tangential']:.3f} -> {r['baked']['tangential']:.3f}"
-                     f" / {r['true skin']['tangential']:.3f}" for r in case["rows"])
+    return (", ".join(f"{r['geometry']['tangential']:.3f} -> {r['baked']['tangential']:.3f}"
+                      f" / {r['true skin']['tangential']:.3f}" for r in case["rows"])
+            + f" mm; {case['rig_timings']['per_expression']:.2f} s per expression")
 
 
 def markdown(result: dict) -> str:
@@ -239,6 +260,15 @@ def markdown(result: dict) -> str:
                 lines.append(f"| | {label} | {e['tangential']:.3f} | {change:+.0f} % | "
                              f"{e['total']:.3f} | {e['carried']:.3f} | {e['rounds']} | "
                              f"{e['cpu']:.1f} |")
+        t = case.get("rig_timings")
+        if t:
+            lines += ["", f"`build_rig` with the refinement on ({len(case['rows'])} "
+                      f"expressions, s): neutral wrap {t['wrap']:.2f}, shapes "
+                      f"{t['shapes']:.2f}, the neutral's texture {t.get('texture', 0):.2f}, "
+                      f"expression wraps {t['expressions']:.2f}, refinements "
+                      f"{t.get('texture_flow', 0):.2f}, stabilisation {t['stabilise']:.2f}, "
+                      f"example fit {t['examples']:.2f}: **{t['per_expression']:.2f} s per "
+                      "expression** beyond the neutral."]
         lines.append("")
     if result.get("methods"):
         lines += ["The flow: DIS against Farnebäck (sample, brow raise, true-skin "

@@ -298,3 +298,41 @@ def test_expression_scans_without_landmark_files_are_detected(person, tmp_path):
     # the template's 68 unnamed landmarks pair with the detected ones in iBUG order: the
     # rig still improves on the neutral-only one for that scan
     assert example["error"]["mean"] < example["neutral_only_error"]["mean"]
+
+
+def test_a_textured_rig_bakes_the_neutral_and_builds_each_scan_tree_once(person, tmp_path,
+                                                                         monkeypatch):
+    """The texture refinement's bake of the neutral is the texture the job writes, and
+    every scan's closest-point tree is built once (its reading's), however many steps
+    (reading, wrap, bake, refinement, stabilisation) use it."""
+    pytest.importorskip("cv2", reason="the optional extra facewrap[flow] is absent")
+    import facewrap.geometry.closest as closest
+    import facewrap.texture.bake as bake
+    import facewrap.texture.tiles as tiles
+
+    bakes, trees = [], {}
+    real_bake, real_init = bake.bake_texture, closest.ClosestPointTree.__init__
+
+    def counted_bake(*args, **kwargs):
+        bakes.append(kwargs.get("tile"))
+        return real_bake(*args, **kwargs)
+
+    def counted_init(self, V, *args, **kwargs):
+        key = np.ascontiguousarray(V, dtype=np.float64).tobytes()
+        trees[key] = trees.get(key, 0) + 1
+        real_init(self, V, *args, **kwargs)
+
+    # every bake goes through bake_texture, by whichever module's name it is called
+    monkeypatch.setattr(bake, "bake_texture", counted_bake)
+    monkeypatch.setattr(tiles, "bake_texture", counted_bake)
+    monkeypatch.setattr(closest.ClosestPointTree, "__init__", counted_init)
+    n, scans = person["neutral"], person["scans"]
+    job = person_job(person, tmp_path / "rig", texture=str(n["scan_texture"]),
+                     expression_textures=[str(s["scan_texture"]) for s in scans],
+                     texture_size=32)
+    report = run_rig_job(job)
+    assert all(e["texture_flow"] is not None for e in report["examples"])
+    assert len(bakes) == 1 and (tmp_path / "rig" / "neutral.png").is_file()
+    for path in [n["scan"]] + [s["scan"] for s in scans]:
+        V = read_mesh(path).vertices
+        assert trees[np.ascontiguousarray(V, dtype=np.float64).tobytes()] == 1, path

@@ -3,6 +3,7 @@ on the built-in sample."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import warnings
@@ -57,7 +58,8 @@ def _matches(tpl, skin, scan, image, size=384):
     cams = face_cameras(V[seen], vertex_normals(V, T)[seen], 1, size)
     surface = TexturedSurface.of(tpl.mesh, skin, triangles=face)
     target = TexturedSurface.of(scan, image, triangles=face)
-    return flow_matches(surface, target, cams, MatchRules(max_distance=0.05 * tpl.mesh.scale()))
+    return flow_matches(surface, target, cams, MatchRules(max_distance=0.05),
+                        size=tpl.mesh.scale())
 
 
 def test_a_known_slide_of_the_texture_is_recovered(tpl, skin):
@@ -170,6 +172,21 @@ def test_settings_are_checked_at_the_door():
         refine_by_texture(small.mesh, small.mesh.vertices, image, bare, None)
     with pytest.raises(ValueError, match="scan has no texture coordinates"):
         refine_by_texture(small.mesh, small.mesh.vertices, image, bare, image)
+
+
+def test_the_match_rules_have_one_home():
+    """A refinement's settings are its match rules: the fields, defaults and checks
+    of MatchRules, and a settings object passes as the rules themselves."""
+    rules = {f.name: f.default for f in dataclasses.fields(MatchRules)}
+    s = TextureFlowSettings(method="farneback", max_distance=0.05)
+    assert isinstance(s, MatchRules) and (s.method, s.max_distance) == ("farneback", 0.05)
+    assert {k: getattr(TextureFlowSettings(), k) for k in rules} == rules
+    assert all(TextureFlowSettings.constraints[k] == c
+               for k, c in MatchRules.constraints.items())
+    with pytest.raises(SettingsError, match="MatchRules.max_distance"):
+        MatchRules(max_distance=2.0)          # a fraction of the size, not a length
+    with pytest.raises(SettingsError, match="TextureFlowSettings.step"):
+        TextureFlowSettings(step=0)
 
 
 @pytest.fixture(scope="module")

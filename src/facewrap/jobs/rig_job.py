@@ -250,10 +250,11 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
     the file they are about (the neutral's, when there are no expression scans to
     tell it from)."""
     profile = inputs["profile"]
+    # every scan's tree is the one its reading built (for its landmark checks)
     options = {"exclude": inputs["exclude"], "fit_mask": inputs["fit_mask"],
-               "pinned": inputs["pinned"], "graph_cache": graph_cache}
-    if not expressions:   # the expression scans' wraps build trees of their own
-        options["scan_tree"] = inputs["scan_tree"]
+               "pinned": inputs["pinned"], "graph_cache": graph_cache,
+               "scan_tree": inputs["scan_tree"],
+               "expression_scan_trees": [e["scan_tree"] for e in expressions]}
     template_landmarks = inputs["template_landmarks"]
     named = [e["template_landmarks"] for e in expressions if "scan" in e["detections"]]
     if template_landmarks.names is None and named:
@@ -269,7 +270,8 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                          expression_landmarks=[e["scan_landmarks"] for e in expressions],
                          texture=inputs["texture"],
                          expression_textures=[e["texture"] for e in expressions],
-                         texture_flow=TextureFlowSettings(enabled=job.texture_flow),
+                         texture_flow=TextureFlowSettings(enabled=job.texture_flow,
+                                                          texture_size=job.texture_size),
                          **options)
     except ValueError as exc:
         about, _, text = str(exc).partition(": ")
@@ -331,8 +333,11 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict,
         staged = stage.folder(job.output)
         wrap_job = neutral_wrap_job(job, staged)
         neutral = {"timings": {}, "read_seconds": 0.0, "units": report["units"]}
-        write_wrap_outputs(wrap_job, rig.wrap, inputs, neutral)
         images = textureoutput_field(wrap_job)
+        # the texture the refinement baked is the neutral's: written, not baked again
+        reuse = rig.texture is not None and tuple(rig.texture.images) == tuple(images)
+        write_wrap_outputs(wrap_job, rig.wrap, inputs, neutral,
+                           baked=rig.texture if reuse else None)
         shapes = staged / SHAPES
         shapes.mkdir()
         _write_shapes(shapes, rig, images, "material_library" in neutral)
@@ -363,8 +368,10 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict,
                        units=report["units"], textures=textures,
                        warnings=report["warnings"], filename=PAGE)
         timings = report["timings"]
-        timings["texture"] = neutral["timings"].get("bake", 0.0)
-        timings["writing"] = time.perf_counter() - t0 - timings["texture"]
+        # the neutral's bake: the rig's (for its refinement), else the writing's
+        bake = neutral["timings"].get("bake", 0.0)
+        timings["texture"] = timings.get("texture", 0.0) + bake
+        timings["writing"] = time.perf_counter() - t0 - bake
         timings["total"] = sum(v for k, v in timings.items() if k != "total")
         with atomic_write(staged / REPORT, "w") as fh:
             json.dump(report, fh, indent=1)
@@ -423,8 +430,9 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     dict
         What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
         ``shapes``, ``texture``, ``writing``, ``total`` and, with expression scans,
-        ``expressions``, ``stabilise``, ``examples``; seconds), ``metrics`` (the
-        neutral's fit, in ``units``), ``method``, ``shapes`` (names), ``outputs``,
+        ``expressions``, ``stabilise``, ``examples``, ``texture_flow``; seconds),
+        ``metrics`` (the neutral's fit, in ``units``), ``method``, ``shapes``
+        (names), ``outputs``,
         ``warnings`` (each also issued as an :class:`InputWarning`) and, with
         expression scans, ``examples``: per scan its ``weights`` (name → [0, 1]),
         ``error`` (``mean``, ``p95``: the rig at those weights against the scan's

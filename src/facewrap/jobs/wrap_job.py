@@ -464,14 +464,16 @@ def _template_landmarks(job: WrapJob, template: Mesh, profile, detections):
                      "(see facewrap.io.profile)", job.template)
 
 
-def write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None:
+def write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict, *,
+                       baked=None) -> None:
     """Mesh, baked images, material library, glTF and report, staged and moved into
     place together.
 
     The texture is baked inside the stage, so a failure there leaves none of the
-    job's outputs behind (and an earlier run's outputs untouched).  An OBJ output
-    names its own library ``OUT.mtl`` (written beside it: the template's materials
-    by name, ``map_Kd`` of each baked material at its image) or none at all.  The
+    job's outputs behind (and an earlier run's outputs untouched); ``baked`` (a rig's
+    TiledBake of ``result``, the job's sets and size) is written instead.  An OBJ
+    output names its own library ``OUT.mtl`` (written beside it: the template's
+    materials by name, ``map_Kd`` of each baked material at its image) or none.  The
     report's ``timings`` gain ``read``, ``bake`` and ``write``; ``total`` is then
     reading + fitting + baking + writing, and ``fit`` keeps the wrap's own total.
     """
@@ -481,9 +483,10 @@ def write_wrap_outputs(job: WrapJob, result, inputs: dict, report: dict) -> None
         if inputs["texture"] is not None:
             t = time.perf_counter()
             paths = textureoutput_field(job)
-            baked = bake_tiles(mesh, inputs["scan"], inputs["texture"],
-                               size=job.texture_size, tree=inputs["scan_tree"],
-                               sets=list(paths))
+            if baked is None:
+                baked = bake_tiles(mesh, inputs["scan"], inputs["texture"],
+                                   size=job.texture_size, tree=inputs["scan_tree"],
+                                   sets=list(paths))
             for s, r in baked.images.items():
                 save_png(stage.file(paths[s]), r.image)
             bake_seconds = time.perf_counter() - t

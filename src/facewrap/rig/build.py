@@ -15,7 +15,10 @@ onto its scan) and the shapes are corrected to reproduce them (:mod:`.examples`)
 Where the neutral scan and an expression scan both carry a texture, the
 expression's wrap is refined by it first (:mod:`.texture_flow`: the neutral's
 texture baked into the template's layout, matched to the expression scan's by
-optical flow), so that the skin sits on the same skin in both.
+optical flow), so that the skin sits on the same skin in both.  That baked texture
+is the rig's (:attr:`Rig.texture`): a job writes it instead of baking it again,
+and each scan's closest-point tree, built once, serves its wrap, the bake and the
+refinement.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.similarity import Similarity
@@ -34,6 +38,8 @@ from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples, fit
 from facewrap.rig.personalise import personalise_shapes
 from facewrap.rig.stabilise import Stabilised, least_moving, refine_pose, stabilise
 from facewrap.rig.texture_flow import TextureFlowSettings, flow_available, refine_by_texture
+from facewrap.texture.tiles import TiledBake, bake_tiles
+from facewrap.texture.udim import FIRST_TILE
 from facewrap.wrapping import WrapResult, WrapSettings, wrap
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.follow import follow_skin
@@ -60,7 +66,8 @@ class Rig:
     timings : dict
         Seconds: ``wrap``, ``shapes``, ``total`` and, with expression scans,
         ``expressions`` (their wraps), ``stabilise``, ``examples`` and, when
-        textures refined them, ``texture_flow``.
+        textures refined them, ``texture`` (the neutral's bake) and
+        ``texture_flow`` (the refinements).
     examples : ExampleFit or None
         With expression scans: their weights, reconstruction errors and rigid
         poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
@@ -73,6 +80,11 @@ class Rig:
         One per expression scan: how its texture refined its wrap
         (:class:`~facewrap.rig.TextureRefinement`); None where it did not (no
         texture, refinement off, OpenCV missing).  Empty without expression scans.
+    texture : TiledBake or None
+        The neutral scan's texture baked into the template's layout
+        (:func:`facewrap.texture.tiles.bake_tiles`, one image per texture set, at
+        ``TextureFlowSettings.texture_size``) when the texture refinement needed
+        it; None otherwise.
     """
 
     neutral: Mesh
@@ -84,6 +96,7 @@ class Rig:
     expression_wraps: list = field(default_factory=list)
     prior: dict = field(default_factory=dict)
     texture_refinements: list = field(default_factory=list)
+    texture: TiledBake | None = None
 
     def shape_mesh(self, name: str) -> Mesh:
         """Shape ``name`` as a mesh in the template's exact topology."""
@@ -115,23 +128,24 @@ def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
     return rigid_icp(points, tree, max_distance=0.1 * scan.scale()).transform
 
 
-def _expression_wraps(template, result, template_landmarks, scans, landmarks, rigid,
-                      blendshapes, settings, wrap_options):
+def _expression_wraps(template, result, template_landmarks, scans, landmarks, trees,
+                      rigid, blendshapes, settings, wrap_options):
     """Each expression scan wrapped from the neutral's result, moved by the head's
     rough motion first (so the warm start begins where the head now is).
 
-    Returns the wraps and the scans' closest-point trees (for the stabilisation)."""
-    wraps, trees = [], []
-    for scan, lm in zip(scans, landmarks):
-        tree = ClosestPointTree(scan.vertices, scan.triangles)
+    Returns the wraps and the scans' closest-point trees (``trees``' own where
+    given, else built here once: the stabilisation and the refinement use them)."""
+    wraps, built = [], []
+    for scan, lm, tree in zip(scans, landmarks, trees):
+        tree = tree or ClosestPointTree(scan.vertices, scan.triangles)
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
         start = replace(result, transform=motion.compose(result.transform),
                         mesh=result.mesh.with_vertices(motion.apply(result.vertices)))
         wraps.append(wrap_following(template, scan, template_landmarks, lm, start,
                                     settings, blendshapes=blendshapes, scan_tree=tree,
                                     **wrap_options))
-        trees.append(tree)
-    return wraps, trees
+        built.append(tree)
+    return wraps, built
 
 
 def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
@@ -147,14 +161,20 @@ def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, text
     return flow_available(warn=True)
 
 
-def _texture_refined(template: Mesh, neutral: WrapResult, scan: Mesh, texture, wraps,
-                     scans, textures, trees, settings: TextureFlowSettings):
-    """Each textured expression scan's wrap refined by its texture against the
-    neutral's, baked into the template's layout once.  Returns the wraps and the
-    refinements (None where a scan has no texture)."""
-    from facewrap.texture.bake import bake_texture
+def _reference_image(baked: TiledBake) -> np.ndarray:
+    """The image the skin is drawn with: the main image of tile 1001 (the face's;
+    images of materials overlapping it, eyes, come after), else the first."""
+    for s, r in baked.images.items():
+        if s.tile == FIRST_TILE and s.label is None:
+            return r.image
+    return next(iter(baked.images.values())).image
 
-    baked = bake_texture(neutral.mesh, scan, texture, size=settings.texture_size).image
+
+def _texture_refined(template: Mesh, reference, wraps, scans, textures, trees,
+                     settings: TextureFlowSettings):
+    """Each textured expression scan's wrap refined by its texture against
+    ``reference``, the neutral's baked into the template's layout.  Returns the
+    wraps and the refinements (None where a scan has no texture)."""
     out, refinements = [], []
     for w, s, image, tree in zip(wraps, scans, textures, trees):
         if image is None or s.uvs is None:
@@ -166,7 +186,7 @@ def _texture_refined(template: Mesh, neutral: WrapResult, scan: Mesh, texture, w
         follow = ((lambda V, a=aligned, r=roles: follow_skin(template.triangles, a, V, r))
                   if (roles == PART).any() else None)
         on_scan = None if w.projection is None else w.projection.projected
-        r = refine_by_texture(template, w.vertices, baked, s, image, settings,
+        r = refine_by_texture(template, w.vertices, reference, s, image, settings,
                               movable=roles == FITTED, on_scan=on_scan, scan_tree=tree,
                               follow=follow)
         out.append(replace(w, mesh=w.mesh.with_vertices(r.vertices)))
@@ -225,16 +245,17 @@ def _checked_rigid(rigid, n: int):
     return ids.astype(np.int64)
 
 
-def _checked_expressions(scans, landmarks, weights, textures):
+def _checked_expressions(scans, *per_scan):
+    """The expression scans and each of their per-scan lists (``(name, items)``
+    pairs), an empty list standing for None per scan."""
     scans = list(scans)
-    landmarks = list(landmarks) or [None] * len(scans)
-    weights = list(weights) or [None] * len(scans)
-    textures = list(textures) or [None] * len(scans)
-    for what, items in (("expression_landmarks", landmarks), ("expression_weights", weights),
-                        ("expression_textures", textures)):
+    out = [scans]
+    for what, items in per_scan:
+        items = list(items) or [None] * len(scans)
         if len(items) != len(scans):
             raise ValueError(f"{len(scans)} expression scans but {len(items)} {what}")
-    return scans, landmarks, weights, textures
+        out.append(items)
+    return out
 
 
 def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
@@ -245,7 +266,9 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
               expression_weights: Sequence[dict | None] = (), rigid_vertices=None,
               example_settings: ExampleSettings | None = None, texture=None,
               expression_textures: Sequence[np.ndarray | None] = (),
-              texture_flow: TextureFlowSettings | None = None, **wrap_options) -> Rig:
+              texture_flow: TextureFlowSettings | None = None,
+              expression_scan_trees: Sequence[ClosestPointTree | None] = (),
+              **wrap_options) -> Rig:
     """Wrap ``template`` onto a person's scans and make its shapes theirs.
 
     Parameters
@@ -289,8 +312,12 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     texture_flow : TextureFlowSettings, optional
         Default: on (needs OpenCV, the extra ``facewrap[flow]``; without it a
         warning and the geometric wraps).
+    expression_scan_trees : sequence of (ClosestPointTree or None), optional
+        One per expression scan, a tree already built on it (as ``scan_tree`` is
+        for the neutral); None (or omitted): built here, once per scan.
     **wrap_options
-        Passed to :func:`~facewrap.wrapping.wrap` (``exclude``, ``fit_mask``, ...).
+        Passed to :func:`~facewrap.wrapping.wrap` (``exclude``, ``fit_mask``, ...)
+        and, but ``scan_tree`` (the neutral scan's), to the expression scans' wraps.
 
     Returns
     -------
@@ -308,8 +335,11 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     >>> rig.examples is None
     True
     """
-    scans, exp_landmarks, exp_weights, exp_textures = _checked_expressions(
-        expression_scans, expression_landmarks, expression_weights, expression_textures)
+    scans, exp_landmarks, exp_weights, exp_textures, exp_trees = _checked_expressions(
+        expression_scans, ("expression_landmarks", expression_landmarks),
+        ("expression_weights", expression_weights),
+        ("expression_textures", expression_textures),
+        ("expression_scan_trees", expression_scan_trees))
     texture_flow = texture_flow or TextureFlowSettings()
     if not isinstance(texture_flow, TextureFlowSettings):
         raise ValueError("texture_flow must be a TextureFlowSettings, got "
@@ -317,8 +347,11 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     rigid_vertices = _checked_rigid(rigid_vertices, template.n_vertices)
     t0 = time.perf_counter()
     settings = settings or WrapSettings(model="hybrid")
+    # one tree of the neutral scan for its wrap and its texture's bake
+    scan_tree = wrap_options.pop("scan_tree", None) or ClosestPointTree(scan.vertices,
+                                                                        scan.triangles)
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
-                  blendshapes=blendshapes, **wrap_options)
+                  blendshapes=blendshapes, scan_tree=scan_tree, **wrap_options)
     t1 = time.perf_counter()
     shapes = personalise_shapes(template, blendshapes, result.mesh, result.transform,
                                 method=method,
@@ -335,26 +368,34 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                           among=seen)
              if rigid_vertices is None else rigid_vertices)
     wraps, trees = _expression_wraps(template, result, template_landmarks, scans,
-                                     exp_landmarks, rigid, blendshapes, settings,
-                                     wrap_options)
-    refinements = [None] * len(wraps)
+                                     exp_landmarks, exp_trees, rigid, blendshapes,
+                                     settings, wrap_options)
+    refinements, baked = [None] * len(wraps), None
     t_flow = time.perf_counter()
     if _flow_wanted(texture_flow, template, scan, texture, scans, exp_textures):
-        wraps, refinements = _texture_refined(template, result, scan, texture, wraps,
-                                              scans, exp_textures, trees, texture_flow)
-        timings["texture_flow"] = time.perf_counter() - t_flow
+        baked = bake_tiles(result.mesh, scan, texture, size=texture_flow.texture_size,
+                           tree=scan_tree)
+        timings["texture"] = time.perf_counter() - t_flow
+        with threadpool_limits(limits=1, user_api="blas"):   # the views run on threads
+            wraps, refinements = _texture_refined(template, _reference_image(baked),
+                                                  wraps, scans, exp_textures, trees,
+                                                  texture_flow)
+        timings["texture_flow"] = time.perf_counter() - t_flow - timings["texture"]
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
     example_settings = example_settings or ExampleSettings()
-    stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks, exp_weights,
-                         example_settings.weight_prior)
-    t4 = time.perf_counter()
-    fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
-                       masks=masks, weights=exp_weights, rigid=rigid,
-                       settings=example_settings)
+    # small dense products (s x s normal matrices, a few examples): BLAS threads only
+    # contend on a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
+    with threadpool_limits(limits=1, user_api="blas"):
+        stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
+                             exp_weights, example_settings.weight_prior)
+        t4 = time.perf_counter()
+        fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
+                           masks=masks, weights=exp_weights, rigid=rigid,
+                           settings=example_settings)
     fit = replace(fit, poses=[x.pose for x in stable])
     t5 = time.perf_counter()
     timings.update(expressions=t_flow - t2, stabilise=t4 - t3, examples=t5 - t4,
                    total=t5 - t0)
     return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes,
-               refinements)
+               refinements, baked)

@@ -30,6 +30,8 @@ import numpy as np
 from facewrap.detection.views import Camera, RenderedView, SceneArrays, rotation_about
 from facewrap.geometry.normals import trusted_vertex_normals
 from facewrap.mesh import Mesh
+from facewrap.parallel import thread_map
+from facewrap.params import Interval, Options, validate
 from facewrap.report.raster import Raster, trusted_rasterize
 
 __all__ = ["TexturedSurface", "FlowMatches", "MatchRules", "face_cameras", "render_albedo",
@@ -37,7 +39,7 @@ __all__ = ["TexturedSurface", "FlowMatches", "MatchRules", "face_cameras", "rend
 
 #: the optical flow algorithms of :func:`dense_flow`
 FLOW_METHODS = ("dis", "farneback")
-_LUMA = np.array([0.299, 0.587, 0.114])
+_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
 _BORDER = 3              # pixels of the silhouette's rim that no match may touch
 
 
@@ -74,6 +76,34 @@ class TexturedSurface:
                    else np.asarray(triangles, dtype=np.int64))
 
 
+def _gray(image) -> np.ndarray:
+    """(H, W) float32 grey levels (Rec. 601 luma) of an (H, W) or (H, W, 3) image,
+    channel by channel: no float copy of a whole colour texture (a 2048² one took
+    longer to convert than to blur)."""
+    image = np.asarray(image)
+    if image.ndim == 2:
+        return image.astype(np.float32, copy=False)
+    gray = np.multiply(image[..., 0], _LUMA[0], dtype=np.float32)
+    for c in (1, 2):
+        gray += np.multiply(image[..., c], _LUMA[c], dtype=np.float32)
+    return gray
+
+
+def _blur(gray: np.ndarray, sigma: float) -> np.ndarray:
+    """(H, W) float32 ``gray`` blurred by a Gaussian of ``sigma`` pixels, cut at four
+    sigmas, mirrored at the edges: scipy's ``gaussian_filter``, by OpenCV's
+    separable filter when it is there (a tenth of the time; the same to 1e-4 grey
+    levels)."""
+    radius = int(4.0 * sigma + 0.5)
+    try:
+        import cv2    # the flow's optional extra
+    except ImportError:
+        from scipy.ndimage import gaussian_filter
+        return gaussian_filter(gray, sigma)
+    return cv2.GaussianBlur(gray, (2 * radius + 1, 2 * radius + 1), sigma,
+                            borderType=cv2.BORDER_REFLECT)
+
+
 def prefiltered(surface: TexturedSurface, pixel_size: float) -> TexturedSurface:
     """``surface`` with its image in grey and blurred to the detail a picture of
     pixels ``pixel_size`` (mesh units) can show.
@@ -83,10 +113,7 @@ def prefiltered(surface: TexturedSurface, pixel_size: float) -> TexturedSurface:
     would match the aliasing.  The image is blurred by a Gaussian of half the
     texels a pixel covers (texels per mesh unit from the UV and surface areas).
     """
-    from scipy.ndimage import gaussian_filter
-
-    image = np.asarray(surface.image, dtype=np.float32)
-    gray = image @ _LUMA.astype(np.float32) if image.ndim == 3 else image
+    gray = _gray(surface.image)
     H, W = gray.shape
     T = surface.T if surface.triangles is None else surface.T[surface.triangles]
     uv = surface.corner_uvs if surface.triangles is None else \
@@ -98,7 +125,7 @@ def prefiltered(surface: TexturedSurface, pixel_size: float) -> TexturedSurface:
     texels_per_unit = np.sqrt(uv_area.sum() / max(float(area.sum()), 1e-300))
     sigma = 0.5 * texels_per_unit * pixel_size
     if sigma > 0.3:
-        gray = gaussian_filter(gray, sigma)
+        gray = _blur(gray, sigma)
     return TexturedSurface(surface.V, surface.T, surface.corner_uvs,
                            np.clip(gray, 0, 255), surface.triangles)
 
@@ -140,20 +167,26 @@ class FlowMatches:
 
 @dataclass(frozen=True)
 class MatchRules:
-    """What a flow match must pass (see :func:`flow_matches`).
+    """What a flow match must pass (see :func:`flow_matches`); checked when made.
+
+    The one home of these rules: :class:`~facewrap.rig.TextureFlowSettings`
+    derives from this class, so a refinement's settings are its match rules too.
 
     Attributes
     ----------
     method : {"dis", "farneback"}
+        The optical flow (OpenCV's DIS or Farnebäck).
     consistency : float
-        Largest forward-backward disagreement, pixels.
+        Largest forward-backward disagreement of a match, pixels.
     min_gradient : float
         Smallest albedo gradient (grey levels per pixel, smoothed) where a match
         counts; the confidence grows to 1 at four times it.
     max_angle : float
         Largest angle between a surface normal and the camera's direction, degrees.
     max_distance : float
-        Largest distance between matched surface points, mesh units.
+        Largest distance between a match's two points, fraction of the template's
+        size (the ``size`` of :func:`flow_matches`: by default the bounding-box
+        diagonal of the part it draws).
     step : int
         Every ``step``-th pixel in each direction is matched (neighbouring pixels'
         flow is nearly the same: more of them only cost).
@@ -162,8 +195,18 @@ class MatchRules:
     consistency: float = 0.7
     min_gradient: float = 2.0
     max_angle: float = 65.0
-    max_distance: float = 1.0
+    max_distance: float = 0.02
     step: int = 2
+    constraints = {"method": Options(*FLOW_METHODS),
+                   "consistency": Interval(float, 0, None, closed="neither"),
+                   # a confidence is the gradient over four times this: not zero
+                   "min_gradient": Interval(float, 0, None, closed="neither"),
+                   "max_angle": Interval(float, 0, 90, closed="neither"),
+                   "max_distance": Interval(float, 0, 1, closed="right"),
+                   "step": Interval(int, 1, 16)}
+
+    def __post_init__(self):
+        validate(self)
 
 
 def face_cameras(V, normals, count: int, size: int) -> list[Camera]:
@@ -223,9 +266,7 @@ def render_albedo(surface: TexturedSurface, camera: Camera) -> tuple[np.ndarray,
         tri = raster.triangle.reshape(-1)[raster.pixels]
         uv = np.einsum("pj,pjd->pd", raster.barycentric.astype(np.float64),
                        surface.corner_uvs[tri])
-        image = np.asarray(surface.image, dtype=np.float32)
-        if image.ndim == 3:
-            image = image @ _LUMA.astype(np.float32)
+        image = _gray(surface.image)
         H, W = image.shape
         # texel (row, col) is centred at u = (col + 0.5) / W, v = 1 - (row + 0.5) / H
         gray[raster.pixels] = _sample(image, np.column_stack([uv[:, 0] * W - 0.5,
@@ -257,9 +298,9 @@ def dense_flow(a, b, method: str = "dis") -> np.ndarray:
 def _gradient(gray: np.ndarray) -> np.ndarray:
     """(H, W) float32: length of the albedo's gradient, lightly smoothed (grey
     levels per pixel)."""
-    from scipy.ndimage import gaussian_filter, sobel
+    from scipy.ndimage import sobel
 
-    g = gaussian_filter(gray.astype(np.float32), 1.0)
+    g = _blur(gray.astype(np.float32), 1.0)
     return np.hypot(sobel(g, axis=1), sobel(g, axis=0)) / 8.0
 
 
@@ -271,10 +312,13 @@ def _sample(field: np.ndarray, xy: np.ndarray) -> np.ndarray:
     x0 = np.minimum(x.astype(np.int64), W - 2)
     y0 = np.minimum(y.astype(np.int64), H - 2)
     fx, fy = x - x0, y - y0
+    # four gathers from the flat field: one index array, not four pairs of them
+    flat = field.reshape(H * W, *field.shape[2:])
+    i = y0 * W + x0
     if field.ndim == 3:
         fx, fy = fx[:, None], fy[:, None]
-    top = field[y0, x0] * (1 - fx) + field[y0, x0 + 1] * fx
-    bottom = field[y0 + 1, x0] * (1 - fx) + field[y0 + 1, x0 + 1] * fx
+    top = flat.take(i, axis=0) * (1 - fx) + flat.take(i + 1, axis=0) * fx
+    bottom = flat.take(i + W, axis=0) * (1 - fx) + flat.take(i + W + 1, axis=0) * fx
     return top * (1 - fy) + bottom * fy
 
 
@@ -307,18 +351,26 @@ class ScanViews:
     inner: list
     scene: SceneArrays
 
+    @property
+    def pixel_size(self) -> float:
+        """The cameras' mean pixel size, mesh units (what :func:`prefiltered` blurs
+        to)."""
+        return float(np.mean([cam.pixel_size for cam in self.cameras]))
+
     @classmethod
     def of(cls, scan: TexturedSurface, cameras) -> "ScanViews":
         pixel = float(np.mean([cam.pixel_size for cam in cameras]))
         scan = prefiltered(scan, pixel)
-        drawn = [render_albedo(scan, cam) for cam in cameras]
+        drawn = thread_map(lambda cam: render_albedo(scan, cam), cameras)
         return cls(list(cameras), [d[0] for d in drawn], [d[1] for d in drawn],
                    [_inner(d[1].mask) for d in drawn], SceneArrays.of(scan.V, scan.T))
 
 
 def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: MatchRules,
-                  normals: np.ndarray, rejected: dict):
-    """Camera ``k``'s matches: (triangle, barycentric, targets, confidence)."""
+                  normals: np.ndarray, max_distance: float):
+    """Camera ``k``'s matches: (triangle, barycentric, targets, confidence, rejected),
+    ``rejected`` its pixels dropped per reason; ``max_distance`` in mesh units."""
+    rejected: dict = {}
     camera, b, rb, inner_b = views.cameras[k], views.pictures[k], views.rasters[k], \
         views.inner[k]
     a, ra = render_albedo(template, camera)
@@ -353,17 +405,18 @@ def _view_matches(template: TexturedSurface, views: ScanViews, k: int, rules: Ma
     view = RenderedView(camera, np.zeros((h, w), dtype=np.uint8), rb)
     targets, hit = view.lift(views.scene, q[ok])
     sources = np.einsum("kj,kjd->kd", bary[ok], template.V[template.T[tri[ok]]])
-    near = (hit >= 0) & (np.linalg.norm(targets - sources, axis=1) <= rules.max_distance)
+    near = (hit >= 0) & (np.linalg.norm(targets - sources, axis=1) <= max_distance)
     rejected["distance"] = rejected.get("distance", 0) + int(np.count_nonzero(~near))
     # consistency, gradient and view angle each scale the trust in a match
     confidence = (np.exp(-(error[ok] / rules.consistency) ** 2)
                   * np.minimum(1.0, gradient[ok] / (4.0 * rules.min_gradient))
                   * cos[ok])[near]
-    return tri[ok][near], bary[ok][near], targets[near], confidence
+    return tri[ok][near], bary[ok][near], targets[near], confidence, rejected
 
 
 def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
-                 cameras=None, rules: MatchRules | None = None) -> FlowMatches:
+                 cameras=None, rules: MatchRules | None = None, *,
+                 prefilter: bool = True, size: float | None = None) -> FlowMatches:
     """Correspondences from the template's surface to the scan's, by optical flow
     in every camera (see the module's docstring).
 
@@ -377,6 +430,12 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
     cameras : sequence of Camera
         Needed when ``scan`` is a surface; a ScanViews has its own.
     rules : MatchRules, optional
+    prefilter : bool
+        False: the template's image is already :func:`prefiltered` for these
+        cameras (rounds of matching the same template blur its image once).
+    size : float, optional
+        What ``rules.max_distance`` is a fraction of, mesh units; default the
+        bounding-box diagonal of the template's drawn vertices.
 
     Returns
     -------
@@ -384,12 +443,20 @@ def flow_matches(template: TexturedSurface, scan: TexturedSurface | ScanViews,
     """
     rules = rules or MatchRules()
     views = scan if isinstance(scan, ScanViews) else ScanViews.of(scan, cameras)
-    pixel = float(np.mean([cam.pixel_size for cam in views.cameras]))
-    template = prefiltered(template, pixel)
+    if prefilter:
+        template = prefiltered(template, views.pixel_size)
     normals = trusted_vertex_normals(template.V, template.T, "angle")
+    # the views are independent, and their flow, rasters and filters release the GIL
+    if size is None:
+        drawn = template.T if template.triangles is None else template.T[template.triangles]
+        size = float(np.linalg.norm(np.ptp(template.V[np.unique(drawn)], axis=0)))
+    reach = rules.max_distance * size
+    parts = thread_map(lambda k: _view_matches(template, views, k, rules, normals, reach),
+                       range(len(views.cameras)))
     rejected: dict = {}
-    parts = [_view_matches(template, views, k, rules, normals, rejected)
-             for k in range(len(views.cameras))]
+    for p in parts:
+        for reason, count in p[4].items():
+            rejected[reason] = rejected.get(reason, 0) + count
     view = np.concatenate([np.full(len(p[0]), k, dtype=np.int64)
                            for k, p in enumerate(parts)])
     tri, bary, targets, confidence = (np.concatenate([p[i] for p in parts])

@@ -47,10 +47,11 @@ import scipy.sparse as sp
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.laplacian import uniform_laplacian
 from facewrap.mesh import Mesh
-from facewrap.params import Flag, Interval, Options, validate
+from facewrap.params import Flag, Interval
 from facewrap.geometry.normals import trusted_vertex_normals
-from facewrap.rig.flow_match import (FLOW_METHODS, FlowMatches, MatchRules, ScanViews,
-                                     TexturedSurface, face_cameras, flow_matches)
+from facewrap.rig.flow_match import (FlowMatches, MatchRules, ScanViews,
+                                     TexturedSurface, face_cameras, flow_matches,
+                                     prefiltered)
 from facewrap.solve.factor import factorize
 
 __all__ = ["TextureFlowSettings", "TextureRefinement", "refine_by_texture",
@@ -69,8 +70,11 @@ _MIN_MATCHES = 0.25
 
 
 @dataclass(frozen=True)
-class TextureFlowSettings:
-    """Settings of :func:`refine_by_texture`.
+class TextureFlowSettings(MatchRules):
+    """Settings of :func:`refine_by_texture`: the flow's match rules
+    (:class:`~facewrap.rig.flow_match.MatchRules`, their one home: ``method``,
+    ``consistency``, ``min_gradient``, ``max_angle``, ``max_distance``, ``step``,
+    the distance a fraction of the wrap's skin size) and the refinement's own.
 
     Attributes
     ----------
@@ -83,56 +87,30 @@ class TextureFlowSettings:
         Cameras around the face: the front, then 30-degree turns about two axes.
     image_size : int
         Width and height of each picture, pixels.
-    method : {"dis", "farneback"}
-        The optical flow (OpenCV's DIS or Farnebäck).
     smoothness : float
         Weight of the Laplacian term against the matches (a vertex's matches count
         1 together): larger, smoother corrections.
-    consistency : float
-        Largest forward-backward disagreement of a match, pixels.
-    min_gradient : float
-        Smallest albedo gradient of a match, grey levels per pixel.
-    max_angle : float
-        Largest angle between a matched surface and the camera, degrees.
-    max_distance : float
-        Largest distance between a match's two points, fraction of the wrap's size
-        (bounding-box diagonal).
     min_gain : float
         A round is kept when it cuts the flow's disagreement by this fraction.
     texture_size : int
         Size of the neutral's texture baked into the template's layout, pixels
-        (:func:`~facewrap.rig.build_rig`; the rig's written texture is baked apart).
+        (:func:`~facewrap.rig.build_rig`: the reference of the refinement and the
+        rig's texture, :attr:`~facewrap.rig.Rig.texture`; a rig job's
+        ``texture_size``).
     """
     enabled: bool = True
     rounds: int = 1
     views: int = 5
     image_size: int = 640
-    method: str = "dis"
     smoothness: float = 1.0
-    consistency: float = 0.7
-    min_gradient: float = 2.0
-    max_angle: float = 65.0
-    max_distance: float = 0.02
     min_gain: float = 0.15
     texture_size: int = 1024
-    constraints = {"enabled": Flag(), "rounds": Interval(int, 1, 10),
+    constraints = {**MatchRules.constraints,
+                   "enabled": Flag(), "rounds": Interval(int, 1, 10),
                    "views": Interval(int, 1, 5), "image_size": Interval(int, 64, 4096),
-                   "method": Options(*FLOW_METHODS),
                    "smoothness": Interval(float, 0, None, closed="neither"),
-                   "consistency": Interval(float, 0, None, closed="neither"),
-                   "min_gradient": Interval(float, 0, None),
-                   "max_angle": Interval(float, 0, 90, closed="neither"),
-                   "max_distance": Interval(float, 0, 1, closed="right"),
                    "min_gain": Interval(float, 0, 1, closed="left"),
-                   "texture_size": Interval(int, 16, 16384)}
-
-    def __post_init__(self):
-        validate(self)
-
-    def rules(self, size: float) -> MatchRules:
-        """The match rules for a mesh of ``size`` (bounding-box diagonal)."""
-        return MatchRules(self.method, self.consistency, self.min_gradient,
-                          self.max_angle, self.max_distance * size)
+                   "texture_size": Interval(int, 1, 16384)}
 
 
 @dataclass(frozen=True)
@@ -272,7 +250,6 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
     skin = np.flatnonzero(movable[T].all(axis=1))
     L = uniform_laplacian(T, n)
     size = float(np.linalg.norm(np.ptp(V0[movable], axis=0)))
-    rules = s.rules(size)
     V, rounds = V0, []
     # the cameras frame the skin as the geometric wrap has it; the scan, which does
     # not move, is drawn once
@@ -280,10 +257,14 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
     cameras = face_cameras(V0[seen], trusted_vertex_normals(V0, T)[seen], s.views,
                            s.image_size)
     views = ScanViews.of(TexturedSurface.of(scan, scan_image), cameras)
+    # the reference is blurred once, to the detail the pictures show of the geometric
+    # wrap (a round moves the skin too little to change that)
+    reference = prefiltered(TexturedSurface.of(template, reference_image, V0, skin),
+                            views.pixel_size).image
 
     def matches_at(X):
-        return flow_matches(TexturedSurface.of(template, reference_image, X, skin),
-                            views, rules=rules)
+        return flow_matches(TexturedSurface.of(template, reference, X, skin), views,
+                            rules=s, prefilter=False, size=size)
 
     matches = matches_at(V)
     before = _disagreement(matches, V, T)
