@@ -210,3 +210,48 @@ def test_shape_cache_off_and_errors_unchanged(folder, tmp_path, mixed_mesh, monk
     other = Mesh(np.eye(3), [[0, 1, 2]])
     with pytest.raises(InputError, match=r"s0\.obj: has 7 vertices, expected 3"):
         load_shape_folder(shapes_dir, other)    # ... which says nothing about 3
+
+
+def _settled(monkeypatch):
+    """Folders hashed from now on count as hashed long after their files were written
+    (as a template's shapes are on a user's second run)."""
+    import facewrap.datasets as ds
+    monkeypatch.setattr(ds.time, "time", lambda: 4e9)   # (2096: long after)
+
+
+def _count_reads(monkeypatch):
+    import facewrap.datasets as ds
+    reads = []
+    real = ds.read_file_bytes
+    monkeypatch.setattr(ds, "read_file_bytes", lambda p, **kw: reads.append(p) or real(p, **kw))
+    return reads
+
+
+def test_a_settled_folder_is_not_read_again(folder, tmp_path, mixed_mesh, monkeypatch):
+    from facewrap.datasets import load_shape_folder
+    from facewrap.io.obj import read_obj_vertices, write_obj
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 3)
+    _settled(monkeypatch)
+    first = load_shape_folder(shapes_dir, mixed_mesh)
+    assert len(_entries(folder, "folder-stat")) == 1
+    reads = _count_reads(monkeypatch)
+    again = load_shape_folder(shapes_dir, mixed_mesh)
+    assert reads == [] and all(np.array_equal(again[k], first[k]) for k in first)
+    # a file replaced (another inode, size and times): its folder is read and hashed
+    moved = mixed_mesh.vertices + 1.0
+    write_obj(shapes_dir / "s1.obj", mixed_mesh.with_vertices(moved))
+    edited = load_shape_folder(shapes_dir, mixed_mesh)
+    assert len(reads) == 3
+    assert np.array_equal(edited["s1"], read_obj_vertices(shapes_dir / "s1.obj"))
+
+
+def test_a_folder_written_just_now_is_always_read(folder, tmp_path, mixed_mesh,
+                                                  monkeypatch):
+    # files changed within STAT_SETTLED of the hashing could be changed again with
+    # the same times: their stat records are not trusted, the bytes are hashed
+    from facewrap.datasets import load_shape_folder
+    shapes_dir = _shape_folder(tmp_path, mixed_mesh, 2)
+    load_shape_folder(shapes_dir, mixed_mesh)
+    reads = _count_reads(monkeypatch)
+    load_shape_folder(shapes_dir, mixed_mesh)
+    assert len(reads) == 2
