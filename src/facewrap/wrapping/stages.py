@@ -38,6 +38,7 @@ from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.blend import smooth_extension
 from facewrap.wrapping.projection import Projection, project_to_surface
+from facewrap.wrapping.seams import seam_weld
 from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
                                      vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
@@ -480,6 +481,13 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     -------
     WrapResult
     """
+    weld = seam_weld(template, blendshapes)
+    if weld is not None:   # one surface where an exporter split the template (.seams)
+        return weld.unweld(wrap(
+            weld.mesh, scan, weld.landmarks(template_landmarks), scan_landmarks, settings,
+            exclude=weld.vertex_set(exclude), fit_mask=weld.vertex_set(fit_mask),
+            pinned=weld.vertex_set(pinned), blendshapes=weld.shapes(blendshapes),
+            scan_tree=scan_tree, initial=initial, graph_cache=graph_cache), template)
     timings = {}
     t0 = time.perf_counter()
     # on a terminal, one line that says which stage runs (the ICP draws its own bars)
