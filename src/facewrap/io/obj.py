@@ -27,7 +27,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import read_file_bytes
+from facewrap.io.files import first_too_large, read_file_bytes, too_large_problem
 from facewrap.io.paths import new_folders_removed_on_failure
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
@@ -226,8 +226,14 @@ def _vertex_rows(rows: _Rows, path):
     flat = _row_floats(rows)
     if n and flat is not None and flat.size == 6 * n and np.isfinite(flat).all():
         data = flat.reshape(n, 6)
-        return data[:, :3].copy(), data[:, 3:].copy()
-    return _bulk_floats(rows, 3, "vertex", path, flat), None
+        positions, colors = data[:, :3].copy(), data[:, 3:].copy()
+    else:
+        positions, colors = _bulk_floats(rows, 3, "vertex", path, flat), None
+    row = first_too_large(positions)
+    if row is not None:
+        raise InputError(too_large_problem(np.abs(positions[row]).max(), "vertex coordinate"),
+                         path, rows.line(row))
+    return positions, colors
 
 
 # corner slashes -> spaces: what is left is the indices

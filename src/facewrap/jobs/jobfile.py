@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from facewrap.errors import InputError
+from facewrap.io.paths import check_outputs_apart
 from facewrap.jobs.kinds import JOB_KINDS, JobKind
 from facewrap.jobs.toml_text import TomlSource, read_toml
 from facewrap.jobs.values import convert_value, field_types, resolve_path
@@ -362,4 +363,6 @@ def load_job(path):
         values[kind.settings_field] = settings
     job = require_job(values, path, kind=kind)
     kind.check_paths(job, source=path)
+    # the job file is read too: an output spelt as the job file itself would replace it
+    check_outputs_apart(kind.outputs(job), [path], source=path)
     return job, settings
