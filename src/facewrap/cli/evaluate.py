@@ -16,12 +16,13 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import COORDINATE_LIMIT, first_too_large
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
                             resolve_units, units_note)
 
-__all__ = ["register", "cmd_evaluate", "read_ground_truth"]
+__all__ = ["view_axes", "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -55,11 +56,17 @@ def read_ground_truth(path, result):
             raise InputError("no such file", path) from None
         except (OSError, ValueError) as exc:
             raise InputError(f"cannot read a NumPy array ({exc})", path) from None
-        if G.shape != (result.n_vertices, 3) or not np.issubdtype(G.dtype, np.number):
-            raise InputError(f"ground truth must be a ({result.n_vertices}, 3) array "
-                             f"(NaN rows for vertices without truth), got {G.shape}",
-                             path)
-        return G.astype(np.float64)
+        if G.shape != (result.n_vertices, 3) or G.dtype.kind not in "fiu":
+            # complex or boolean "positions" would be cast silently (imaginary parts lost)
+            raise InputError(f"ground truth must be a ({result.n_vertices}, 3) array of "
+                             "real numbers (NaN rows for vertices without truth), got "
+                             f"{G.shape} {G.dtype}", path)
+        G = G.astype(np.float64)
+        known = G[~np.isnan(G).any(axis=1)]
+        if not np.isfinite(known).all() or first_too_large(known) is not None:
+            raise InputError(f"ground truth holds an infinite or too large value (more "
+                             f"than {COORDINATE_LIMIT:g} in magnitude)", path)
+        return G
     gt = read_mesh(path)
     _same_topology(result, gt, path, "the ground truth")
     return gt.vertices
@@ -70,15 +77,41 @@ def _read_mask(path, n):
     return ids
 
 
+def view_axes(up, front, options: str = "--up/--front"):
+    """The ``up`` and ``front`` directions of the options, checked and scaled.
+
+    Each vector is divided by its largest component (the direction is kept; a
+    1e308 component no longer overflows the norm), and the pair must make a
+    frame (:func:`~facewrap.report.frame_from_axes`).
+
+    Returns
+    -------
+    up, front : (3,) float64
+
+    Raises
+    ------
+    InputError
+        Naming ``options``: not finite, zero, or parallel.
+    """
+    from facewrap.report import frame_from_axes
+    pair = []
+    for v in (up, front):
+        v = np.asarray(v, dtype=np.float64)
+        top = np.abs(v).max() if v.size and np.isfinite(v).all() else 0.0
+        pair.append(v / top if top > 0 else v)
+    try:
+        frame_from_axes(*pair)
+    except ValueError as exc:
+        raise InputError(f"{options}: {exc}") from None
+    return tuple(pair)
+
+
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.geometry.similarity import similarity_transform
     from facewrap.report import frame_from_axes
-    try:
-        F = frame_from_axes(args.up, args.front)
-    except ValueError as exc:
-        raise InputError(f"--up/--front: {exc}") from None
+    F = frame_from_axes(*view_axes(args.up, args.front))
     if reference is not None:
         # the result sits in scan coordinates: undo the template -> scan rotation
         R = similarity_transform(reference.vertices, result.vertices).rotation

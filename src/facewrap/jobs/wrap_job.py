@@ -355,6 +355,10 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
             outside[exclude] = True
         exclude = np.flatnonzero(outside)
     shapes = None
+    if not job.blendshapes and settings is not None and settings.pca_components:
+        # without shapes the setting would be dropped silently: say it has no effect
+        raise InputError(f"pca_components (--pca-components) is {settings.pca_components}"
+                         " but no blendshapes are given: components of which shapes?")
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
