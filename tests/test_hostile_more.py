@@ -237,3 +237,34 @@ def test_ground_truth_of_no_real_positions_is_refused(array, problem, tmp_path, 
     np.save(truth, array)
     one_line_error(capsys, facewrap("evaluate", mesh, mesh, "-q", "--ground-truth", truth),
                    str(truth), problem)
+
+
+def test_landmarks_beyond_any_head_are_refused(sample, tmp_path, capsys):
+    """A 1e308 landmark passed the NaN check: the wrap said 'landmarks are all at
+    one point or on one line', evaluate measured it silently."""
+    rows = sample["scan_landmarks"].read_text().splitlines()
+    rows[4] = "1e308 0 0"
+    bad = tmp_path / "landmarks.txt"
+    bad.write_text("\n".join(rows) + "\n")
+    one_line_error(capsys, facewrap(*wrap_argv(sample, "-o", tmp_path / "f.obj")[:6], bad,
+                                    "-q", "-o", tmp_path / "f.obj"),
+                   str(bad), "landmark 4 has coordinate 1e+308, too large")
+    one_line_error(capsys, facewrap("evaluate", sample["template"], sample["scan"], "-q",
+                                    "--scan-landmarks", bad, "--result-landmarks",
+                                    sample["template_landmarks"]), str(bad), "too large")
+
+
+def test_track_checks_each_scan_as_wrap_does(sample, tmp_path, capsys):
+    """``track`` fitted a sphere whose landmarks (a face's) lie off it, silently;
+    ``wrap`` refuses it ('landmarks are not on the scan')."""
+    import trimesh
+    V = np.array([float(x) for ln in sample["scan"].read_text().splitlines()
+                  if ln.startswith("v ") for x in ln.split()[1:4]]).reshape(-1, 3)
+    ball = trimesh.creation.icosphere(3, radius=100.0)
+    sphere = tmp_path / "sphere.obj"
+    write_obj(sphere, Mesh(ball.vertices + V.mean(axis=0), ball.faces))
+    rc = facewrap("track", sample["template"], sphere, "--template-landmarks",
+                  sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+                  "--model", "rbf", "-o", tmp_path / "seq", "-q")
+    one_line_error(capsys, rc, "landmarks are not on the scan")
+    assert not (tmp_path / "seq").exists()

@@ -28,6 +28,7 @@ from facewrap.errors import InputError
 from facewrap.detection.for_wrap import detected_landmark_settings
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
+from facewrap.jobs.input_checks import check_scan
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
@@ -121,6 +122,18 @@ def cmd_track(args) -> int:
     template = read_mesh(args.template)
     meshes = [read_mesh(p) for p in scans]
     tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+    # each frame through the wrap's checks of a scan: a sphere, a scan in other
+    # units or landmarks off the surface are refused here as `facewrap wrap` does
+    given = list(args.scan_landmarks or ())
+    checked = []
+    for i, (mesh, lm) in enumerate(zip(meshes, lms)):
+        from_file = lm if i < len(given) else None
+        mesh, from_file, _, found = check_scan(mesh, from_file, scans[i],
+                                               given[i] if i < len(given) else None)
+        meshes[i], lms[i] = mesh, (from_file if i < len(given) else lm)
+        checked += [f"frame {i}: {note}" for note in found]
+    for note in checked:
+        print(f"facewrap: warning: {note}", file=sys.stderr)
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"

@@ -10,7 +10,7 @@ from facewrap.io.paths import special_kind
 
 __all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
            "read_format_items", "memory_budget", "not_a_file", "COORDINATE_LIMIT",
-           "first_too_large", "too_large_problem"]
+           "first_too_large", "check_coordinates"]
 
 #: Largest coordinate magnitude a mesh or landmark file may hold. Far beyond any
 #: head in any unit (10^15 mm is a light-hour), yet small enough that the squares
@@ -66,10 +66,31 @@ def first_too_large(values) -> int | None:
     return int(np.argmax(big.reshape(len(values), -1).any(axis=1)))
 
 
-def too_large_problem(value: float, what: str = "coordinate") -> str:
-    """The words of the error for a coordinate beyond :data:`COORDINATE_LIMIT`."""
-    return (f"{what} {value:g} is too large (more than {COORDINATE_LIMIT:g} in "
-            "magnitude in any unit: not a scan, and its sizes would overflow)")
+def check_coordinates(values, path, what: str = "vertex") -> None:
+    """Refuse coordinates beyond :data:`COORDINATE_LIMIT` in magnitude.
+
+    The format readers stay exact (a 1e308 round-trips); the meshes, shapes and
+    points a command reads pass here, where no head can be that size.
+
+    Parameters
+    ----------
+    values : (n, 3) float64
+    path : path
+        Named in the error.
+    what : str
+        What a row is ("vertex", "landmark").
+
+    Raises
+    ------
+    InputError
+        ``path: vertex 5 has coordinate 1e+30, too large (...)``.
+    """
+    import numpy as np
+    row = first_too_large(values)
+    if row is not None:
+        raise InputError(f"{what} {row} has coordinate {np.abs(values[row]).max():g}, too "
+                         f"large (more than {COORDINATE_LIMIT:g} in magnitude in any "
+                         "unit: not a scan, and its sizes would overflow)", path)
 
 
 def memory_budget() -> int:

@@ -27,7 +27,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import first_too_large, read_file_bytes, too_large_problem
+from facewrap.io.files import check_coordinates, read_file_bytes
 from facewrap.io.paths import new_folders_removed_on_failure
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
@@ -226,14 +226,8 @@ def _vertex_rows(rows: _Rows, path):
     flat = _row_floats(rows)
     if n and flat is not None and flat.size == 6 * n and np.isfinite(flat).all():
         data = flat.reshape(n, 6)
-        positions, colors = data[:, :3].copy(), data[:, 3:].copy()
-    else:
-        positions, colors = _bulk_floats(rows, 3, "vertex", path, flat), None
-    row = first_too_large(positions)
-    if row is not None:
-        raise InputError(too_large_problem(np.abs(positions[row]).max(), "vertex coordinate"),
-                         path, rows.line(row))
-    return positions, colors
+        return data[:, :3].copy(), data[:, 3:].copy()
+    return _bulk_floats(rows, 3, "vertex", path, flat), None
 
 
 # corner slashes -> spaces: what is left is the indices
@@ -599,6 +593,7 @@ def read_obj_vertices(path, n_vertices: int | None = None, *,
     if not len(rows):
         raise InputError("no vertices ('v' lines)", path)
     vertices, _ = _vertex_rows(rows, path)
+    check_coordinates(vertices, path)    # a shape, never 1e30 across
     if n_vertices is not None and len(vertices) != n_vertices:
         raise InputError(f"has {len(vertices)} vertices, expected {n_vertices} (the "
                          "shape must be in the same topology)", path)

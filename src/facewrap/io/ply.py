@@ -42,8 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.io.files import (file_size, first_too_large, nul_at_ends, read_file_bytes,
-                               read_file_head, too_large_problem)
+from facewrap.io.files import file_size, nul_at_ends, read_file_bytes, read_file_head
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
 
@@ -710,10 +709,6 @@ def _build_mesh(tables: dict[str, _Table], header: _Header, path) -> Mesh:
                              vt.element.line)
     vertices = _finite(vt, np.column_stack([_scalar(vt, c).astype(np.float64)
                                             for c in "xyz"]), "vertex coordinate")
-    row = first_too_large(vertices)
-    if row is not None:
-        raise vt.error(row, too_large_problem(np.abs(vertices[row]).max(),
-                                              "vertex coordinate"))
     n = len(vertices)
     ft = tables.get("face")
     if ft is None:

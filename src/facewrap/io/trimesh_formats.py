@@ -31,8 +31,7 @@ import struct
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.io.files import (file_size, first_too_large, nul_at_ends, read_file_head,
-                               too_large_problem)
+from facewrap.io.files import file_size, nul_at_ends, read_file_head
 from facewrap.mesh import Mesh
 
 __all__ = ["TRIMESH_EXTENSIONS", "read_trimesh_format", "read_scene_texture"]
@@ -193,9 +192,6 @@ def _scene_mesh(scene, path) -> Mesh:
 def _mesh(V, F, path, **kw) -> Mesh:
     if not np.isfinite(V).all():
         raise InputError("NaN or infinite coordinate", path)
-    row = first_too_large(V)
-    if row is not None:
-        raise InputError(too_large_problem(np.abs(V[row]).max()), path)
     try:
         return Mesh(V, F, **kw)
     except ValueError as exc:
