@@ -268,3 +268,34 @@ def test_track_checks_each_scan_as_wrap_does(sample, tmp_path, capsys):
                   "--model", "rbf", "-o", tmp_path / "seq", "-q")
     one_line_error(capsys, rc, "landmarks are not on the scan")
     assert not (tmp_path / "seq").exists()
+
+
+@pytest.mark.parametrize("victim", ["manifest", "job"])
+def test_a_batch_never_writes_over_its_manifest_or_job_file(sample, victim, tmp_path,
+                                                            capsys):
+    """A row's ``report`` naming the manifest replaced it with the run's JSON."""
+    job = tmp_path / "shared.toml"
+    job.write_text(f'[inputs]\ntemplate = "{sample["template"]}"\n'
+                   f'template_landmarks = "{sample["template_landmarks"]}"\n'
+                   '[wrap]\nmodel = "rbf"\n')
+    manifest = tmp_path / "m.csv"
+    target = manifest if victim == "manifest" else job
+    manifest.write_text("scan,scan_landmarks,output,report\n"
+                        f"{sample['scan']},{sample['scan_landmarks']},out/a.obj,{target}\n")
+    before = digest(tmp_path)
+    one_line_error(capsys, facewrap("batch", manifest, "--job", job, "--workers", "1", "-q"),
+                   "is also an input")
+    assert digest(tmp_path) == before
+
+
+def test_an_unusable_dask_address_names_the_option(sample, tmp_path, capsys):
+    """'missing port number in address ...' named no option."""
+    job = tmp_path / "shared.toml"
+    job.write_text(f'[inputs]\ntemplate = "{sample["template"]}"\n'
+                   f'template_landmarks = "{sample["template_landmarks"]}"\n')
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("scan,scan_landmarks,output\n"
+                        f"{sample['scan']},{sample['scan_landmarks']},out/a.obj\n")
+    pytest.importorskip("distributed")
+    one_line_error(capsys, facewrap("batch", manifest, "--job", job, "--dask",
+                                    "not an address", "-q"), "--dask")
