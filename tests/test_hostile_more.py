@@ -299,3 +299,37 @@ def test_an_unusable_dask_address_names_the_option(sample, tmp_path, capsys):
     pytest.importorskip("distributed")
     one_line_error(capsys, facewrap("batch", manifest, "--job", job, "--dask",
                                     "not an address", "-q"), "--dask")
+
+
+def test_mixed_line_ends_read_as_lines(tmp_path):
+    """LF, CRLF and lone CR in one file (pasted together): the lone CRs ran two
+    lines into one ('vertex line has a value that is not a number')."""
+    from facewrap.io import read_mesh
+    mesh = grid()
+    plain = tmp_path / "plain.obj"
+    write_obj(plain, mesh)
+    lines = plain.read_text().splitlines()
+    mixed = tmp_path / "mixed.obj"
+    mixed.write_bytes("".join(ln + ("\n", "\r\n", "\r")[k % 3]
+                              for k, ln in enumerate(lines)).encode())
+    got = read_mesh(mixed)
+    assert np.array_equal(got.vertices, mesh.vertices)
+    assert np.array_equal(got.face_indices, read_mesh(plain).face_indices)
+
+
+def test_info_lengths_carry_their_unit(sample, capsys):
+    """``info`` printed the bounding box and diagonal as bare numbers."""
+    assert facewrap("info", sample["scan"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    box = next(ln for ln in out if "bounding_box" in ln)
+    diagonal = next(ln for ln in out if "diagonal" in ln)
+    assert box.endswith(" mm") and diagonal.endswith(" mm")
+    assert out[-1].startswith("units: mm (inferred")
+
+
+def test_a_nul_in_a_job_file_path_names_the_key(tmp_path, capsys):
+    """'embedded null byte', naming no file or key."""
+    job = tmp_path / "job.toml"
+    job.write_text('[inputs]\ntemplate = "t.obj"\nscan = "s.obj"\n'
+                   '[outputs]\noutput = "out/a\\u0000b.obj"\n')
+    one_line_error(capsys, facewrap("run", job), f"{job}:5", "'output' holds a NUL")

@@ -17,6 +17,7 @@ import argparse
 import atexit
 import gc
 import logging
+import os
 import sys
 import warnings
 from importlib import import_module
@@ -147,6 +148,10 @@ def _run(args) -> int:
     except FileNotFoundError as exc:
         print(f"facewrap: error: {exc.filename}: no such file", file=sys.stderr)
         return 2
+    except BrokenPipeError:   # `facewrap info x.obj | head`: the reader left, quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())   # nor a complaint when Python flushes
+        return 141                              # the shell's status for SIGPIPE
     except OSError as exc:  # a write that fails mid-run (disk full...): nothing is left
         from facewrap.io.paths import shown_path   # staged names taken off
         where = f"{shown_path(exc.filename)}: " if exc.filename else ""

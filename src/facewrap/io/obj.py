@@ -46,6 +46,9 @@ def _read_lines(path, data: bytes | None = None) -> "_Lines":
         data = read_file_bytes(path, text=True)
     if b"\r" in data and b"\n" not in data:  # classic Mac line ends (CR only)
         data = data.replace(b"\r", b"\n")
+    elif b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
+        # mixed line ends (files pasted together): a lone CR ends a line too
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     lines = _Lines(data)
     if np.any(lines.last_byte() == 92):
         # line continuation (rare): join, keeping byte offsets

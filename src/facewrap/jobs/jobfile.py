@@ -109,6 +109,9 @@ def _path_value(value, key: str, name: str, where: TomlSource, folder: Path):
     items = value if isinstance(value, list) else [value]
     if not all(items) or not items:
         raise where.error(f"[{name}] {key!r} is an empty path", name, key)
+    if any("\0" in v for v in items if isinstance(v, str)):
+        # no file system takes it ("embedded null byte", naming nothing, later)
+        raise where.error(f"[{name}] {key!r} holds a NUL character (\\u0000)", name, key)
     resolved = [resolve_path(v, folder) for v in items]
     return resolved if isinstance(value, list) else resolved[0]
 
