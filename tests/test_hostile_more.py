@@ -333,3 +333,30 @@ def test_a_nul_in_a_job_file_path_names_the_key(tmp_path, capsys):
     job.write_text('[inputs]\ntemplate = "t.obj"\nscan = "s.obj"\n'
                    '[outputs]\noutput = "out/a\\u0000b.obj"\n')
     one_line_error(capsys, facewrap("run", job), f"{job}:5", "'output' holds a NUL")
+
+
+def test_evaluate_warns_of_a_scan_in_other_units(sample, tmp_path, capsys):
+    """A scan in metres measured against a millimetre result gave '99.18 mm' as if
+    it were a fit."""
+    lines = sample["scan"].read_text().splitlines(keepends=True)
+    metres = tmp_path / "scan_m.obj"
+    metres.write_text("".join(
+        "v " + " ".join(repr(float(t) / 1000) for t in ln.split()[1:4]) + "\n"
+        if ln.startswith("v ") else ln for ln in lines))
+    assert facewrap("evaluate", sample["template"], metres, "-q") == 0
+    warned = capsys.readouterr().err.strip().splitlines()
+    assert len(warned) == 1 and warned[0].startswith(f"facewrap: warning: {metres}:")
+    assert "m)" in warned[0] and "mm," in warned[0] and "other units" in warned[0]
+
+
+def test_a_failed_track_is_one_line(sample, tmp_path, capsys):
+    """A frame's check warnings were printed before the run, so a track that then
+    failed (mirrored landmarks) ended with two lines."""
+    P = np.loadtxt(sample["scan_landmarks"])
+    P[:, 0] *= -1.0      # left and right swapped, the scan unchanged
+    mirrored = tmp_path / "mirrored.txt"
+    np.savetxt(mirrored, P)
+    rc = facewrap("track", sample["template"], sample["scan"], "--template-landmarks",
+                  sample["template_landmarks"], "--scan-landmarks", mirrored,
+                  "--model", "rbf", "-o", tmp_path / "seq", "-q")
+    one_line_error(capsys, rc, "mirror image")

@@ -9,6 +9,7 @@ full summary as JSON.  Input problems raise :class:`~facewrap.errors.InputError`
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +21,9 @@ from facewrap.io.files import COORDINATE_LIMIT, first_too_large
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
-                            resolve_units, units_note)
+                            infer_units, resolve_units, units_note)
 
-__all__ = ["view_axes", "register", "cmd_evaluate", "read_ground_truth"]
+__all__ = ["view_axes", "implausible_pair", "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -75,6 +76,31 @@ def read_ground_truth(path, result):
 def _read_mask(path, n):
     ids = read_vertex_indices(path, n_vertices=n).vertex
     return ids
+
+
+def implausible_pair(result, scan, result_path, scan_path) -> list[str]:
+    """Warnings for a result and a scan that cannot be one fit: sizes a unit apart
+    (a scan in metres against a result in millimetres), or boxes that do not meet.
+
+    Returns
+    -------
+    list of str
+        One line each, naming the scan.
+    """
+    notes = []
+    a, b = result.scale(), scan.scale()
+    if a > 0 and b > 0 and not 0.25 <= a / b <= 4.0:
+        # each size in the unit its own head's size suggests: the mismatch, in words
+        size_b = format_distance(b, infer_units(scan.vertices))
+        size_a = format_distance(a, infer_units(result.vertices))
+        notes.append(f"{scan_path}: its diagonal ({size_b}) and the result's ({size_a}, "
+                     f"{result_path}) differ {max(a / b, b / a):.3g}-fold: in other units? "
+                     "the distances below compare unlike things")
+    (lo_a, hi_a), (lo_b, hi_b) = result.bounding_box(), scan.bounding_box()
+    if np.any(lo_a > hi_b) or np.any(lo_b > hi_a):
+        notes.append(f"{scan_path}: does not overlap the result {result_path} (their "
+                     "bounding boxes are apart): not the scan it was fitted to?")
+    return notes
 
 
 def view_axes(up, front, options: str = "--up/--front"):
@@ -203,6 +229,7 @@ def cmd_evaluate(args) -> int:
                        inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
+    odd = implausible_pair(result, scan, args.result, args.scan)
     gt = ref = None
     if args.ground_truth:
         gt = read_ground_truth(args.ground_truth, result)
@@ -230,7 +257,8 @@ def cmd_evaluate(args) -> int:
         unit, source = resolve_units(args.units, result.vertices)
     summary = {"result": str(args.result), "scan": str(args.scan), "units": unit,
                "units_source": source, **ev.summary(),
-               "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible))}
+               "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible)),
+               **({"warnings": odd} if odd else {})}
 
     image = None
     if args.heatmap:
@@ -247,6 +275,8 @@ def cmd_evaluate(args) -> int:
                 json.dump(summary, fh, indent=1)
         if image is not None:
             save_png(stage.file(args.heatmap), image)
+    for note in odd:   # measured all the same, but never as if it were fine
+        print(f"facewrap: warning: {note}", file=sys.stderr)
     if not args.quiet:
         print(_format_line(summary, unit))
         for p in (args.json, args.heatmap):

@@ -132,8 +132,6 @@ def cmd_track(args) -> int:
                                                given[i] if i < len(given) else None)
         meshes[i], lms[i] = mesh, (from_file if i < len(given) else lm)
         checked += [f"frame {i}: {note}" for note in found]
-    for note in checked:
-        print(f"facewrap: warning: {note}", file=sys.stderr)
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"
@@ -166,7 +164,8 @@ def cmd_track(args) -> int:
                  else None)                    # millimetres off: the surface leads
         result = track(template, meshes, tl, lms, settings, blendshapes=shapes,
                        exclude=exclude, progress=say, first_settings=first)
-    notes = frame_warnings(result, scans)
+    # after the run, as wrap does: a failed track is its one error line
+    notes = checked + frame_warnings(result, scans)
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
     unit, source = units[0] if units else resolve_units(args.units, template.vertices)
