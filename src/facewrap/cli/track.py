@@ -28,9 +28,9 @@ from facewrap.errors import InputError
 from facewrap.detection.for_wrap import detected_landmark_settings
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
-from facewrap.jobs.input_checks import check_scan
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
+from facewrap.jobs.input_checks import check_scan
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
@@ -126,11 +126,12 @@ def cmd_track(args) -> int:
     # units or landmarks off the surface are refused here as `facewrap wrap` does
     given = list(args.scan_landmarks or ())
     checked = []
-    for i, (mesh, lm) in enumerate(zip(meshes, lms)):
-        from_file = lm if i < len(given) else None
-        mesh, from_file, _, found = check_scan(mesh, from_file, scans[i],
-                                               given[i] if i < len(given) else None)
-        meshes[i], lms[i] = mesh, (from_file if i < len(given) else lm)
+    for i, mesh in enumerate(meshes):
+        own = lms[i] if i < len(given) else None     # the frame's landmark file's
+        meshes[i], own, _, found = check_scan(mesh, own, scans[i],
+                                              given[i] if own is not None else None)
+        if own is not None:
+            lms[i] = own                             # vertex ids follow a weld
         checked += [f"frame {i}: {note}" for note in found]
     if detections and not args.quiet:
         for what, found in detections.items():
