@@ -360,3 +360,20 @@ def test_a_failed_track_is_one_line(sample, tmp_path, capsys):
                   sample["template_landmarks"], "--scan-landmarks", mirrored,
                   "--model", "rbf", "-o", tmp_path / "seq", "-q")
     one_line_error(capsys, rc, "mirror image")
+
+
+def test_evaluate_names_the_landmark_file_that_disagrees(sample, tmp_path, capsys):
+    """'landmark counts differ: 68 vs 3' named neither file; landmarks in metres
+    on a millimetre scan were measured without a word."""
+    P = np.loadtxt(sample["scan_landmarks"])
+    three = tmp_path / "three.txt"
+    np.savetxt(three, P[:3])
+    argv = ["evaluate", sample["template"], sample["scan"], "-q", "--result-landmarks",
+            sample["template_landmarks"], "--scan-landmarks"]
+    one_line_error(capsys, facewrap(*argv, three), f"{three}: has 3 landmarks")
+    metres = tmp_path / "metres.txt"
+    np.savetxt(metres, P / 1000.0)
+    assert facewrap(*argv, metres) == 0
+    warned = capsys.readouterr().err.strip().splitlines()
+    assert len(warned) == 1 and f"{metres}: the landmarks lie off the scan" in warned[0]
+    assert " mm" in warned[0]

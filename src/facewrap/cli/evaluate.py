@@ -23,7 +23,7 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
                             infer_units, resolve_units, units_note)
 
-__all__ = ["view_axes", "implausible_pair", "register", "cmd_evaluate", "read_ground_truth"]
+__all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -101,6 +101,24 @@ def implausible_pair(result, scan, result_path, scan_path) -> list[str]:
         notes.append(f"{scan_path}: does not overlap the result {result_path} (their "
                      "bounding boxes are apart): not the scan it was fitted to?")
     return notes
+
+
+def landmarks_off_scan(scan, landmarks, path) -> list[str]:
+    """A warning when the scan's landmarks lie mostly off it (another scan's file,
+    or other units): their errors would be measured against nothing."""
+    from facewrap.geometry import ClosestPointTree
+    try:
+        points = landmarks.positions(scan)
+    except (ValueError, IndexError):
+        return []               # vertex ids beyond the scan: evaluate names them
+    d = ClosestPointTree(scan.vertices, scan.triangles).query(points).distances
+    size = scan.scale()
+    if size > 0 and np.median(d) > 0.1 * size:
+        unit = infer_units(scan.vertices)
+        return [f"{path}: the landmarks lie off the scan (median "
+                f"{format_distance(float(np.median(d)), unit)} from it, scan diagonal "
+                f"{format_distance(size, unit)}): another scan's file, or other units?"]
+    return []
 
 
 def view_axes(up, front, options: str = "--up/--front"):
@@ -240,6 +258,11 @@ def cmd_evaluate(args) -> int:
     if args.result_landmarks:
         lm_r = read_landmarks(args.result_landmarks)
         lm_s = read_landmarks(args.scan_landmarks)
+        if (lm_r.names is None or lm_s.names is None) and len(lm_r) != len(lm_s):
+            raise InputError(f"has {len(lm_s)} landmarks but the result's "
+                             f"({args.result_landmarks}) has {len(lm_r)}",
+                             args.scan_landmarks)
+        odd += landmarks_off_scan(scan, lm_s, args.scan_landmarks)
     if args.mask and args.run:
         raise InputError("give --mask or --run (its fitted vertices), not both")
     mask, run_units = None, None
