@@ -377,3 +377,25 @@ def test_evaluate_names_the_landmark_file_that_disagrees(sample, tmp_path, capsy
     warned = capsys.readouterr().err.strip().splitlines()
     assert len(warned) == 1 and f"{metres}: the landmarks lie off the scan" in warned[0]
     assert " mm" in warned[0]
+
+
+def test_track_warns_of_landmarks_off_a_frame_as_wrap_does(sample, tmp_path, capsys):
+    """A mirrored scan under unmirrored landmarks: wrap warned that 51 landmarks lie
+    off the scan, track fitted it without a word."""
+    out = []
+    for ln in sample["scan"].read_text().splitlines(keepends=True):
+        if ln.startswith("v "):
+            x, y, z = (float(t) for t in ln.split()[1:4])
+            ln = f"v {-x!r} {y!r} {z!r}\n"
+        elif ln.startswith("f "):
+            ln = "f " + " ".join(reversed(ln.split()[1:])) + "\n"
+        out.append(ln)
+    mirrored = tmp_path / "mirrored.obj"
+    mirrored.write_text("".join(out))
+    rc = facewrap("track", sample["template"], mirrored, "--template-landmarks",
+                  sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+                  "--model", "rbf", "-o", tmp_path / "seq", "-q")
+    warned = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0
+    assert any(ln.startswith(f"facewrap: warning: frame 0 ({mirrored}): ")
+               and "lie off the scan surface" in ln for ln in warned), warned

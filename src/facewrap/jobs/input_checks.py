@@ -181,7 +181,8 @@ def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path)
     return []
 
 
-def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=None):
+def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=None, *,
+               survey: bool = True):
     """Every check of a scan (and its landmarks) before it is fitted.
 
     Parameters
@@ -192,6 +193,10 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
         before) leaves out the landmark checks.
     path, landmarks_path : path
         The files named in errors and warnings.
+    survey : bool
+        Also merge duplicate vertices and survey the mesh (:func:`survey_mesh`);
+        off, only the refusals and the landmark warnings (a track, whose frames
+        are fitted as they are).
 
     Returns
     -------
@@ -219,12 +224,13 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
     if size == 0 or not np.any(area2 > 1e-12 * size * size):
         raise InputError("scan is degenerate: every triangle has zero area", path)
     notes = []
-    if landmarks is not None:
+    if survey and landmarks is not None:
         scan, landmarks, welded = weld_duplicates(scan, landmarks, path)
         notes += [welded] if welded else []
-    notes += survey_mesh(scan, path, "scan", areas=area2)
-    if len(scan.triangles) < 100:
-        notes.append(f"{path}: scan has only {len(scan.triangles)} triangle(s)")
+    if survey:
+        notes += survey_mesh(scan, path, "scan", areas=area2)
+        if len(scan.triangles) < 100:
+            notes.append(f"{path}: scan has only {len(scan.triangles)} triangle(s)")
     if landmarks is None:
         return scan, None, None, notes
     points = landmarks.positions(scan)
