@@ -16,7 +16,10 @@ from __future__ import annotations
 import argparse
 import atexit
 import gc
+import logging
+import os
 import sys
+import warnings
 from importlib import import_module
 
 from facewrap.errors import InputError
@@ -102,6 +105,23 @@ def _spare_the_collector() -> None:
     atexit.register(gc.freeze)      # what the command made is not walked at exit
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings on the command line, never a two-line ``file:line: Warning``.
+
+    A facewrap warning (``UserWarning`` and its kin, ``InputWarning`` among them)
+    is one ``facewrap: warning:`` line; a numerical one from inside a library
+    (``RuntimeWarning: overflow encountered in multiply``) says nothing a user can
+    act on, and would turn a one-line error into twenty lines: it goes to the
+    debug log (``-vv``).
+    """
+    text = " ".join(str(message).split())
+    if issubclass(category, UserWarning):
+        print(f"facewrap: warning: {text}", file=sys.stderr)
+    else:
+        logging.getLogger("facewrap").debug("%s: %s (%s:%s)", category.__name__, text,
+                                            filename, lineno)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``facewrap`` console script; returns the exit status."""
     entry = argv is None        # the process's own command line: it ends after this
@@ -113,24 +133,57 @@ def main(argv=None) -> int:
     # progress bars draw only on a terminal; logs go to standard error
     configure_logging(args.log_verbose - args.log_quiet
                       - (1 if getattr(args, "quiet", False) else 0))
+    with warnings.catch_warnings():   # restores the caller's warning display after
+        warnings.showwarning = _one_line_warning
+        return _run(args)
+
+
+def _run(args) -> int:
+    """The chosen command, its failures on bad input as one line and exit status 2."""
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
-        print(f"facewrap: error: {exc}", file=sys.stderr)
+        print(f"facewrap: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except FileNotFoundError as exc:
         print(f"facewrap: error: {exc.filename}: no such file", file=sys.stderr)
         return 2
+    except BrokenPipeError:   # `facewrap info x.obj | head`: the reader left, quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())   # nor a complaint when Python flushes
+        return 141                              # the shell's status for SIGPIPE
     except OSError as exc:  # a write that fails mid-run (disk full...): nothing is left
-        where = f"{exc.filename}: " if exc.filename else ""
+        from facewrap.io.paths import shown_path   # staged names taken off
+        where = f"{shown_path(exc.filename)}: " if exc.filename else ""
         print(f"facewrap: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
         print("facewrap: interrupted", file=sys.stderr)
         return 130
     except ValueError as exc:  # inconsistent inputs found past the readers
-        print(f"facewrap: error: {exc}", file=sys.stderr)
+        print(f"facewrap: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except MemoryError:
+        print("facewrap: error: out of memory (the inputs need more than this machine "
+              "has)", file=sys.stderr)
+        return 2
+    except RecursionError:
+        print("facewrap: error: an input is nested too deeply to read", file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 -- the last net: never a traceback
+        # Whatever got past the checks at the door came from an input no check
+        # foresaw: one line naming the failure, the traceback in the debug log.
+        logging.getLogger("facewrap").debug("traceback", exc_info=True)
+        print(f"facewrap: error: {type(exc).__name__}: {_one_line(exc)} (an input no "
+              "check foresaw; -vv shows where)", file=sys.stderr)
+        return 2
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line: a line break (in a library's message, or
+    in a file name) is written as ``\\n``."""
+    text = str(exc).strip().replace("\r", "\\r").replace("\n", "\\n")
+    return text or type(exc).__name__
 
 
 if __name__ == "__main__":

@@ -11,6 +11,8 @@ import argparse
 import os
 import sys
 
+from facewrap.errors import InputError
+
 
 __all__ = ["register", "cmd_batch"]
 
@@ -37,7 +39,12 @@ def cmd_batch(args) -> int:
                                 record_matches, run_batch, summary_stem)
     from facewrap.io.paths import check_output_paths
     from facewrap.progress import progress
+    from facewrap.io.paths import check_outputs_apart
     jobs = read_manifest(args.manifest, job_file=args.job)
+    # the manifest and the shared job file are read too: no job may write over them
+    check_outputs_apart([p for bj in jobs for p in bj.kind.outputs(bj.job)],
+                        [args.manifest, *([args.job] if args.job else [])],
+                        source=args.manifest)
     if args.dry_run:
         for bj in jobs:
             done = record_matches(read_done_record(bj.job), fingerprint(bj.job,
@@ -65,8 +72,15 @@ def cmd_batch(args) -> int:
                                *(p for bj in jobs for p in bj.kind.outputs(bj.job))])
     # a bar of finished jobs on a terminal (the lines above print whatever the output)
     with progress(total, "batch") as bar:
-        result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
-                           on_result=on_result, manifest=os.path.abspath(args.manifest))
+        try:
+            result = run_batch(jobs, workers=args.workers, dask=args.dask, summary=stem,
+                               on_result=on_result, manifest=os.path.abspath(args.manifest))
+        except (ValueError, OSError) as exc:
+            if not args.dask:
+                raise
+            # a job's failure is its row: what escapes is the cluster's
+            raise InputError(f"cannot use the Dask scheduler {args.dask!r}: {exc}",
+                             "--dask") from None
     counts = ", ".join(f"{result.count(s)} {s}" for s in ("done", "skipped", "failed"))
     if not args.quiet or not result.ok:
         print(f"{counts}; summary: {result.csv_path}", file=sys.stdout if result.ok

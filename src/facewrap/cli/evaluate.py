@@ -9,6 +9,7 @@ full summary as JSON.  Input problems raise :class:`~facewrap.errors.InputError`
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,12 +17,13 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import COORDINATE_LIMIT, first_too_large
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
-                            resolve_units, units_note)
+                            infer_units, resolve_units, units_note)
 
-__all__ = ["register", "cmd_evaluate", "read_ground_truth"]
+__all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -55,11 +57,17 @@ def read_ground_truth(path, result):
             raise InputError("no such file", path) from None
         except (OSError, ValueError) as exc:
             raise InputError(f"cannot read a NumPy array ({exc})", path) from None
-        if G.shape != (result.n_vertices, 3) or not np.issubdtype(G.dtype, np.number):
-            raise InputError(f"ground truth must be a ({result.n_vertices}, 3) array "
-                             f"(NaN rows for vertices without truth), got {G.shape}",
-                             path)
-        return G.astype(np.float64)
+        if G.shape != (result.n_vertices, 3) or G.dtype.kind not in "fiu":
+            # complex or boolean "positions" would be cast silently (imaginary parts lost)
+            raise InputError(f"ground truth must be a ({result.n_vertices}, 3) array of "
+                             "real numbers (NaN rows for vertices without truth), got "
+                             f"{G.shape} {G.dtype}", path)
+        G = G.astype(np.float64)
+        known = G[~np.isnan(G).any(axis=1)]
+        if not np.isfinite(known).all() or first_too_large(known) is not None:
+            raise InputError(f"ground truth holds an infinite or too large value (more "
+                             f"than {COORDINATE_LIMIT:g} in magnitude)", path)
+        return G
     gt = read_mesh(path)
     _same_topology(result, gt, path, "the ground truth")
     return gt.vertices
@@ -70,15 +78,84 @@ def _read_mask(path, n):
     return ids
 
 
+def implausible_pair(result, scan, result_path, scan_path) -> list[str]:
+    """Warnings for a result and a scan that cannot be one fit: sizes a unit apart
+    (a scan in metres against a result in millimetres), or boxes that do not meet.
+
+    Returns
+    -------
+    list of str
+        One line each, naming the scan.
+    """
+    notes = []
+    a, b = result.scale(), scan.scale()
+    if a > 0 and b > 0 and not 0.25 <= a / b <= 4.0:
+        # each size in the unit its own head's size suggests: the mismatch, in words
+        size_b = format_distance(b, infer_units(scan.vertices))
+        size_a = format_distance(a, infer_units(result.vertices))
+        notes.append(f"{scan_path}: its diagonal ({size_b}) and the result's ({size_a}, "
+                     f"{result_path}) differ {max(a / b, b / a):.3g}-fold: in other units? "
+                     "the distances below compare unlike things")
+    (lo_a, hi_a), (lo_b, hi_b) = result.bounding_box(), scan.bounding_box()
+    if np.any(lo_a > hi_b) or np.any(lo_b > hi_a):
+        notes.append(f"{scan_path}: does not overlap the result {result_path} (their "
+                     "bounding boxes are apart): not the scan it was fitted to?")
+    return notes
+
+
+def landmarks_off_scan(scan, landmarks, path) -> list[str]:
+    """A warning when the scan's landmarks lie mostly off it (another scan's file,
+    or other units): their errors would be measured against nothing."""
+    from facewrap.geometry import ClosestPointTree
+    try:
+        points = landmarks.positions(scan)
+    except (ValueError, IndexError):
+        return []               # vertex ids beyond the scan: evaluate names them
+    d = ClosestPointTree(scan.vertices, scan.triangles).query(points).distances
+    size = scan.scale()
+    if size > 0 and np.median(d) > 0.1 * size:
+        unit = infer_units(scan.vertices)
+        return [f"{path}: the landmarks lie off the scan (median "
+                f"{format_distance(float(np.median(d)), unit)} from it, scan diagonal "
+                f"{format_distance(size, unit)}): another scan's file, or other units?"]
+    return []
+
+
+def view_axes(up, front, options: str = "--up/--front"):
+    """The ``up`` and ``front`` directions of the options, checked and scaled.
+
+    Each vector is divided by its largest component (the direction is kept; a
+    1e308 component no longer overflows the norm), and the pair must make a
+    frame (:func:`~facewrap.report.frame_from_axes`).
+
+    Returns
+    -------
+    up, front : (3,) float64
+
+    Raises
+    ------
+    InputError
+        Naming ``options``: not finite, zero, or parallel.
+    """
+    from facewrap.report import frame_from_axes
+    pair = []
+    for v in (up, front):
+        v = np.asarray(v, dtype=np.float64)
+        top = np.abs(v).max() if v.size and np.isfinite(v).all() else 0.0
+        pair.append(v / top if top > 0 else v)
+    try:
+        frame_from_axes(*pair)
+    except ValueError as exc:
+        raise InputError(f"{options}: {exc}") from None
+    return tuple(pair)
+
+
 def _frame(args, result, reference):
     """Rotation that turns the result to face +z with +y up, for pictures."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.geometry.similarity import similarity_transform
     from facewrap.report import frame_from_axes
-    try:
-        F = frame_from_axes(args.up, args.front)
-    except ValueError as exc:
-        raise InputError(f"--up/--front: {exc}") from None
+    F = frame_from_axes(*view_axes(args.up, args.front))
     if reference is not None:
         # the result sits in scan coordinates: undo the template -> scan rotation
         R = similarity_transform(reference.vertices, result.vertices).rotation
@@ -170,6 +247,7 @@ def cmd_evaluate(args) -> int:
                        inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
+    odd = implausible_pair(result, scan, args.result, args.scan)
     gt = ref = None
     if args.ground_truth:
         gt = read_ground_truth(args.ground_truth, result)
@@ -180,6 +258,11 @@ def cmd_evaluate(args) -> int:
     if args.result_landmarks:
         lm_r = read_landmarks(args.result_landmarks)
         lm_s = read_landmarks(args.scan_landmarks)
+        if (lm_r.names is None or lm_s.names is None) and len(lm_r) != len(lm_s):
+            raise InputError(f"has {len(lm_s)} landmarks but the result's "
+                             f"({args.result_landmarks}) has {len(lm_r)}",
+                             args.scan_landmarks)
+        odd += landmarks_off_scan(scan, lm_s, args.scan_landmarks)
     if args.mask and args.run:
         raise InputError("give --mask or --run (its fitted vertices), not both")
     mask, run_units = None, None
@@ -197,7 +280,8 @@ def cmd_evaluate(args) -> int:
         unit, source = resolve_units(args.units, result.vertices)
     summary = {"result": str(args.result), "scan": str(args.scan), "units": unit,
                "units_source": source, **ev.summary(),
-               "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible))}
+               "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible)),
+               **({"warnings": odd} if odd else {})}
 
     image = None
     if args.heatmap:
@@ -214,6 +298,8 @@ def cmd_evaluate(args) -> int:
                 json.dump(summary, fh, indent=1)
         if image is not None:
             save_png(stage.file(args.heatmap), image)
+    for note in odd:   # measured all the same, but never as if it were fine
+        print(f"facewrap: warning: {note}", file=sys.stderr)
     if not args.quiet:
         print(_format_line(summary, unit))
         for p in (args.json, args.heatmap):

@@ -74,19 +74,22 @@ def add_fit_options(p, *, blendshapes_required: bool = False,
                    "%(default)s)")
     p.add_argument("--pca-components", type=int, default=_DEFAULTS["pca_components"],
                    help="fit this many PCA components of the blendshapes")
-    p.add_argument("--weight-range", type=float, nargs=2, metavar=("LO", "HI"),
+    # a switch that undoes an option given beside it: refused, not one silently winning
+    weights = p.add_mutually_exclusive_group()
+    weights.add_argument("--weight-range", type=float, nargs=2, metavar=("LO", "HI"),
                    default=_DEFAULTS["weight_range"],
                    help="range of the blend weights (default 0 1, an expression "
                         "rig's); see --no-weight-range")
-    p.add_argument("--no-weight-range", action="store_true",
+    weights.add_argument("--no-weight-range", action="store_true",
                    help="let blend weights take any value (identity or corrective "
                         "shapes used with negative or > 1 weights)")
-    p.add_argument("--landmark-tolerance", type=float,
+    pull = p.add_mutually_exclusive_group()
+    pull.add_argument("--landmark-tolerance", type=float,
                    default=_DEFAULTS["landmark_tolerance"], metavar="F",
                    help="landmarks left farther than this from their targets after "
                         "the fit (fraction of template size) are pulled to it; 0 keeps "
                         "them exactly (default %(default)s)")
-    p.add_argument("--no-landmark-pull", action="store_true",
+    pull.add_argument("--no-landmark-pull", action="store_true",
                    help="leave the landmarks where the fit puts them")
     _choice_option(p, "--kernel", "kernel", "RBF kernel of the landmark warp")
     _choice_option(p, "--blend-order", "blend_order", "blending of the displacement of "

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 from facewrap.io import read_mesh
+from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
 
 __all__ = ["register", "cmd_info"]
 
@@ -33,11 +34,18 @@ def cmd_info(args) -> int:
         "bounding_box": [lo.tolist(), hi.tolist()],
         "diagonal": mesh.scale(),
     }
+    unit, source = resolve_units(args.units, mesh.vertices)
     if args.json:
-        print(json.dumps(info, indent=1))
-    else:
-        for k, v in info.items():
-            print(f"{k:>15}: {v}")
+        print(json.dumps({**info, "units": unit, "units_source": source}, indent=1))
+        return 0
+    # every length shown carries its unit (inferred from the head's size, and said so)
+    info["bounding_box"] = " to ".join(
+        "(" + ", ".join(format_distance(x, unit, with_unit=False) for x in corner) + ")"
+        for corner in (lo, hi)) + " " + format_distance(1.0, unit).split()[-1]
+    info["diagonal"] = format_distance(mesh.scale(), unit)
+    for k, v in info.items():
+        print(f"{k:>15}: {v}")
+    print(units_note(unit, source))
     return 0
 
 
@@ -46,4 +54,5 @@ def register(subparsers, summary: str) -> None:
     p = subparsers.add_parser("info", help=summary)
     p.add_argument("mesh", help="OBJ or PLY file")
     p.add_argument("--json", action="store_true", help="print JSON")
+    add_units_argument(p)
     p.set_defaults(func=cmd_info)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from facewrap.cli.evaluate import read_ground_truth
+from facewrap.cli.evaluate import read_ground_truth, view_axes
 from facewrap.io.paths import check_output_paths, new_folders_removed_on_failure
 from facewrap.units import add_units_argument
 
@@ -19,6 +19,8 @@ def cmd_report(args) -> int:
     """Build the HTML page of a wrap run and print its path."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
     from facewrap.report.page import build_report_page, load_run_report, run_meshes
+    up, front = view_axes(args.template_up, args.template_front,
+                          "--template-up/--template-front")
     inputs = [args.run_report, *(args.image or ()), args.ground_truth]
     check_output_paths(files=[Path(args.out) / "index.html"], folders=[args.out],
                        inputs=[p for p in inputs if p])
@@ -30,8 +32,7 @@ def cmd_report(args) -> int:
     with new_folders_removed_on_failure(args.out):   # a failed page leaves no folder
         page = build_report_page(args.run_report, args.out, images=args.image or (),
                                  units=args.units, ground_truth=truth,
-                                 template_up=args.template_up,
-                                 template_front=args.template_front, title=args.title)
+                                 template_up=up, template_front=front, title=args.title)
     print(page)
     return 0
 

@@ -22,6 +22,9 @@ __all__ = ["register", "cmd_run"]
 def cmd_run(args) -> int:
     """Run, check (``--dry-run``) or write (``--write-template``) a job file."""
     if args.write_template:
+        if not args.job.lower().endswith(".toml"):
+            # `run scan.obj --write-template --force` would put TOML over a mesh
+            raise InputError("a job file's name ends in .toml; not written", args.job)
         if os.path.exists(args.job) and not args.force:
             raise InputError("already exists (use --force to replace it)", args.job)
         check_writable(files=[args.job])

@@ -30,6 +30,7 @@ from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
+from facewrap.jobs.input_checks import check_scan
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
@@ -121,6 +122,16 @@ def cmd_track(args) -> int:
     template = read_mesh(args.template)
     meshes = [read_mesh(p) for p in scans]
     tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+    # each frame through the wrap's refusals of a scan: a sphere, a scan in other
+    # units or landmarks off the surface are refused here as `facewrap wrap` does
+    # (the mesh's oddities are the frames' own warnings, from the fit)
+    given = list(args.scan_landmarks or ())
+    checked = []
+    for i, mesh in enumerate(meshes):
+        own = lms[i] if i < len(given) else None     # the frame's landmark file's
+        found = check_scan(mesh, own, scans[i], given[i] if own is not None else None,
+                           survey=False)[3]
+        checked += [f"frame {i} ({scans[i]}): {note}" for note in found]
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"
@@ -153,7 +164,8 @@ def cmd_track(args) -> int:
                  else None)                    # millimetres off: the surface leads
         result = track(template, meshes, tl, lms, settings, blendshapes=shapes,
                        exclude=exclude, progress=say, first_settings=first)
-    notes = frame_warnings(result, scans)
+    # after the run, as wrap does: a failed track is its one error line
+    notes = checked + frame_warnings(result, scans)
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
     unit, source = units[0] if units else resolve_units(args.units, template.vertices)

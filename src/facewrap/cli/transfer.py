@@ -13,16 +13,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from facewrap.errors import InputError
 from facewrap.jobs import TransferJob, TransferJobSettings, run_transfer_job
+from facewrap.params import SettingsError
 
 __all__ = ["register", "cmd_transfer", "transfer_job_from_args", "print_transfer_summary"]
 
 
 def transfer_job_from_args(args) -> TransferJob:
     """The :class:`~facewrap.jobs.TransferJob` of ``facewrap transfer``'s options."""
-    settings = TransferJobSettings(landmark_guided=args.landmark_guided,
-                                   anchor=args.anchor, fix_flips=not args.no_fix_flips,
-                                   ambiguity=args.ambiguity, gltf_scale=args.gltf_scale)
+    try:
+        settings = TransferJobSettings(landmark_guided=args.landmark_guided,
+                                       anchor=args.anchor, fix_flips=not args.no_fix_flips,
+                                       ambiguity=args.ambiguity, gltf_scale=args.gltf_scale)
+    except SettingsError as exc:   # named as the option that set it
+        option = "--no-fix-flips" if exc.field == "fix_flips" else \
+            "--" + exc.field.replace("_", "-")
+        raise InputError(exc.problem, option) from None
     return TransferJob(source_neutral=args.source_neutral,
                        target_neutral=args.target_neutral, markers=args.markers,
                        source_shapes=list(args.source_shapes), out=args.out,

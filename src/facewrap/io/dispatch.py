@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 
 from facewrap.errors import InputError
-from facewrap.io.files import not_a_file
+from facewrap.io.files import check_coordinates, not_a_file
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
@@ -42,7 +42,8 @@ def read_mesh(path) -> Mesh:
     Raises
     ------
     InputError
-        For a missing file, an unknown extension or malformed content, naming
+        For a missing file, an unknown extension, malformed content or
+        coordinates beyond :data:`~facewrap.io.files.COORDINATE_LIMIT`, naming
         the file.
     """
     ext = _ext(path)
@@ -53,10 +54,14 @@ def read_mesh(path) -> Mesh:
     if not os.path.isfile(path):
         raise not_a_file(path)
     if ext == ".obj":
-        return read_obj(path)
-    if ext == ".ply":
-        return read_ply(path)
-    return read_trimesh_format(path)
+        mesh = read_obj(path)
+    elif ext == ".ply":
+        mesh = read_ply(path)
+    else:
+        mesh = read_trimesh_format(path)
+    # the readers are exact; no head is 1e30 across, and its squares would overflow
+    check_coordinates(mesh.vertices, path)
+    return mesh
 
 
 def read_mesh_texture(path):

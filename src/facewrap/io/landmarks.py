@@ -46,7 +46,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import not_a_file, read_file_bytes, read_json
+from facewrap.io.files import check_coordinates, not_a_file, read_file_bytes, read_json
 from facewrap.io.landmarks_json import (read_landmark_details, read_landmarks_json,
                                          write_landmarks_json)
 
@@ -334,6 +334,16 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
         For plain text: ``"auto"`` reads integer text as vertex ids unless every
         line has exactly three values; anything else is read as ``x y z`` points.
     """
+    landmarks = _read_any_landmarks(path, kind)
+    # free points no head could hold (a 1e308 passed the NaN check and
+    # overflowed the alignment into "landmarks on one line")
+    free = landmarks.points[np.isfinite(landmarks.points).all(axis=1)]
+    check_coordinates(free, path, "landmark")
+    return landmarks
+
+
+def _read_any_landmarks(path, kind: str) -> Landmarks:
+    """The reader of :func:`read_landmarks`, by extension and ``kind``."""
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if not os.path.isfile(path):
         raise not_a_file(path)

@@ -27,7 +27,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.mesh import Mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import read_file_bytes
+from facewrap.io.files import check_coordinates, read_file_bytes
 from facewrap.io.paths import new_folders_removed_on_failure
 
 __all__ = ["read_obj", "write_obj", "read_obj_vertices"]
@@ -46,6 +46,9 @@ def _read_lines(path, data: bytes | None = None) -> "_Lines":
         data = read_file_bytes(path, text=True)
     if b"\r" in data and b"\n" not in data:  # classic Mac line ends (CR only)
         data = data.replace(b"\r", b"\n")
+    elif b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
+        # mixed line ends (files pasted together): a lone CR ends a line too
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     lines = _Lines(data)
     if np.any(lines.last_byte() == 92):
         # line continuation (rare): join, keeping byte offsets
@@ -593,6 +596,7 @@ def read_obj_vertices(path, n_vertices: int | None = None, *,
     if not len(rows):
         raise InputError("no vertices ('v' lines)", path)
     vertices, _ = _vertex_rows(rows, path)
+    check_coordinates(vertices, path)    # a shape, never 1e30 across
     if n_vertices is not None and len(vertices) != n_vertices:
         raise InputError(f"has {len(vertices)} vertices, expected {n_vertices} (the "
                          "shape must be in the same topology)", path)

@@ -125,14 +125,26 @@ def find_overlap(outputs, inputs):
     # (input, what to call it): a side file is named with the mesh it belongs to
     ins = [(i, repr(i)) for i in named]
     ins += [(f, f"{f!r} (read with {i!r})") for i in named for f in side_files(i)]
-    ins = [(i, label, real_path(i)) for i, label in ins]
+    ins = [(i, label, real_path(i), _file_id(i)) for i, label in ins]
     for o in outputs:
-        ro = real_path(o)
-        for i, label, ri in ins:
-            if ro == ri or (os.path.isdir(ri) and _within(ro, ri)):
-                where = "is also an input" if ro == ri else "lies in the input folder"
+        ro, oid = real_path(o), _file_id(o)
+        for i, label, ri, iid in ins:
+            # a hard link (or another spelling on a case-insensitive disk) is the
+            # same file under another name: same device and inode
+            same = ro == ri or (oid is not None and oid == iid)
+            if same or (os.path.isdir(ri) and _within(ro, ri)):
+                where = "is also an input" if same else "lies in the input folder"
                 return o, f"{where} {label}"
     return None
+
+
+def _file_id(path) -> tuple[int, int] | None:
+    """(device, inode) of an existing regular file (links followed), else None."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):       # missing, unreadable, a NUL in the name
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISREG(st.st_mode) else None
 
 
 def check_outputs_apart(outputs, inputs, source=None) -> None:
@@ -178,7 +190,8 @@ def _nearest_existing(path: str) -> str:
     return path
 
 
-_STAGED = re.compile(r"^(?:\.facewrap-staged-|\.tmp-)[0-9a-f]{8}-(.+)$")
+# one or more hidden prefixes: a staged file's own temporary is ".tmp-…-.facewrap-staged-…-f"
+_STAGED = re.compile(r"^(?:(?:\.facewrap-staged-|\.tmp-)[0-9a-f]{8}-)+(.+)$")
 
 
 def shown_path(path) -> str:
@@ -192,6 +205,8 @@ def shown_path(path) -> str:
     --------
     >>> shown_path("out/.facewrap-staged-0a1b2c3d-seq/.tmp-89abcdef-f.obj")
     'out/seq/f.obj'
+    >>> shown_path("/sys/.tmp-36fc7c14-.facewrap-staged-5bdf278c-fit.obj")
+    '/sys/fit.obj'
     """
     parts = os.fspath(path).split(os.sep)
     return os.sep.join(m.group(1) if (m := _STAGED.match(p)) else p for p in parts)
@@ -251,6 +266,10 @@ def check_writable(files=(), folders=(), source=None) -> None:
         if kind:   # replacing a device or a fifo with a file is never what was meant
             raise InputError(f"output {os.fspath(path)!r} is {kind}, not a "
                              f"{'folder' if is_folder else 'file'}", source or path)
+        if not is_folder and os.fspath(path).endswith((os.sep, "/")):
+            # "out/r/" names a folder: writing a file called "r" is never what was meant
+            raise InputError(f"output file {os.fspath(path)!r} ends in '/', which names a "
+                             "folder; give a file name", source or path)
         if os.path.isdir(p) and not is_folder:
             raise InputError(f"output {os.fspath(path)!r} is a folder, not a file",
                              source or path)

@@ -5,7 +5,8 @@ cannot be fitted with an :class:`~facewrap.errors.InputError` naming the file:
 :func:`survey_mesh` (repeated vertices, zero-area triangles, non-manifold edges,
 loose pieces), :func:`weld_duplicates` (exact duplicate scan vertices merged, so
 seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
-:func:`check_landmarks_on_scan`.
+:func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
+(and of each frame of a track) in one call.
 """
 
 from __future__ import annotations
@@ -15,11 +16,12 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
+from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
 __all__ = ["duplicate_map", "any_duplicate_positions", "doubled_areas", "survey_mesh", "weld_duplicates",
-           "check_landmark_spread", "check_landmarks_on_scan"]
+           "check_landmark_spread", "check_landmarks_on_scan", "check_scan"]
 
 # odd 64-bit multipliers mixing a position's three bit patterns into one hash
 _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9],
@@ -177,3 +179,63 @@ def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path)
         return [f"{path}: {int(far.sum())} landmark(s) lie off the scan surface "
                 f"(farthest: {label}, {d[worst]:.4g} away; scan size {scale:.4g})"]
     return []
+
+
+def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=None, *,
+               survey: bool = True):
+    """Every check of a scan (and its landmarks) before it is fitted.
+
+    Parameters
+    ----------
+    scan : Mesh
+    landmarks : Landmarks or None
+        The scan's landmarks; None (a track frame that follows the fit of the one
+        before) leaves out the landmark checks.
+    path, landmarks_path : path
+        The files named in errors and warnings.
+    survey : bool
+        Also merge duplicate vertices and survey the mesh (:func:`survey_mesh`);
+        off, only the refusals and the landmark warnings (a track, whose frames
+        are fitted as they are).
+
+    Returns
+    -------
+    scan : Mesh
+        Duplicate vertices merged (:func:`weld_duplicates`).
+    landmarks : Landmarks or None
+        Their vertex ids moved with the merge.
+    tree : ClosestPointTree or None
+        Of the scan, built for the landmark check (None without landmarks).
+    notes : list of str
+        One warning line per legal-but-odd feature.
+
+    Raises
+    ------
+    InputError
+        Naming the file: no faces, coordinates whose size overflows, every
+        triangle of zero area, landmarks in a line or off the surface.
+    """
+    if len(scan.triangles) == 0:
+        raise InputError("has no faces; a scan must be a surface", path)
+    size = scan.scale()
+    if not np.isfinite(size):
+        raise InputError("coordinates are too large (the bounding box overflows)", path)
+    area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
+    if size == 0 or not np.any(area2 > 1e-12 * size * size):
+        raise InputError("scan is degenerate: every triangle has zero area", path)
+    notes = []
+    if survey and landmarks is not None:
+        scan, landmarks, welded = weld_duplicates(scan, landmarks, path)
+        notes += [welded] if welded else []
+    if survey:
+        notes += survey_mesh(scan, path, "scan", areas=area2)
+        if len(scan.triangles) < 100:
+            notes.append(f"{path}: scan has only {len(scan.triangles)} triangle(s)")
+    if landmarks is None:
+        return scan, None, None, notes
+    points = landmarks.positions(scan)
+    check_landmark_spread(points, landmarks_path or path)
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    notes += check_landmarks_on_scan(points, landmarks.names, tree, size,
+                                     landmarks_path or path)
+    return scan, landmarks, tree, notes

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from facewrap.errors import InputError
+from facewrap.io.paths import check_outputs_apart
 from facewrap.jobs.kinds import JOB_KINDS, JobKind
 from facewrap.jobs.toml_text import TomlSource, read_toml
 from facewrap.jobs.values import convert_value, field_types, resolve_path
@@ -108,6 +109,9 @@ def _path_value(value, key: str, name: str, where: TomlSource, folder: Path):
     items = value if isinstance(value, list) else [value]
     if not all(items) or not items:
         raise where.error(f"[{name}] {key!r} is an empty path", name, key)
+    if any("\0" in v for v in items if isinstance(v, str)):
+        # no file system takes it ("embedded null byte", naming nothing, later)
+        raise where.error(f"[{name}] {key!r} holds a NUL character (\\u0000)", name, key)
     resolved = [resolve_path(v, folder) for v in items]
     return resolved if isinstance(value, list) else resolved[0]
 
@@ -362,4 +366,6 @@ def load_job(path):
         values[kind.settings_field] = settings
     job = require_job(values, path, kind=kind)
     kind.check_paths(job, source=path)
+    # the job file is read too: an output spelt as the job file itself would replace it
+    check_outputs_apart(kind.outputs(job), [path], source=path)
     return job, settings

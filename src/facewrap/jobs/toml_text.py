@@ -107,7 +107,8 @@ def read_toml(path) -> tuple[dict, TomlSource]:
     """
     data = read_file_bytes(path, text=True)
     try:
-        text = data.decode("utf-8")
+        # "utf-8-sig": a byte-order mark (Windows editors write one) is not a statement
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text (byte {exc.start})", path) from None
     try:

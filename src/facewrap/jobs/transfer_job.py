@@ -77,7 +77,7 @@ class TransferJobSettings:
         Also measure where the result depends on the correspondence and name
         target vertices where more markers would help.
     gltf_scale : float
-        Scale of the positions in the GLB (0.01 for cm → m).
+        Scale of the positions in the GLB (0.01 for cm → m), in (0, 1e6].
     """
     landmark_guided: bool = False
     anchor: int | None = None
@@ -91,7 +91,9 @@ class TransferJobSettings:
         "anchor": (NoneAllowed(), Interval(int, 0, None)),
         "fix_flips": Flag(),
         "ambiguity": Flag(),
-        "gltf_scale": Interval(float, 0, None, closed="neither"),
+        # a bound keeps every scaled coordinate (at most 1e15, the readers' limit)
+        # inside float32, the GLB's positions: 1e308 overflowed into a JSON error
+        "gltf_scale": Interval(float, 0, 1e6, closed="right"),
     }
 
     def __post_init__(self):

@@ -34,7 +34,6 @@ from facewrap.datasets import load_shape_folder
 from facewrap.detection.for_wrap import (confident_landmarks, detected_landmark_settings,
                                          detection_report)
 from facewrap.errors import InputError
-from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
@@ -44,8 +43,7 @@ from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import (check_landmark_spread, check_landmarks_on_scan,
-                                        doubled_areas, survey_mesh, weld_duplicates)
+from facewrap.jobs.input_checks import check_landmark_spread, check_scan, survey_mesh
 from facewrap.mesh import Mesh
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
@@ -319,29 +317,17 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         raise InputError(f"has {len(sl)} landmarks but the template landmarks "
                          f"({tl_source}) have {len(tl)}", job.scan_landmarks)
 
-    template_size, scan_size = template.scale(), scan.scale()
-    for size, where in ((template_size, job.template), (scan_size, job.scan)):
-        if not np.isfinite(size):
-            raise InputError("coordinates are too large (the bounding box overflows)",
-                             where)
-    area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
-    if scan_size == 0 or not np.any(area2 > 1e-12 * scan_size * scan_size):
-        raise InputError("scan is degenerate: every triangle has zero area", job.scan)
+    template_size = template.scale()
+    if not np.isfinite(template_size):
+        raise InputError("coordinates are too large (the bounding box overflows)",
+                         job.template)
     if template_size == 0:
         raise InputError("template is degenerate: all vertices at one point",
                          job.template)
     notes += survey_mesh(template, job.template, "template", pieces=False)
-    scan, sl, welded = weld_duplicates(scan, sl, job.scan)
-    notes += [welded] if welded else []
-    notes += survey_mesh(scan, job.scan, "scan", areas=area2)
-    if len(scan.triangles) < 100:
-        notes.append(f"{job.scan}: scan has only {len(scan.triangles)} triangle(s)")
     check_landmark_spread(tl.positions(template), job.template_landmarks)
-    scan_points = sl.positions(scan)
-    check_landmark_spread(scan_points, job.scan_landmarks or job.scan)
-    tree = ClosestPointTree(scan.vertices, scan.triangles)
-    notes += check_landmarks_on_scan(scan_points, sl.names, tree, scan_size,
-                                     job.scan_landmarks or job.scan)
+    scan, sl, tree, scan_notes = check_scan(scan, sl, job.scan, job.scan_landmarks)
+    notes += scan_notes
 
     n = template.n_vertices
     exclude, fit_mask, pinned = (
@@ -355,6 +341,10 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
             outside[exclude] = True
         exclude = np.flatnonzero(outside)
     shapes = None
+    if not job.blendshapes and settings is not None and settings.pca_components:
+        # without shapes the setting would be dropped silently: say it has no effect
+        raise InputError(f"pca_components (--pca-components) is {settings.pca_components}"
+                         " but no blendshapes are given: components of which shapes?")
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
