@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from facewrap.geometry import connected_components
-from facewrap.jobs.input_checks import (any_duplicate_positions, duplicate_map,
-                                        survey_mesh, weld_duplicates)
+from facewrap.geometry.duplicates import any_duplicate_positions, duplicate_rows
+from facewrap.jobs.input_checks import survey_mesh, weld_duplicates
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
@@ -69,12 +69,12 @@ def test_survey_names_each_oddity():
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_duplicate_check_agrees_with_duplicate_map(seed):
+def test_duplicate_check_agrees_with_duplicate_rows(seed):
     rng = np.random.default_rng(seed)
     V = rng.integers(-2, 3, size=(int(rng.integers(1, 200)), 3)).astype(float)
     if seed % 2:
         V = V + rng.normal(size=V.shape)   # all distinct
-    assert any_duplicate_positions(V) == (len(duplicate_map(V)[0]) < len(V))
+    assert any_duplicate_positions(V) == (len(duplicate_rows(V)[0]) < len(V))
     # bit patterns, as the weld compares them: -0.0 is another position than 0.0
     assert not any_duplicate_positions(np.array([[0.0, 0, 1], [-0.0, 0, 1]]))
 

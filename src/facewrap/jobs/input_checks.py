@@ -16,57 +16,13 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
+from facewrap.geometry.duplicates import any_duplicate_positions, duplicate_rows
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
-__all__ = ["duplicate_map", "any_duplicate_positions", "doubled_areas", "survey_mesh", "weld_duplicates",
+__all__ = ["doubled_areas", "survey_mesh", "weld_duplicates",
            "check_landmark_spread", "check_landmarks_on_scan", "check_scan"]
-
-# odd 64-bit multipliers mixing a position's three bit patterns into one hash
-_MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9],
-                dtype=np.uint64)
-
-
-def duplicate_map(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First occurrence of each distinct position: (unique_index, inverse)."""
-    rows = np.ascontiguousarray(V).view(np.dtype((np.void, V.dtype.itemsize * 3)))[:, 0]
-    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
-    return first, inverse.reshape(-1)
-
-
-def any_duplicate_positions(V: np.ndarray) -> bool:
-    """Whether two rows of ``V`` are bit for bit the same position.
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-
-    Returns
-    -------
-    bool
-
-    Scans rarely have duplicates, so a hash of each row's bits and one sort of the
-    hashes (integers: several times cheaper than :func:`duplicate_map`'s sort of
-    24-byte rows) answers "none" first; only when two hashes meet are rows compared.
-
-    Examples
-    --------
-    >>> any_duplicate_positions(np.array([[0, 0, 1.0], [2, 0, 0], [0, 0, 1]]))
-    True
-    >>> any_duplicate_positions(np.array([[0, 0, 1.0], [0, 0, -1]]))
-    False
-    """
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    if len(V) < 2:
-        return False
-    bits = V.view(np.uint64)
-    with np.errstate(over="ignore"):
-        h = np.sort(bits[:, 0] * _MIX[0] ^ bits[:, 1] * _MIX[1] ^ bits[:, 2] * _MIX[2])
-    if not np.any(h[1:] == h[:-1]):   # no equal hashes: no equal rows
-        return False
-    return len(duplicate_map(V)[0]) < len(V)
-
 
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
@@ -138,7 +94,7 @@ def weld_duplicates(mesh, landmarks, path):
     """
     if not any_duplicate_positions(mesh.vertices):
         return mesh, landmarks, None
-    first, inverse = duplicate_map(mesh.vertices)
+    first, inverse = duplicate_rows(mesh.vertices)
     dupes = mesh.n_vertices - len(first)
     offsets = mesh.face_offsets
     kw = mesh.corner_attributes()
