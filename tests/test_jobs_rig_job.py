@@ -336,3 +336,20 @@ def test_a_textured_rig_bakes_the_neutral_and_builds_each_scan_tree_once(person,
     for path in [n["scan"]] + [s["scan"] for s in scans]:
         V = read_mesh(path).vertices
         assert trees[np.ascontiguousarray(V, dtype=np.float64).tobytes()] == 1, path
+
+
+def test_an_expression_texture_too_small_for_the_refinement_is_named(person, tmp_path):
+    from PIL import Image
+    from facewrap.errors import InputError
+    n, scans = person["neutral"], person["scans"]
+    thin = tmp_path / "thin.png"
+    Image.new("RGB", (100000, 1), (200, 150, 120)).save(thin)
+    textures = [str(s["scan_texture"]) for s in scans]
+    textures[0] = str(thin)
+    job = person_job(person, tmp_path / "rig", texture=str(n["scan_texture"]),
+                     expression_textures=textures, texture_size=32)
+    with pytest.raises(InputError) as err:
+        run_rig_job(job)
+    assert str(thin) in str(err.value) and "too small for the texture refinement" in \
+        str(err.value)
+    assert not (tmp_path / "rig").exists()

@@ -54,6 +54,7 @@ from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_
                                     write_wrap_outputs)
 from facewrap.progress import progress
 from facewrap.rig import PERSONALISE_METHODS, TextureFlowSettings, build_rig
+from facewrap.rig.texture_flow import MIN_IMAGE_SIDE
 from facewrap.texture.tiles import file_textures, material_images
 from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
@@ -255,6 +256,14 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                "pinned": inputs["pinned"], "graph_cache": graph_cache,
                "scan_tree": inputs["scan_tree"],
                "expression_scan_trees": [e["scan_tree"] for e in expressions]}
+    if job.texture_flow:       # the refinement's images, checked at the door
+        for path, image in [(p, e["texture"])
+                            for p, e in zip(job.expression_textures, expressions)]:
+            if image is not None and min(np.shape(image)[:2]) < MIN_IMAGE_SIDE:
+                raise InputError(f"a {np.shape(image)[1]} x {np.shape(image)[0]} px image "
+                                 f"is too small for the texture refinement (at least "
+                                 f"{MIN_IMAGE_SIDE} px a side; --no-texture-flow skips it)",
+                                 path)
     template_landmarks = inputs["template_landmarks"]
     named = [e["template_landmarks"] for e in expressions if "scan" in e["detections"]]
     if template_landmarks.names is None and named:

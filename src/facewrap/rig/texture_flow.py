@@ -57,6 +57,9 @@ from facewrap.solve.factor import factorize
 __all__ = ["TextureFlowSettings", "TextureRefinement", "refine_by_texture",
            "flow_available", "FLOW_EXTRA"]
 
+#: the fewest pixels an image has along each side for the flow to run
+MIN_IMAGE_SIDE = 2
+
 #: the optional extra that installs OpenCV (headless)
 FLOW_EXTRA = "facewrap[flow]"
 #: Welsch scale of the robust re-solve, in median absolute residuals
@@ -238,7 +241,7 @@ def refine_by_texture(template: Mesh, vertices, reference_image, scan: Mesh, sca
                          f"{V0.shape}")
     for name, image in (("reference_image", reference_image), ("scan_image", scan_image)):
         shape = np.shape(image)
-        if len(shape) not in (2, 3) or min(shape[:2], default=0) < 2:
+        if len(shape) not in (2, 3) or min(shape[:2], default=0) < MIN_IMAGE_SIDE:
             raise ValueError(f"{name} must be an (H, W) or (H, W, 3) image, got shape "
                              f"{shape}")
     for name, mesh in (("template", template), ("scan", scan)):
