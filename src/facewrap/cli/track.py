@@ -36,7 +36,7 @@ from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmar
 from facewrap.progress import progress
 from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
 from facewrap.wrapping import track, write_track_outputs
-from facewrap.wrapping.track import track_output_files
+from facewrap.wrapping.track import FrameError, track_output_files
 
 __all__ = ["register", "cmd_track", "frame_warnings"]
 
@@ -162,8 +162,17 @@ def cmd_track(args) -> int:
         settings = wrap_settings_from_args(args)
         first = (detected_landmark_settings(settings) if "frame 0" in detections
                  else None)                    # millimetres off: the surface leads
-        result = track(template, meshes, tl, lms, settings, blendshapes=shapes,
-                       exclude=exclude, progress=say, first_settings=first)
+        try:
+            result = track(template, meshes, tl, lms, settings, blendshapes=shapes,
+                           exclude=exclude, progress=say, first_settings=first)
+        except FrameError as exc:   # the file the wrap's refusal is about
+            about, _, text = str(exc).partition(": ")
+            given = args.scan_landmarks or []
+            landmarks = (given[exc.frame] if exc.frame < len(given)
+                         else scans[exc.frame])          # detected, or the fit's
+            files = {"scan": scans[exc.frame], "scan landmarks": landmarks}
+            raise InputError(text if about in files else str(exc),
+                             files.get(about, scans[exc.frame])) from None
     # after the run, as wrap does: a failed track is its one error line
     notes = checked + frame_warnings(result, scans)
     for note in notes:

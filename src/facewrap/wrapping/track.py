@@ -37,7 +37,7 @@ from facewrap.wrapping.models.graph import GraphCache
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.stages import WrapResult, wrap
 
-__all__ = ["TrackResult", "track", "tracking_schedule", "wrap_following",
+__all__ = ["TrackResult", "FrameError", "track", "tracking_schedule", "wrap_following",
            "write_track_outputs"]
 
 #: landmark weight factor of frames whose landmarks are predicted from the previous
@@ -182,15 +182,18 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
         tree = ClosestPointTree(scan.vertices, scan.triangles)
         lm = scan_landmarks[i]
         given.append(lm is not None)
-        if previous is None:
-            result = wrap(template, scan, template_landmarks, lm, first_settings or s0,
-                          exclude=exclude,
-                          blendshapes=blendshapes, scan_tree=tree, graph_cache=graph_cache)
-        else:
-            result = wrap_following(template, scan, template_landmarks, lm, previous, s0,
-                                    before=frames[-2] if len(frames) > 1 else None,
-                                    exclude=exclude, blendshapes=blendshapes,
-                                    scan_tree=tree, graph_cache=graph_cache)
+        try:
+            if previous is None:
+                result = wrap(template, scan, template_landmarks, lm, first_settings or s0,
+                              exclude=exclude, blendshapes=blendshapes, scan_tree=tree,
+                              graph_cache=graph_cache)
+            else:
+                result = wrap_following(template, scan, template_landmarks, lm, previous,
+                                        s0, before=frames[-2] if len(frames) > 1 else None,
+                                        exclude=exclude, blendshapes=blendshapes,
+                                        scan_tree=tree, graph_cache=graph_cache)
+        except ValueError as exc:
+            raise FrameError(i, str(exc)) from None
         frames.append(result)
         if progress is not None:
             progress(i, result)
@@ -199,6 +202,15 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
     if frames[0].weights is not None:
         weights = np.stack([r.weights for r in frames])
     return TrackResult(frames, weights, list(frames[0].shape_names), np.array(given))
+
+
+class FrameError(ValueError):
+    """A frame's wrap refused its inputs; ``frame`` is which (0-based), the message
+    the wrap's ("scan landmarks: ...", so a caller can name the file)."""
+
+    def __init__(self, frame: int, message: str):
+        super().__init__(message)
+        self.frame = frame
 
 
 def track_output_files(folder, n_frames: int, *, prefix: str = "frame",
