@@ -187,3 +187,21 @@ def test_first_settings_are_the_first_frames_only(ramp):
     scales = [f.settings.landmark_scale for f in result.frames]
     assert scales[0] == pytest.approx(0.03) and not result.frames[0].settings.landmark_pull
     assert scales[1:] == pytest.approx([PROPAGATED_LANDMARKS] * 2)
+
+
+def test_a_frame_that_is_not_the_sequence_is_warned_about(ramp):
+    # frames without landmarks of their own follow the fit: a sphere put in as
+    # frame 2 was fitted without a word
+    import trimesh
+    from facewrap.mesh import Mesh
+    from facewrap.wrapping import WrapSettings
+    template, seq = ramp
+    V = seq[0].mesh.vertices
+    ball = trimesh.creation.icosphere(3)
+    sphere = Mesh(ball.vertices * np.linalg.norm(np.ptp(V, axis=0)) / 3 + V.mean(0),
+                  ball.faces)
+    res = track(template.mesh, [seq[0].mesh, seq[1].mesh, sphere], template.landmarks,
+                [seq[0].landmarks, None, None], WrapSettings(model="rbf"))
+    notes = [[n for n in f.warnings if "no landmarks of its own" in n] for f in res.frames]
+    assert notes[:2] == [[], []] and len(notes[2]) == 1, notes
+    assert "% of the head's size" in notes[2][0]

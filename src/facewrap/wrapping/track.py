@@ -45,6 +45,11 @@ __all__ = ["TrackResult", "FrameError", "track", "tracking_schedule", "wrap_foll
 #: over the sequence; the velocity prediction matters as much (on the sample's
 #: ramp with landmarks on frame 0 only; docs/benchmarks.md).
 PROPAGATED_LANDMARKS = 0.05
+#: a frame fitted without landmarks of its own whose fit stays farther than this
+#: fraction of the first frame's head size from its scan (p95) is warned about:
+#: another scan than the sequence's (the sample with a sphere as frame 1: 15 %; a
+#: smile of the same face under the rbf model, which cannot follow it: 3.6 %)
+FRAME_FIT_LIMIT = 0.08
 
 
 def tracking_schedule(model: str) -> list[Stage] | None:
@@ -194,6 +199,13 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
                                         scan_tree=tree, graph_cache=graph_cache)
         except ValueError as exc:
             raise FrameError(i, str(exc)) from None
+        size = (frames[0] if frames else result).mesh.scale()
+        if lm is None and result.metrics.get("fit_p95", 0.0) > FRAME_FIT_LIMIT * size:
+            result.warnings.append(
+                f"scan: the fit of this frame, which has no landmarks of its own, "
+                f"stays {result.metrics['fit_p95']:.3g} from it (p95, scan units; "
+                f"{100 * result.metrics['fit_p95'] / size:.0f} % of the head's size in frame 0): "
+                "a scan of another sequence or no face?")
         frames.append(result)
         if progress is not None:
             progress(i, result)
