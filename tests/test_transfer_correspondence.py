@@ -52,6 +52,11 @@ def test_correspondence_file_errors(tmp_path):
         Correspondence.load(junk)
     with pytest.raises(InputError, match="no such file"):
         Correspondence.load(tmp_path / "missing.npz")
+    mesh = tmp_path / "template.obj"            # a mesh given by mistake
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(InputError, match="not a facewrap correspondence") as err:
+        Correspondence.load(mesh)
+    assert "pickle" not in str(err.value)
 
 
 def test_markers_out_of_range_raise(pair):

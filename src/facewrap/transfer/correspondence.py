@@ -178,6 +178,10 @@ class Correspondence:
         """
         if not os.path.isfile(path):
             raise InputError("no such file", path)
+        with open(path, "rb") as fh:    # an .npz is a zip archive; anything else is not
+            if fh.read(4) != b"PK\x03\x04":
+                raise InputError("not a facewrap correspondence file (the .npz that "
+                                 "`facewrap transfer --correspondence` writes)", path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 if "format" not in z.files or str(z["format"]) != _FORMAT:
