@@ -401,3 +401,13 @@ def test_track_warns_of_landmarks_off_a_frame_as_wrap_does(sample, tmp_path, cap
     assert rc == 0
     assert any(ln.startswith(f"facewrap: warning: frame 0 ({mirrored}): ")
                and "lie off the scan surface" in ln for ln in warned), warned
+
+
+@pytest.mark.parametrize("bare, needle", [(b"f\n", ":5: face needs at least 3 corners"),
+                                          (b"f\r\n", ":5: face needs at least 3 corners"),
+                                          (b"v", ":5: vertex line needs 3 numbers")])
+def test_a_keyword_with_nothing_after_it_is_named_not_skipped(bare, needle, tmp_path,
+                                                              capsys):
+    mesh = tmp_path / "bare.obj"
+    mesh.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n" + bare)
+    one_line_error(capsys, facewrap("info", mesh), f"{mesh}{needle}")

@@ -190,6 +190,18 @@ class _Rows:
         return int(self.numbers[int(k)]) + 1
 
 
+def _refuse_bare_keywords(lines: _Lines, path) -> None:
+    """A ``v`` or ``f`` line with nothing after it (which the rows of a keyword,
+    a keyword and a space, do not hold) named, not skipped."""
+    length = lines.ends - lines.starts
+    bare = (length == 1) | ((length == 2) & (lines.c[1] == 13))     # (a CR before LF)
+    for keyword, what in ((b"f", "face needs at least 3 corners, found 0"),
+                          (b"v", "vertex line needs 3 numbers, found 0")):
+        hit = np.flatnonzero(bare & (lines.c[0] == keyword[0]))
+        if len(hit):
+            raise InputError(what, path, int(hit[0]) + 1)
+
+
 def _bulk_floats(rows: _Rows, width: int, what: str, path, flat=None) -> np.ndarray:
     """Parse the rows into an (n, width) float array, or name the bad line.
 
@@ -328,6 +340,7 @@ def read_obj(path) -> Mesh:
     """
     lines = _read_lines(path)
     v, vt, vn, f = (lines.rows(k) for k in (b"v", b"vt", b"vn", b"f"))
+    _refuse_bare_keywords(lines, path)
     if not len(v):
         raise InputError("no vertices ('v' lines)", path)
     if not len(f):
