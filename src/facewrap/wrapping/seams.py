@@ -121,15 +121,16 @@ def seam_weld(template: Mesh, blendshapes: dict | None = None) -> SeamWeld | Non
     # run along a cut (two border edges between the same two points) touch at a
     # point (three of ICT's lashes at one tip): each stays itself.  Splitting
     # groups can leave a neighbour without its twin edge: until nothing changes.
+    alone = np.zeros(len(V), dtype=bool)                     # copies kept apart
     while len(first) < len(V):
         weldable = (_one_material(template, inverse)                 # per copy group
                     & _along_cut_edges(template.triangles, inverse)
                     | (np.bincount(inverse) == 1))                   # (lone vertices)
         if weldable.all():
             break
-        tag = np.where(weldable[inverse], -1, np.arange(len(V))).astype(np.float64)
-        rows = np.column_stack([rows, tag])                  # the others: their own
-        first, inverse = duplicate_rows(rows)
+        alone |= ~weldable[inverse]
+        tag = np.where(alone, np.arange(len(V)), -1).astype(np.float64)
+        first, inverse = duplicate_rows(np.column_stack([rows, tag]))
     if len(first) == len(V):
         return None
     # welded vertices in the template's order (the first copy's place)

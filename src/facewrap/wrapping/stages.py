@@ -233,9 +233,10 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
     scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
                                           mask=~excluded)
-    if s.reject_boundary and border_fraction(tree) > LACY_LIMIT:
+    bordered = border_fraction(tree)
+    if s.reject_boundary and bordered > LACY_LIMIT:
         s.reject_boundary = False
-        scan_notes.append(f"scan: {100 * border_fraction(tree):.0f} % of its triangles "
+        scan_notes.append(f"scan: {100 * bordered:.0f} % of its triangles "
                           "touch a border (full of holes, or a triangle soup?): the ICP "
                           "keeps scan points near borders (reject_boundary off), the "
                           "projection still leaves them")
