@@ -12,6 +12,8 @@ degenerate triangles such as ``(0, 0, 1)``) are dropped.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
@@ -21,7 +23,7 @@ from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as
 
 __all__ = [
     "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
-    "triangle_adjacency",
+    "triangle_adjacency", "EdgeRuns", "edge_runs", "non_manifold_edge_count",
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
 ]
 
@@ -183,13 +185,66 @@ def vertex_adjacency(T_or_edges, n) -> sp.csr_matrix:
     return adjacency_matrix(unique_edges(arr, columns), n)
 
 
-def triangle_adjacency(T) -> np.ndarray:
+class EdgeRuns(NamedTuple):
+    """The half-edges of triangles in the order of their undirected edges.
+
+    One stable sort of the edge keys that everything grouping triangles by edge
+    shares (:func:`triangle_adjacency`, :func:`non_manifold_edge_count`): on a
+    million-triangle scan the sort is the cost, so a scan's tree and its input
+    checks make it once (:attr:`facewrap.geometry.ClosestPointTree.edge_runs`).
+
+    Attributes
+    ----------
+    order : (3 t,) int64
+        Half-edge ids (``3 * triangle + j`` for edge ``j``, from corner ``j`` to
+        ``j + 1``) sorted by undirected edge; the half-edges of one edge are a run,
+        in triangle order.  A self-loop (an edge of a degenerate triangle from a
+        vertex to itself) is a run of its own.
+    starts : (3 t,) bool
+        True where a run begins, in that order.
+    """
+
+    order: np.ndarray
+    starts: np.ndarray
+
+
+def edge_runs(T) -> EdgeRuns:
+    """The runs of half-edges sharing an undirected edge (see :class:`EdgeRuns`).
+
+    Parameters
+    ----------
+    T : (t, 3) int64
+
+    Returns
+    -------
+    EdgeRuns
+
+    Examples
+    --------
+    >>> runs = edge_runs([[0, 1, 2], [0, 2, 3]])
+    >>> runs.order.tolist(), runs.starts.astype(int).tolist()
+    ([0, 2, 3, 5, 1, 4], [1, 1, 0, 1, 1, 1])
+    """
+    T = as_triangles(T)
+    if len(T) == 0:
+        return EdgeRuns(np.zeros(0, np.int64), np.zeros(0, bool))
+    a, b = _half_edges(T)
+    n = int(T.max()) + 1
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))   # self-loops: unique keys
+    order, sorted_key = stable_sort_order(key)
+    return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+
+
+def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
     """Neighbouring triangle across each edge.
 
     Parameters
     ----------
     T : (t, 3) int64
         Triangles; edge ``j`` of triangle ``i`` runs from corner ``j`` to ``j + 1``.
+    runs : EdgeRuns, optional
+        :func:`edge_runs` of ``T``, when the caller has them.
 
     Returns
     -------
@@ -209,12 +264,7 @@ def triangle_adjacency(T) -> np.ndarray:
     t = len(T)
     if t == 0:
         return np.zeros((0, 3), dtype=np.int64)
-    a, b = _half_edges(T)
-    n = int(T.max()) + 1
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))   # self-loops: unique keys
-    order, sorted_key = stable_sort_order(key)
-    start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
+    order, start = runs if runs is not None else edge_runs(T)
     group_start = np.maximum.accumulate(np.where(start, np.arange(3 * t), 0))
     last = np.r_[start[1:], True]
     # next half-edge in the same group, cyclically
@@ -224,6 +274,32 @@ def triangle_adjacency(T) -> np.ndarray:
     neighbour = partner // 3
     neighbour[partner == np.arange(3 * t)] = -1
     return neighbour.reshape(t, 3)
+
+
+def non_manifold_edge_count(runs: EdgeRuns, counted=None) -> int:
+    """Edges shared by more than two triangles.
+
+    Parameters
+    ----------
+    runs : EdgeRuns
+        :func:`edge_runs` of the triangles.
+    counted : (t,) bool, optional
+        The triangles that count (for example, not those with a repeated vertex).
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> non_manifold_edge_count(edge_runs([[0, 1, 2], [0, 2, 1], [1, 0, 3]]))
+    1
+    """
+    if not len(runs.order):
+        return 0
+    weight = (np.ones(len(runs.order), np.int64) if counted is None
+              else np.asarray(counted, bool)[runs.order // 3].astype(np.int64))
+    return int((np.add.reduceat(weight, np.flatnonzero(runs.starts)) > 2).sum())
 
 
 def boundary_edges(T) -> np.ndarray:

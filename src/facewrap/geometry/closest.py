@@ -29,9 +29,9 @@ import igl
 import numpy as np
 
 from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
-from facewrap.geometry.adjacency import triangle_adjacency
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs, triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows
-from facewrap.geometry.normals import trusted_vertex_normals
+from facewrap.geometry.normals import trusted_normals_and_measures
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -183,6 +183,8 @@ class ClosestPointTree:
     vertices : (n, 3) float64, read-only
     triangles : (t, 3) int64, read-only
     vertex_normals : (n, 3) float64, read-only
+    doubled_areas, flat_triangles, edge_runs, triangle_neighbours, boundary_triangles
+        Facts of the mesh found once, on first use (the areas with the normals).
 
     Notes
     -----
@@ -210,8 +212,12 @@ class ClosestPointTree:
             raise ValueError("T must hold at least one triangle")
         self.vertices = _readonly(V)
         self.triangles = _readonly(T)
+        self._measures = None
         if vertex_normals is None:
-            normals = trusted_vertex_normals(self.vertices, self.triangles, "angle")
+            # the areas and edge lengths come with the normals: kept for the flat
+            # test and the scan's input checks
+            self._measures = trusted_normals_and_measures(self.vertices, self.triangles)
+            normals = self._measures.vertex_normals
         else:
             normals = as_vertices(vertex_normals, "vertex_normals")
             if normals.shape != V.shape:
@@ -222,15 +228,27 @@ class ClosestPointTree:
         self._tree = igl.AABB()
         self._tree.init(self.vertices, self.triangles)
 
-    @cached_property
-    def flat_triangles(self) -> np.ndarray:
-        """(t,) bool: triangles that are segments (see ``_FLAT``), found once."""
+    def _triangle_measures(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t,) doubled areas and (t,) longest squared edges of the triangles."""
+        if self._measures is not None:
+            return self._measures.doubled_areas, self._measures.longest_edges_sq
         V, T = self.vertices, self.triangles
         a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]      # (three gathers: faster
         n = cross_rows(b - a, c - a)                        # than one (t, 3, 3) one)
         longest_sq = np.max([np.einsum("ij,ij->i", e, e) for e in (b - a, c - b, a - c)],
                             axis=0)
-        return _readonly(np.einsum("ij,ij->i", n, n) <= (_FLAT * longest_sq) ** 2)
+        return np.sqrt(np.einsum("ij,ij->i", n, n)), longest_sq
+
+    @cached_property
+    def doubled_areas(self) -> np.ndarray:
+        """(t,) float64: twice each triangle's area, found once."""
+        return _readonly(self._triangle_measures()[0])
+
+    @cached_property
+    def flat_triangles(self) -> np.ndarray:
+        """(t,) bool: triangles that are segments (see ``_FLAT``), found once."""
+        double_area, longest_sq = self._triangle_measures()
+        return _readonly(double_area <= _FLAT * longest_sq)
 
     def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
@@ -249,9 +267,15 @@ class ClosestPointTree:
         closest[rows[better]] = on_edge[better]
 
     @cached_property
+    def edge_runs(self) -> EdgeRuns:
+        """The triangles' half-edges grouped by edge (:func:`~facewrap.geometry.adjacency.edge_runs`):
+        one sort for the neighbours here and the scan's non-manifold check."""
+        return edge_runs(self.triangles)
+
+    @cached_property
     def triangle_neighbours(self) -> np.ndarray:
         """(t, 3) int64 edge-neighbour triangles (-1 on the border), computed once."""
-        return _readonly(triangle_adjacency(self.triangles))
+        return _readonly(triangle_adjacency(self.triangles, self.edge_runs))
 
     @cached_property
     def boundary_triangles(self) -> np.ndarray:

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs, non_manifold_edge_count
 from facewrap.geometry.duplicates import any_duplicate_positions, duplicate_rows
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks
@@ -32,13 +33,16 @@ def doubled_areas(mesh) -> np.ndarray:
 
 
 def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
-                areas: np.ndarray | None = None) -> list[str]:
+                areas: np.ndarray | None = None, runs: EdgeRuns | None = None
+                ) -> list[str]:
     """One line per oddity of a mesh's triangles (counts; nothing is changed).
 
     ``pieces``: also report disconnected pieces (not for templates, whose eyes and
-    teeth are separate pieces by design).  ``areas``: :func:`doubled_areas` of the
-    mesh when the caller has them.  Every step is a sort or linear: one sort of the
-    edges for the non-manifold count; the pieces from two edges of each triangle.
+    teeth are separate pieces by design).  ``areas`` (:func:`doubled_areas`) and
+    ``runs`` (:func:`~facewrap.geometry.adjacency.edge_runs`) of the mesh when the
+    caller has them (a scan's :class:`~facewrap.geometry.ClosestPointTree` does).
+    Every step is a sort or linear: one sort of the edges for the non-manifold
+    count; the pieces from two edges of each triangle.
     """
     out = []
     T = mesh.triangles
@@ -52,11 +56,10 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
     flat = (area2 <= 1e-12 * scale * scale) & ~repeated
     if flat.any():
         out.append(f"{path}: {what} has {int(flat.sum())} zero-area triangle(s)")
-    keys = _edge_keys(T[~repeated] if repeated.any() else T, n)
-    # sorted keys: an edge's triangles are a run; runs longer than two are non-manifold
-    cut = np.flatnonzero(keys[1:] != keys[:-1]) + 1
-    runs = np.diff(np.concatenate([[0], cut, [len(keys)]])) if len(keys) else keys
-    nm = int((runs > 2).sum())
+    # an edge's triangles are a run; runs longer than two are non-manifold (the
+    # triangles with a repeated vertex do not count)
+    nm = non_manifold_edge_count(edge_runs(T) if runs is None else runs,
+                                 ~repeated if repeated.any() else None)
     if nm:
         out.append(f"{path}: {what} has {nm} non-manifold edge(s) (shared by more "
                    "than two triangles)")
@@ -75,15 +78,6 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
         out.append(f"{path}: {what} has {len(sizes)} disconnected pieces (the largest "
                    f"has {int(sizes.max())} of {int(used.sum())} vertices)")
     return out
-
-
-def _edge_keys(T: np.ndarray, n: int) -> np.ndarray:
-    """Sorted int64 keys ``lo * n + hi`` of the three edges of every triangle."""
-    a = T.reshape(-1)
-    b = T[:, [1, 2, 0]].reshape(-1)
-    keys = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
-    keys.sort()
-    return keys
 
 
 def weld_duplicates(mesh, landmarks, path):
@@ -176,22 +170,25 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
     size = scan.scale()
     if not np.isfinite(size):
         raise InputError("coordinates are too large (the bounding box overflows)", path)
-    area2 = doubled_areas(scan)   # welding below keeps the triangles: computed once
-    if size == 0 or not np.any(area2 > 1e-12 * size * size):
-        raise InputError("scan is degenerate: every triangle has zero area", path)
     notes = []
     if survey and landmarks is not None:
         scan, landmarks, welded = weld_duplicates(scan, landmarks, path)
         notes += [welded] if welded else []
+    # the tree's areas and edge runs serve the checks too (one pass over a million
+    # triangles, one sort of their edges); welding kept the triangles as they were
+    tree = None if landmarks is None else ClosestPointTree(scan.vertices, scan.triangles)
+    area2 = doubled_areas(scan) if tree is None else tree.doubled_areas
+    if size == 0 or not np.any(area2 > 1e-12 * size * size):
+        raise InputError("scan is degenerate: every triangle has zero area", path)
     if survey:
-        notes += survey_mesh(scan, path, "scan", areas=area2)
+        notes += survey_mesh(scan, path, "scan", areas=area2,
+                             runs=None if tree is None else tree.edge_runs)
         if len(scan.triangles) < 100:
             notes.append(f"{path}: scan has only {len(scan.triangles)} triangle(s)")
     if landmarks is None:
         return scan, None, None, notes
     points = landmarks.positions(scan)
     check_landmark_spread(points, landmarks_path or path)
-    tree = ClosestPointTree(scan.vertices, scan.triangles)
     notes += check_landmarks_on_scan(points, landmarks.names, tree, size,
                                      landmarks_path or path)
     return scan, landmarks, tree, notes
