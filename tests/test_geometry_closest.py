@@ -257,3 +257,15 @@ def test_a_collinear_triangle_is_measured_as_its_longest_edge():
     np.testing.assert_allclose(cp.distances, ref, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(cp.points - P, axis=1), cp.distances,
                                atol=1e-9)
+
+
+def test_query_finds_a_collinear_triangle_libigl_misses():
+    # found by hypothesis: libigl's tree measured the collinear triangle 1 too far
+    # and answered triangle 25 (0.207 away) for a point 0.153 from triangle 1's edge
+    V, T = soup(30, seed=49808353, degenerate=True)
+    P = near_points(V, 50, spread=1.0, seed=49808353)
+    cp = geo.closest_points(V, T, P)
+    ref = np.sqrt(brute_force_sq_dist(V, T, P).min(axis=1))
+    np.testing.assert_allclose(cp.distances, ref, atol=1e-9)
+    assert cp.triangles[49] == 1
+    check_barycentric(cp.barycentric)

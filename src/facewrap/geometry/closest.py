@@ -250,6 +250,35 @@ class ClosestPointTree:
         double_area, longest_sq = self._triangle_measures()
         return _readonly(double_area <= _FLAT * longest_sq)
 
+    @cached_property
+    def _flat_segments(self):
+        """The segment-like triangles as their longest edges, in a tree of their own:
+        ``(rows, edges, tree)``, or None when there are none.  libigl's triangle tree
+        can miss the nearest of them (it measured a collinear triangle 0.21 away
+        where its edge was 0.15), so :meth:`query` asks this tree as well."""
+        rows = np.flatnonzero(self.flat_triangles)
+        if not len(rows):
+            return None
+        T = self.triangles[rows]
+        j = _edge_lengths_sq(self.vertices[T]).argmax(axis=1)
+        edges = np.ascontiguousarray(np.stack([T[np.arange(len(T)), j],
+                                               T[np.arange(len(T)), (j + 1) % 3]], axis=1))
+        tree = igl.AABB()
+        tree.init(self.vertices, edges)
+        return rows, edges, tree
+
+    def _nearer_flat(self, P, sq_dist, tri, closest) -> None:
+        """Answers moved (in place) to a segment-like triangle where one is nearer
+        than libigl's answer."""
+        if self._flat_segments is None:
+            return
+        rows, edges, tree = self._flat_segments
+        d, k, c = tree.squared_distance(self.vertices, edges, P)
+        better = np.flatnonzero(np.asarray(d) < sq_dist)
+        sq_dist[better] = np.asarray(d)[better]
+        tri[better] = rows[np.asarray(k)[better]]
+        closest[better] = np.asarray(c)[better]
+
     def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
         place): libigl's closest point on a triangle of zero area can be off by
@@ -317,6 +346,8 @@ class ClosestPointTree:
         sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
                                                             self.triangles, P)
         sq_dist, closest = np.array(sq_dist, dtype=np.float64), np.array(closest)
+        tri = np.array(tri, dtype=np.int64)
+        self._nearer_flat(P, sq_dist, tri, closest)
         ids = self.triangles[tri]
         corners = self.vertices[ids]
         flat = self.flat_triangles[tri]

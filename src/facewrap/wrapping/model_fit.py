@@ -124,7 +124,7 @@ def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
         D, names = blendshape_basis(template.vertices, blendshapes, pca_components)
         # deltas live in the template's frame: rotate and scale them like the template
         D = D.reshape(len(V), 3, -1)
-        deltas = (similarity.scale * np.einsum("ab,nbk->nak", similarity.rotation, D)
+        deltas = (similarity.scale * np.matmul(similarity.rotation, D)
                   / frame.size).reshape(3 * len(V), -1)
     L = landmark_rows(landmarks, len(V), template.triangles)
     return IcpStart(frame, frame.to_frame(V), deltas, names, None, L,

@@ -167,7 +167,7 @@ class BlendshapeModel(DeformationModel):
     def posed_deltas(self, p: BlendshapeParams) -> np.ndarray:
         """(3n, K): the deltas as the pose moves them (``s R E d``)."""
         D = self.deltas.reshape(self.n_vertices, 3, self.n_shapes)
-        return np.einsum("ab,nbk->nak", self._linear(p), D).reshape(3 * self.n_vertices, -1)
+        return np.matmul(self._linear(p), D).reshape(3 * self.n_vertices, -1)
 
     def jacobian(self, p: BlendshapeParams, vertices=None):
         sel = slice(None) if vertices is None else np.asarray(vertices)
@@ -189,7 +189,7 @@ class BlendshapeModel(DeformationModel):
                 J[:, :, 7:10] = along[:, None, :] * dirs.T[None, :, :]
         if self.n_shapes:
             Dw = self.deltas.reshape(-1, 3, self.n_shapes)[sel]
-            J[:, :, self._w0:] = np.einsum("ab,nbk->nak", M, Dw)
+            J[:, :, self._w0:] = np.matmul(M, Dw)
         return BlockJacobian(None, J.reshape(3 * n, self.n_params))
 
     def regularizers(self, p: BlendshapeParams) -> dict:

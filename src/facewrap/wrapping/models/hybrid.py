@@ -124,7 +124,7 @@ class HybridModel(DeformationModel):
         if self.n_shapes:
             # d e_jk / dw = (R_j − I)(D_xk − D_xj)
             j = self.graph.edges[:, 0]
-            Jw = np.einsum("eab,ebk->eak", p.graph.R[j] - np.eye(3), self._D_edges)
+            Jw = np.matmul(p.graph.R[j] - np.eye(3), self._D_edges)
             out["smooth"] = (r * scale, BlockJacobian(Jg, Jw.reshape(-1, self.n_shapes))
                              * scale)
             Jb = BlockJacobian(sp.csr_matrix((self.n_shapes, self.n_graph)),
