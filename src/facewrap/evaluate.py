@@ -208,10 +208,16 @@ class LandmarkErrors:
     errors : (k,) float64
     names : tuple of str
         One per pair (indices as text when unnamed).
+    positions, targets : (k, 3) float64 or None
+        The paired positions the errors are measured between (e.g. result and
+        scan landmarks), kept so that their plausibility can be checked
+        (``facewrap evaluate`` warns of a mirrored or mis-paired file).
     """
 
     errors: np.ndarray
     names: tuple
+    positions: np.ndarray | None = None
+    targets: np.ndarray | None = None
 
     def summary(self, prefix: str = "landmark_") -> dict:
         """Statistics, the worst landmark and every error by name."""
@@ -238,8 +244,9 @@ def landmark_errors(positions, targets, names=None) -> LandmarkErrors:
 
     Examples
     --------
-    >>> landmark_errors([[0, 0, 0], [1, 1, 1.]], [[3, 4, 0], [1, 1, 1.]]).errors.tolist()
-    [5.0, 0.0]
+    >>> e = landmark_errors([[0, 0, 0], [1, 1, 1.]], [[3, 4, 0], [1, 1, 1.]])
+    >>> e.errors.tolist(), e.targets[0].tolist()
+    ([5.0, 0.0], [3.0, 4.0, 0.0])
     """
     A = as_points(positions, "positions")
     B = as_points(targets, "targets")
@@ -249,7 +256,7 @@ def landmark_errors(positions, targets, names=None) -> LandmarkErrors:
         tuple(str(n) for n in names)
     if len(names) != len(A):
         raise ValueError(f"{len(names)} names for {len(A)} landmarks")
-    return LandmarkErrors(np.linalg.norm(A - B, axis=1), names)
+    return LandmarkErrors(np.linalg.norm(A - B, axis=1), names, A, B)
 
 
 # -- ground truth --------------------------------------------------------------------------------

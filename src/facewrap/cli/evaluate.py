@@ -23,7 +23,8 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
                             infer_units, resolve_units, units_note)
 
-__all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "register", "cmd_evaluate", "read_ground_truth"]
+__all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "landmarks_mispaired",
+           "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
 _HEATMAPS = {
@@ -119,6 +120,55 @@ def landmarks_off_scan(scan, landmarks, path) -> list[str]:
                 f"{format_distance(float(np.median(d)), unit)} from it, scan diagonal "
                 f"{format_distance(size, unit)}): another scan's file, or other units?"]
     return []
+
+
+def landmarks_mispaired(landmarks, path, result_path, show: int = 3) -> list[str]:
+    """A warning when the scan's landmarks pair with the result's only in a mirror
+    image, or some pair wrongly: their errors would read as a bad fit.
+
+    The wrap's own checks decide (:func:`~facewrap.wrapping.plausibility.check_reflection`,
+    then :func:`~facewrap.wrapping.plausibility.mispaired_landmarks`): a mirrored
+    scan or landmark file (left and right swapped) matches only a mirror image;
+    a wrong order or numbering leaves landmarks far off after the best similarity,
+    or fitting far better swapped.
+
+    Parameters
+    ----------
+    landmarks : LandmarkErrors
+        The evaluation's pairs (``positions`` on the result, ``targets`` on the scan).
+    path, result_path : path
+        The scan's and the result's landmark files, for the message.
+    show : int
+        How many flagged landmarks to name.
+
+    Returns
+    -------
+    list of str
+        One line naming ``path``, or empty (also when fewer than four pairs or
+        landmarks all at one point leave nothing to compare).
+    """
+    # deferred: the wrap's package is not loaded by evaluate without landmarks
+    from facewrap.wrapping.plausibility import (check_reflection, landmark_spread,
+                                                mispaired_landmarks)
+    X, Y = landmarks.positions, landmarks.targets
+    if X is None or len(X) < 4 or not min(landmark_spread(X), landmark_spread(Y)) > 0:
+        return []
+    if check_reflection(X, Y, allow_mirrored=True):
+        return [f"{path}: the landmarks match the result's ({result_path}) only in a "
+                "mirror image: is the scan or a landmark file mirrored (left and right "
+                "swapped)? The landmark errors measure that, not the fit"]
+    _, residuals, flagged = mispaired_landmarks(X, Y)
+    bad = np.flatnonzero(flagged)
+    if not len(bad):
+        return []
+    worst = bad[np.argsort(-residuals[bad], kind="stable")[:show]]
+    named = "; ".join(f"landmark {landmarks.names[i]} off by {100 * residuals[i]:.0f} %"
+                      for i in worst)
+    return [f"{path}: {len(bad)} of {len(X)} landmarks are far from the result's "
+            f"({result_path}) after the best similarity, or fit far better swapped "
+            f"({named}{'; ...' if len(bad) > show else ''}, of the landmarks' spread): "
+            "mis-paired (wrong order or numbering)? The landmark errors measure that, "
+            "not the fit"]
 
 
 def view_axes(up, front, options: str = "--up/--front"):
@@ -274,6 +324,8 @@ def cmd_evaluate(args) -> int:
     ev = evaluate(result, scan, ground_truth=gt, result_landmarks=lm_r,
                   scan_landmarks=lm_s, reference=ref, mask=mask,
                   exclude_border=not args.keep_border)
+    if ev.landmarks is not None:
+        odd += landmarks_mispaired(ev.landmarks, args.scan_landmarks, args.result_landmarks)
     if args.units == "auto" and run_units is not None:
         unit, source = run_units
     else:

@@ -16,7 +16,7 @@ The template (:mod:`.template`)
 Scans with ground truth (:mod:`.scan`), their skin texture (:mod:`.skin`)
     :func:`make_scan`, :class:`SampleScan`
 Sequences (:mod:`.sequence`) and files (:mod:`.files`)
-    :func:`make_sequence`, :func:`write_sample`
+    :func:`make_sequence`, :func:`write_sample`, :func:`sample_paths`
 
 Examples
 --------
@@ -28,7 +28,7 @@ Examples
 (True, True)
 """
 
-from facewrap.sample.files import write_sample
+from facewrap.sample.files import sample_paths, write_sample
 from facewrap.sample.layout import LANDMARK_NAMES
 from facewrap.sample.scan import SampleScan, make_scan
 from facewrap.sample.sequence import make_sequence
@@ -37,5 +37,5 @@ from facewrap.sample.template import SampleTemplate, make_template
 
 __all__ = [
     "EXPRESSIONS", "LANDMARK_NAMES", "SampleTemplate", "SampleScan",
-    "make_template", "make_scan", "make_sequence", "write_sample",
+    "make_template", "make_scan", "make_sequence", "sample_paths", "write_sample",
 ]
