@@ -19,6 +19,7 @@ from facewrap.errors import InputError
 from facewrap.geometry.adjacency import EdgeRuns, edge_runs, non_manifold_edge_count
 from facewrap.geometry.duplicates import any_duplicate_positions, duplicate_rows
 from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 
@@ -27,9 +28,7 @@ __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates",
 
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
-    V, T = mesh.vertices, mesh.triangles
-    return np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
-                          axis=1)
+    return 2.0 * trusted_face_areas(mesh.vertices, mesh.triangles)
 
 
 def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
