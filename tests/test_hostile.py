@@ -1049,6 +1049,13 @@ def animate_over_start(ctx):
     return Run(start, ["animate", start, p["template"], "--frames", "2", "-o", ctx.dir])
 
 
+@case("outputs", "sample into a folder holding a template.obj of the user's", "error",
+      "already exists")
+def sample_over_users_file(ctx):
+    mine = ctx.write("template.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    return Run(mine, ["sample", ctx.dir])
+
+
 # outputs that cannot be created (a path through a file, a file where a folder goes):
 # name -> (what, build(ctx, sample copy, file in the way) -> (culprit, argv))
 CANNOT_CREATE = {
