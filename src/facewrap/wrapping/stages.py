@@ -374,6 +374,10 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     moved with the skin nearest to them and kept on their side of it
     (:mod:`facewrap.wrapping.follow`).
 
+    Folds the first pass leaves (its regions share a budget of 2 % of the
+    vertices) are unfolded once more, each cluster in a region as wide as it
+    needs (:data:`_WIDE_UNFOLD`), and projected again from there.
+
     ``rest`` (n, 3) is the pose a triangle is turned over from: the expression the
     blend weights make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape
     is not "unfolded"; default the aligned template.
@@ -390,18 +394,21 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     out = vertices
     if problem.settings.unfold:
         upright = aligned if rest is None else rest
-        out, relaxed = relax_flips(template, upright, out, fixed=roles == PINNED,
-                                   order=_UNFOLD_ORDER)
-        if relaxed.any() and projection is not None:
-            # onto the scan again from the unfolded pose, keeping its orientation: the
-            # fit is as tight as before where that folds nothing
-            unfolded = out
-            projection = project(problem, out, upright=upright)
-            out = projection.vertices
-            out, again = _unfold_blended(problem, upright, out, projection)
-            out, back = step_back_new_folds(template.triangles, upright, unfolded, out,
-                                            roles == PINNED)
-            relaxed |= again | back
+        relaxed = np.zeros(len(out), dtype=bool)
+        for extra in ({}, _WIDE_UNFOLD):
+            unfolded, more = relax_flips(template, upright, out, fixed=roles == PINNED,
+                                         order=_UNFOLD_ORDER, **extra)
+            out = unfolded
+            if more.any() and projection is not None:
+                # onto the scan again from the unfolded pose, keeping its orientation:
+                # the fit is as tight as before where that folds nothing
+                projection = project(problem, unfolded, upright=upright)
+                out, again = _unfold_blended(problem, upright, projection.vertices,
+                                             projection)
+                out, back = step_back_new_folds(template.triangles, upright, unfolded,
+                                                out, roles == PINNED)
+                more |= again | back
+            relaxed |= more
         summary["unfolded"] = int(relaxed.sum())
         # what smoothing cannot unfold (slivers), one corner each
         out, settled = settle_turned_corners(template, upright, out,
@@ -410,6 +417,11 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     out = pin(problem, out, similarity, projection)
     out = follow_skin(template.triangles, aligned, out, roles)
     return out, summary
+
+
+#: the second unfolding pass: each fold cluster the first left in a region of its
+#: own, as wide as it needs up to 30 rings, with no budget shared among them
+_WIDE_UNFOLD = {"rounds": 30, "most_relaxed": None, "fewest": True, "each_region": True}
 
 
 def _unfold_blended(problem: WrapProblem, upright, vertices, projection: Projection):
