@@ -32,7 +32,7 @@ from facewrap.mesh import Mesh
 from facewrap.wrapping.blend import extension_operator, smooth_extension
 from facewrap.wrapping.unfold import step_back_new_folds
 
-__all__ = ["Projection", "project_to_surface", "prism_projection",
+__all__ = ["Projection", "project_to_surface", "prism_projection", "seen_fit_p95",
            "METHOD_NONE", "METHOD_PRISM", "METHOD_RAY", "METHOD_CLOSEST"]
 
 METHOD_NONE, METHOD_PRISM, METHOD_RAY, METHOD_CLOSEST = 0, 1, 2, 3
@@ -347,3 +347,20 @@ def project_to_surface(template: Mesh, tree: ClosestPointTree, *, vertices=None,
     tri[~ok] = -1
     bary[~ok] = 0.0
     return Projection(out, ok, tri, bary, method, np.linalg.norm(out - Vt, axis=1))
+
+
+def seen_fit_p95(tree: ClosestPointTree, points) -> float:
+    """95th percentile of the distances from ``points`` (k, 3) to the scan, over
+    those whose closest point is off the scan's border (as a fit is judged: a
+    vertex beyond the scan's edge is not fitted by landing nearer to it); 0 when
+    there are none.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0.]])
+    >>> seen_fit_p95(ClosestPointTree(V, np.array([[0, 1, 2]])), [[1, 1, 0.5]])
+    0.0
+    """
+    cp = tree.query(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    seen = ~tree.boundary_triangles[cp.triangles]
+    return float(np.percentile(cp.distances[seen], 95)) if seen.any() else 0.0

@@ -37,12 +37,13 @@ from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_l
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.blend import smooth_extension
-from facewrap.wrapping.projection import Projection, project_to_surface
+from facewrap.wrapping.projection import Projection, project_to_surface, seen_fit_p95
 from facewrap.wrapping.seams import seam_weld
 from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
                                      vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
-from facewrap.wrapping.unfold import relax_flips, settle_turned_corners, step_back_new_folds
+from facewrap.wrapping.unfold import (relax_flips, settle_turned_corners,
+                                     step_back_new_folds, unfold_among)
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
@@ -374,7 +375,8 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     moved with the skin nearest to them and kept on their side of it
     (:mod:`facewrap.wrapping.follow`).
 
-    ``rest`` (n, 3) is the pose a triangle is turned over from: the expression the
+    Folds the first pass leaves (its regions share a budget) are unfolded again,
+    each in a region as wide as it needs (:data:`_WIDE_UNFOLD`).  ``rest`` (n, 3) is the pose a triangle is turned over from: the expression the
     blend weights make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape
     is not "unfolded"; default the aligned template.
 
@@ -390,43 +392,51 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     out = vertices
     if problem.settings.unfold:
         upright = aligned if rest is None else rest
-        out, relaxed = relax_flips(template, upright, out, fixed=roles == PINNED,
-                                   order=_UNFOLD_ORDER)
-        if relaxed.any() and projection is not None:
-            # onto the scan again from the unfolded pose, keeping its orientation: the
-            # fit is as tight as before where that folds nothing
-            unfolded = out
-            projection = project(problem, out, upright=upright)
-            out = projection.vertices
-            out, again = _unfold_blended(problem, upright, out, projection)
-            out, back = step_back_new_folds(template.triangles, upright, unfolded, out,
-                                            roles == PINNED)
-            relaxed |= again | back
-        summary["unfolded"] = int(relaxed.sum())
-        # what smoothing cannot unfold (slivers), one corner each
-        out, settled = settle_turned_corners(template, upright, out,
-                                             movable=(roles != PINNED) & (roles != PART))
-        summary["settled"] = int(settled.sum())
+        relaxed, settled = np.zeros((2, len(out)), dtype=bool)
+        for extra in ({}, _WIDE_UNFOLD):
+            out, more = relax_flips(template, upright, out, fixed=roles == PINNED,
+                                    order=_UNFOLD_ORDER, **extra)
+            if more.any() and projection is not None:
+                out, projection, again = _project_unfolded(
+                    problem, upright, out, projection, more if extra else None)
+                more |= again
+            relaxed |= more
+            # slivers, one corner each (the second pass would smooth wide in vain)
+            out, corners = settle_turned_corners(
+                template, upright, out, movable=(roles != PINNED) & (roles != PART))
+            settled |= corners
+        summary["unfolded"], summary["settled"] = int(relaxed.sum()), int(settled.sum())
     out = pin(problem, out, similarity, projection)
     out = follow_skin(template.triangles, aligned, out, roles)
     return out, summary
 
 
-def _unfold_blended(problem: WrapProblem, upright, vertices, projection: Projection):
-    """Triangles the second projection's blend turned over, unfolded among the
-    vertices that were not projected (the landing points stay on the scan); kept
-    only when fewer skin triangles are turned over than before.  Returns the
-    positions and the vertices that moved."""
-    template, roles = problem.template, problem.roles
-    fixed = (roles == PINNED) | projection.projected
-    out, again = relax_flips(template, upright, vertices, fixed=fixed,
-                             order=_UNFOLD_ORDER, fewest=True)
-    skin = (roles[template.triangles] != PART).all(axis=1)
-    if not again.any() or (turned_triangles(out, upright, template.triangles)[skin].sum()
-                           >= turned_triangles(vertices, upright,
-                                               template.triangles)[skin].sum()):
-        return vertices, np.zeros(len(vertices), dtype=bool)
-    return out, again
+#: the second unfolding pass: each fold the first left in a region of its own, as
+#: wide as it needs up to 12 rings (kept only if it unfolds), no budget shared
+_WIDE_UNFOLD = {"rounds": 12, "most_relaxed": None, "each_region": True}
+
+
+def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Projection,
+                      region=None) -> tuple[np.ndarray, Projection, np.ndarray]:
+    """``unfolded`` onto the scan again, keeping the orientation of ``upright``
+    (what the new blend turns over unfolded among the vertices not projected,
+    what still folds stepped back toward ``unfolded``).  With ``region`` (n,)
+    bool, either every vertex or only the region's take the new landing points,
+    whichever fits tighter (:func:`~facewrap.wrapping.projection.seen_fit_p95`):
+    landing everything again can lose more elsewhere than the region gains.
+    Returns the positions, projection and moved vertices."""
+    T, roles = problem.template.triangles, problem.roles
+    again = project(problem, unfolded, upright=upright)
+    landed, moved = unfold_among(problem.template, upright, again.vertices,
+                                 (roles != PINNED) & ~again.projected,
+                                 counted=(roles[T] != PART).all(axis=1))
+    picks = [(landed, again, moved)] + ([] if region is None else [
+        (np.where(region[:, None], landed, unfolded), projection, moved & region)])
+    stepped = [(step_back_new_folds(T, upright, unfolded, out, roles == PINNED), kept,
+                moved) for out, kept, moved in picks]
+    (out, back), kept, moved = min(stepped, key=lambda c: seen_fit_p95(
+        problem.tree, c[0][0][roles == FITTED]))     # the first of equals: everything
+    return out, kept, moved | back
 
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
