@@ -376,9 +376,10 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     (:mod:`facewrap.wrapping.follow`).
 
     Folds the first pass leaves (its regions share a budget) are unfolded again,
-    each in a region as wide as it needs (:data:`_WIDE_UNFOLD`).  ``rest`` (n, 3) is the pose a triangle is turned over from: the expression the
-    blend weights make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape
-    is not "unfolded"; default the aligned template.
+    each in a region as wide as it needs (:data:`_WIDE_UNFOLD`).  ``rest`` (n, 3)
+    is the pose a triangle is turned over from: the expression the blend weights
+    make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape is not
+    "unfolded"; default the aligned template.
 
     Returns
     -------
