@@ -53,9 +53,10 @@ def ict_available() -> bool:
 
 
 def ict_kit():
-    """The expanded ICT-FaceKit (expanded once into facewrap's cache folder)."""
+    """The expanded ICT-FaceKit (expanded once into facewrap's cache folder, and
+    again if that folder went: a benchmark with a temporary cache removes it)."""
     global _KIT
-    if _KIT is None:
+    if _KIT is None or not Path(_KIT.folder).is_dir():
         from facewrap.datasets import ICTFaceKit, expand_ict_facekit
         folder = expand_ict_facekit(ICT_COMPACT)
         _KIT = ICTFaceKit(folder)
