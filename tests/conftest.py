@@ -65,3 +65,18 @@ def facewrap(*argv) -> int:
     """Run ``facewrap ARGV`` in-process; returns the exit status."""
     from facewrap.cli import main
     return main([str(a) for a in argv])
+
+
+def write_mirrored_obj(source: Path, target: Path) -> Path:
+    """``source``'s OBJ text mirrored (x -> -x, each face's corners reversed so it
+    still faces outward) into ``target``; every other line as it is."""
+    lines = []
+    for ln in Path(source).read_text().splitlines(keepends=True):
+        if ln.startswith("v "):
+            x, y, z = (float(t) for t in ln.split()[1:4])
+            ln = f"v {-x!r} {y!r} {z!r}\n"
+        elif ln.startswith("f "):
+            ln = "f " + " ".join(reversed(ln.split()[1:])) + "\n"
+        lines.append(ln)
+    Path(target).write_text("".join(lines))
+    return Path(target)

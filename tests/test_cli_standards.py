@@ -25,7 +25,7 @@ from facewrap.io import read_mesh
 from facewrap.io.landmarks import read_landmarks
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.sample import make_scan, make_template, sample_paths, write_sample
-from conftest import facewrap
+from conftest import facewrap, write_mirrored_obj
 
 
 def digest(folder: Path) -> dict:
@@ -107,16 +107,7 @@ def test_a_mirrored_landmark_file_is_named(fitted, tmp_path, capsys):
 def test_a_mirrored_scan_is_named(fitted, tmp_path, capsys):
     """The scan and its landmarks mirrored (x -> -x): the fit's landmarks match them
     only mirrored back."""
-    lines = []
-    for ln in fitted["scan"].read_text().splitlines(keepends=True):
-        if ln.startswith("v "):
-            x, y, z = (float(t) for t in ln.split()[1:4])
-            ln = f"v {-x!r} {y!r} {z!r}\n"
-        elif ln.startswith("f "):
-            ln = "f " + " ".join(reversed(ln.split()[1:])) + "\n"
-        lines.append(ln)
-    scan = tmp_path / "mirrored.obj"
-    scan.write_text("".join(lines))
+    scan = write_mirrored_obj(fitted["scan"], tmp_path / "mirrored.obj")
     landmarks = tmp_path / "mirrored_landmarks.txt"
     np.savetxt(landmarks, np.loadtxt(fitted["scan_landmarks"]) * [-1.0, 1.0, 1.0])
     assert facewrap(*evaluate_argv(fitted, landmarks, scan, "-q")) == 0

@@ -22,7 +22,7 @@ from facewrap.cli import main
 from facewrap.io.obj import write_obj
 from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template, write_sample
-from conftest import facewrap
+from conftest import facewrap, write_mirrored_obj
 
 
 def grid(n: int = 4, size: float = 100.0) -> Mesh:
@@ -384,16 +384,7 @@ def test_evaluate_names_the_landmark_file_that_disagrees(sample, tmp_path, capsy
 def test_track_warns_of_landmarks_off_a_frame_as_wrap_does(sample, tmp_path, capsys):
     """A mirrored scan under unmirrored landmarks: wrap warned that 51 landmarks lie
     off the scan, track fitted it without a word."""
-    out = []
-    for ln in sample["scan"].read_text().splitlines(keepends=True):
-        if ln.startswith("v "):
-            x, y, z = (float(t) for t in ln.split()[1:4])
-            ln = f"v {-x!r} {y!r} {z!r}\n"
-        elif ln.startswith("f "):
-            ln = "f " + " ".join(reversed(ln.split()[1:])) + "\n"
-        out.append(ln)
-    mirrored = tmp_path / "mirrored.obj"
-    mirrored.write_text("".join(out))
+    mirrored = write_mirrored_obj(sample["scan"], tmp_path / "mirrored.obj")
     rc = facewrap("track", sample["template"], mirrored, "--template-landmarks",
                   sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
                   "--model", "rbf", "-o", tmp_path / "seq", "-q")

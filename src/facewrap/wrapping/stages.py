@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from facewrap.evaluate import surface_distances
-from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
+from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
