@@ -3,12 +3,14 @@
 The pipeline (SPEC §1–§2), one named function per stage, each testable alone:
 
     :func:`prepare_wrap`  the inputs checked, landmarks paired, the scan's tree
+                          (:mod:`.problem`)
     :func:`align`         landmark similarity (Umeyama), optionally refined by rigid ICP
     :func:`fit_model`     the model of the registry entry: closed form (rigid, rbf)
                           or coarse pre-fit + non-rigid ICP (:mod:`.model_fit`)
     :func:`pull_landmarks` landmarks left far from their targets pulled to them
     :func:`project`       onto the scan along normals, smooth where not projected
     :func:`finish_fit`    pinned vertices back, folds unfolded, parts follow the skin
+                          (:mod:`.finish`, with :func:`project`)
     :func:`fit_metrics`   distances to the scan and landmark errors
 
 :func:`wrap` runs them in this order and returns a :class:`WrapResult` with the
@@ -19,31 +21,24 @@ happened at each stage, timings and metrics; nothing here reads or writes files.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from facewrap.evaluate import surface_distances
 from facewrap.geometry import ClosestPointTree, connected_components
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
+from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
-from facewrap.wrapping.follow import follow_skin
+from facewrap.wrapping.finish import finish_fit, pin, project
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
-from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
-                                           check_scale, check_unscaled_size, checked_scan)
-from facewrap.wrapping.models import ModelSpec, model_spec
-from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
-from facewrap.wrapping.blend import smooth_extension
-from facewrap.wrapping.projection import Projection, project_to_surface, seen_fit_p95
+from facewrap.wrapping.models.graph import GraphCache
+from facewrap.wrapping.problem import WrapProblem, alignment_weights, prepare_wrap
+from facewrap.wrapping.projection import Projection
 from facewrap.wrapping.seams import seam_weld
-from facewrap.wrapping.roles import (FITTED, PART, PINNED, cached_hidden_surface,
-                                     vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
-from facewrap.wrapping.unfold import (relax_flips, settle_turned_corners,
-                                     step_back_new_folds, unfold_among)
 from facewrap.wrapping.warp import pull_to_landmarks
 
 __all__ = ["WrapResult", "WrapProblem", "wrap", "fit_metrics", "prepare_wrap", "align",
@@ -131,123 +126,6 @@ def fit_metrics(vertices, tree: ClosestPointTree, landmark_positions=None,
         out.update(landmark_mean=float(e.mean()), landmark_max=float(e.max()))
     return out
 
-
-@dataclass(frozen=True, eq=False)
-class WrapProblem:
-    """The checked inputs of a wrap (made by :func:`prepare_wrap`).
-
-    Attributes
-    ----------
-    template : Mesh
-    scan : Mesh
-        The scan as fitted: without duplicated faces, faces turned the template's
-        way (see ``warnings``).
-    tree : ClosestPointTree
-        Its tree.
-    landmarks : Landmarks
-        Template landmarks on the mesh that have a scan partner, in pair order.
-    sources : (l, 3) float64
-        Their positions on the template.
-    targets : (l, 3) float64
-        Their partners' positions on the scan.
-    alignment_weights : (l,) float64
-        Weights of the pairs in the similarity.
-    roles : (n,) int8
-        Role of each template vertex (:func:`facewrap.wrapping.roles.vertex_roles`).
-    excluded : (n,) bool
-        Template vertices not pulled onto the scan (``roles != FITTED``).
-    blendshapes : dict or None
-    settings : WrapSettings
-        With ``model`` resolved from "auto".
-    spec : ModelSpec
-        The model's registry entry.
-    graph_cache : GraphCache
-    warnings : tuple of str
-        The plausibility checks' warnings.
-    """
-    template: Mesh
-    scan: Mesh
-    tree: ClosestPointTree
-    landmarks: Landmarks
-    sources: np.ndarray
-    targets: np.ndarray
-    alignment_weights: np.ndarray
-    roles: np.ndarray
-    excluded: np.ndarray
-    blendshapes: dict | None
-    settings: WrapSettings
-    spec: ModelSpec
-    graph_cache: GraphCache
-    warnings: tuple = ()
-
-
-def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
-                 scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
-                 exclude=None, fit_mask=None, pinned=None, blendshapes=None,
-                 scan_tree: ClosestPointTree | None = None,
-                 graph_cache: GraphCache | None = None) -> WrapProblem:
-    """Check a wrap's inputs, resolve its model and pair its landmarks.
-
-    Parameters are those of :func:`wrap`.
-
-    Returns
-    -------
-    WrapProblem
-
-    Raises
-    ------
-    ValueError
-        For a model that needs blendshapes without them, fewer than 3 landmark
-        pairs, template landmarks far off the template, landmarks that only a
-        mirror image matches (unless ``settings.allow_mirrored``), or a bad
-        ``exclude``, ``fit_mask`` or ``pinned``.
-    """
-    s = replace(settings or WrapSettings())
-    spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
-    s.model = spec.name
-    if spec.needs_blendshapes and not blendshapes:
-        raise ValueError(f"model {s.model!r} needs blendshapes")
-    if not template_landmarks.on_mesh:
-        template_landmarks = _snapped_template_landmarks(template, template_landmarks)
-    try:
-        ia, ib = pair_landmarks(template_landmarks, scan_landmarks, ("template", "scan"))
-    except ValueError as exc:  # say what it is about, so a job can name the file
-        raise ValueError(f"scan landmarks: {exc}") from None
-    if len(ia) < 3:
-        raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
-    hidden = (cached_hidden_surface(template.vertices, template.triangles)
-              if not s.fit_hidden and fit_mask is None else None)
-    roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
-                         pinned=pinned)
-    excluded = roles != FITTED
-    template_points = template_landmarks.positions(template)
-    scan_points = scan_landmarks.positions(scan)
-    weights = alignment_weights(template_landmarks, ia)
-    notes, similarity = check_landmarks(template_landmarks, template_points,
-                                        scan_landmarks, scan_points, (ia, ib), weights,
-                                        scale=s.scale, allow_mirrored=s.allow_mirrored)
-    aligned = None
-    if similarity is not None:
-        notes += check_scale(similarity.scale)
-        aligned = similarity.apply(template.vertices)
-    if not s.scale:
-        notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
-    scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
-                                          mask=~excluded)
-    bordered = border_fraction(tree)
-    if s.reject_boundary and bordered > LACY_LIMIT:
-        s.reject_boundary = False
-        scan_notes.append(f"scan: {100 * bordered:.0f} % of its triangles "
-                          "touch a border (full of holes, or a triangle soup?): the ICP "
-                          "keeps scan points near borders (reject_boundary off), the "
-                          "projection still leaves them")
-    return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
-                       template_points[ia], scan_points[ib], weights, roles, excluded,
-                       blendshapes, s, spec,
-                       DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,
-                       tuple(notes + scan_notes))
-
-
 def align(problem: WrapProblem, initial: WrapResult | None = None) -> Similarity:
     """Template → scan similarity: from the landmark pairs (Umeyama) or a previous
     result, refined by trimmed rigid ICP when ``settings.rigid_refine``."""
@@ -315,130 +193,6 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
         moved[excluded] = V[excluded] + mean[island] / count[island, None]
     return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
                    "mean": float(pulls.mean()), "max": float(pulls.max())}
-
-
-#: Smoothing order of unfolding and pinning (harmonic): a biharmonic relaxation
-#: overshoots and unfolds less (ICT's face region onto james: 12 triangles left
-#: flipped, against 0).
-_UNFOLD_ORDER = 1
-
-
-def project(problem: WrapProblem, vertices, upright=None, reference=None
-            ) -> Projection | None:
-    """Projection onto the scan (None when ``settings.project`` is off); ``upright``:
-    positions whose triangle orientation it must keep; ``reference``: the
-    orientation its biharmonic fill must keep (see
-    :func:`~facewrap.wrapping.projection.project_to_surface`)."""
-    s = problem.settings
-    if not s.project:
-        return None
-    return project_to_surface(problem.template, problem.tree, vertices=vertices,
-                              mask=~problem.excluded, max_distance=s.max_distance,
-                              max_normal_angle=s.max_normal_angle,
-                              blend_order=s.blend_order, upright=upright,
-                              reference=reference)
-
-
-def pin(problem: WrapProblem, vertices, similarity: Similarity,
-        projection: Projection | None) -> np.ndarray:
-    """Pinned vertices back where ``similarity`` puts them, the rest blended.
-
-    Projected vertices stay on the scan; pinned ones move to their aligned
-    template positions exactly; every other vertex takes the harmonic
-    extension of those two displacements, so nothing tears where pinned and
-    fitted regions meet (a biharmonic one overshoots across the large regions
-    between them).
-
-    Returns
-    -------
-    (n, 3) float64
-        ``vertices`` unchanged when nothing is pinned.
-    """
-    pinned = problem.roles == PINNED
-    if not pinned.any():
-        return vertices
-    template = problem.template
-    known = pinned.copy()
-    if projection is not None:
-        known |= projection.projected
-    displacement = np.zeros_like(vertices)
-    displacement[pinned] = similarity.apply(template.vertices[pinned]) - vertices[pinned]
-    return vertices + smooth_extension(template, displacement, known,
-                                       order=_UNFOLD_ORDER)
-
-
-def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
-               projection: Projection | None, rest=None) -> tuple[np.ndarray, dict]:
-    """The last stage: triangles the fit turned over unfolded (``settings.unfold``,
-    :func:`~facewrap.wrapping.unfold.relax_flips`) and the result projected
-    again from there, pinned vertices put back (:func:`pin`), the template's parts
-    moved with the skin nearest to them and kept on their side of it
-    (:mod:`facewrap.wrapping.follow`).
-
-    Folds the first pass leaves (its regions share a budget) are unfolded again,
-    each in a region as wide as it needs (:data:`_WIDE_UNFOLD`).  ``rest`` (n, 3)
-    is the pose a triangle is turned over from: the expression the blend weights
-    make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape is not
-    "unfolded"; default the aligned template.
-
-    Returns
-    -------
-    vertices : (n, 3) float64
-    summary : dict
-        ``pinned`` and ``unfolded`` (vertices).
-    """
-    template, roles = problem.template, problem.roles
-    aligned = similarity.apply(template.vertices)
-    summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
-    out = vertices
-    if problem.settings.unfold:
-        upright = aligned if rest is None else rest
-        relaxed, settled = np.zeros((2, len(out)), dtype=bool)
-        for extra in ({}, _WIDE_UNFOLD):
-            out, more = relax_flips(template, upright, out, fixed=roles == PINNED,
-                                    order=_UNFOLD_ORDER, **extra)
-            if more.any() and projection is not None:
-                out, projection, again = _project_unfolded(
-                    problem, upright, out, projection, more if extra else None)
-                more |= again
-            relaxed |= more
-            # slivers, one corner each (the second pass would smooth wide in vain)
-            out, corners = settle_turned_corners(
-                template, upright, out, movable=(roles != PINNED) & (roles != PART))
-            settled |= corners
-        summary["unfolded"], summary["settled"] = int(relaxed.sum()), int(settled.sum())
-    out = pin(problem, out, similarity, projection)
-    out = follow_skin(template.triangles, aligned, out, roles)
-    return out, summary
-
-
-#: the second unfolding pass: each fold the first left in a region of its own, as
-#: wide as it needs up to 12 rings (kept only if it unfolds), no budget shared
-_WIDE_UNFOLD = {"rounds": 12, "most_relaxed": None, "each_region": True}
-
-
-def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Projection,
-                      region=None) -> tuple[np.ndarray, Projection, np.ndarray]:
-    """``unfolded`` onto the scan again, keeping the orientation of ``upright``
-    (what the new blend turns over unfolded among the vertices not projected,
-    what still folds stepped back toward ``unfolded``).  With ``region`` (n,)
-    bool, either every vertex or only the region's take the new landing points,
-    whichever fits tighter (:func:`~facewrap.wrapping.projection.seen_fit_p95`):
-    landing everything again can lose more elsewhere than the region gains.
-    Returns the positions, projection and moved vertices."""
-    T, roles = problem.template.triangles, problem.roles
-    again = project(problem, unfolded, upright=upright)
-    landed, moved = unfold_among(problem.template, upright, again.vertices,
-                                 (roles != PINNED) & ~again.projected,
-                                 counted=(roles[T] != PART).all(axis=1))
-    picks = [(landed, again, moved)] + ([] if region is None else [
-        (np.where(region[:, None], landed, unfolded), projection, moved & region)])
-    stepped = [(step_back_new_folds(T, upright, unfolded, out, roles == PINNED), kept,
-                moved) for out, kept, moved in picks]
-    (out, back), kept, moved = min(stepped, key=lambda c: seen_fit_p95(
-        problem.tree, c[0][0][roles == FITTED]))     # the first of equals: everything
-    return out, kept, moved | back
-
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
     """``stage(*args, **kw)``, its seconds in ``timings[key]``, one step of ``bar``."""
@@ -550,50 +304,3 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
                       warnings=list(problem.warnings), roles=problem.roles)
-
-
-#: template landmarks given as points may lie this far off the template's surface
-#: (fraction of its bounding-box diagonal) and still be snapped onto it
-SNAP_TOLERANCE = 0.02
-
-
-def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmarks:
-    """Template landmarks given as x, y, z points, moved onto the template's
-    surface so they follow it; an error names one that is far off (a point set
-    meant for another mesh or in other units)."""
-    snapped, moved = snap_to_surface(landmarks, template.vertices, template.triangles)
-    limit = SNAP_TOLERANCE * template.scale()
-    if (moved > limit).any():
-        i = int(np.argmax(moved))
-        raise ValueError(f"template landmark {landmarks.label(i)} lies {moved[i]:.4g} "
-                         f"from the template's surface (more than {limit:.4g}, "
-                         f"{100 * SNAP_TOLERANCE:g} % of its size): landmarks for another "
-                         "mesh or in other units?")
-    return snapped
-
-
-def alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
-    """Weights of landmark pairs in the similarity: the jaw line and the mouth
-    move with expressions (a scan with the jaw open would bias the scale and
-    tilt), so when landmarks are named, those get a small weight.
-
-    Parameters
-    ----------
-    landmarks : Landmarks
-        The template landmarks (names, if any, decide the weights).
-    index : (l,) int
-        The landmarks that have a partner, in pair order.
-
-    Returns
-    -------
-    (l,) float64
-        1 for stable landmarks, 0.05 for moving ones (all 1 when unnamed or when
-        fewer than 4 stable ones remain).
-    """
-    if landmarks.names is None:
-        return np.ones(len(index))
-    names = [landmarks.names[i] for i in index]
-    moving = np.array([n.startswith(("jaw", "mouth", "chin", "lip")) for n in names])
-    if (~moving).sum() < 4:
-        return np.ones(len(index))
-    return np.where(moving, 0.05, 1.0)

@@ -1,0 +1,146 @@
+"""The last stages of a wrap: :func:`project` onto the scan and :func:`finish_fit`.
+
+After the model's fit, the template is projected onto the scan along its normals
+(:mod:`facewrap.wrapping.projection`); then triangles the fit turned over are
+unfolded in two passes and landed again (:mod:`facewrap.wrapping.unfold`),
+pinned vertices are put back (:func:`pin`) and the template's parts follow the
+skin (:mod:`facewrap.wrapping.follow`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from facewrap.geometry.similarity import Similarity
+from facewrap.wrapping.blend import smooth_extension
+from facewrap.wrapping.follow import follow_skin
+from facewrap.wrapping.problem import WrapProblem
+from facewrap.wrapping.projection import Projection, project_to_surface, seen_fit_p95
+from facewrap.wrapping.roles import FITTED, PART, PINNED
+from facewrap.wrapping.unfold import (relax_flips, settle_turned_corners,
+                                     step_back_new_folds, unfold_among)
+
+__all__ = ["project", "pin", "finish_fit"]
+
+
+#: Smoothing order of unfolding and pinning (harmonic): a biharmonic relaxation
+#: overshoots and unfolds less (ICT's face region onto james: 12 triangles left
+#: flipped, against 0).
+_UNFOLD_ORDER = 1
+
+
+def project(problem: WrapProblem, vertices, upright=None, reference=None
+            ) -> Projection | None:
+    """Projection onto the scan (None when ``settings.project`` is off); ``upright``:
+    positions whose triangle orientation it must keep; ``reference``: the
+    orientation its biharmonic fill must keep (see
+    :func:`~facewrap.wrapping.projection.project_to_surface`)."""
+    s = problem.settings
+    if not s.project:
+        return None
+    return project_to_surface(problem.template, problem.tree, vertices=vertices,
+                              mask=~problem.excluded, max_distance=s.max_distance,
+                              max_normal_angle=s.max_normal_angle,
+                              blend_order=s.blend_order, upright=upright,
+                              reference=reference)
+
+
+def pin(problem: WrapProblem, vertices, similarity: Similarity,
+        projection: Projection | None) -> np.ndarray:
+    """Pinned vertices back where ``similarity`` puts them, the rest blended.
+
+    Projected vertices stay on the scan; pinned ones move to their aligned
+    template positions exactly; every other vertex takes the harmonic
+    extension of those two displacements, so nothing tears where pinned and
+    fitted regions meet (a biharmonic one overshoots across the large regions
+    between them).
+
+    Returns
+    -------
+    (n, 3) float64
+        ``vertices`` unchanged when nothing is pinned.
+    """
+    pinned = problem.roles == PINNED
+    if not pinned.any():
+        return vertices
+    template = problem.template
+    known = pinned.copy()
+    if projection is not None:
+        known |= projection.projected
+    displacement = np.zeros_like(vertices)
+    displacement[pinned] = similarity.apply(template.vertices[pinned]) - vertices[pinned]
+    return vertices + smooth_extension(template, displacement, known,
+                                       order=_UNFOLD_ORDER)
+
+
+def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
+               projection: Projection | None, rest=None) -> tuple[np.ndarray, dict]:
+    """The last stage: triangles the fit turned over unfolded (``settings.unfold``,
+    :func:`~facewrap.wrapping.unfold.relax_flips`) and the result projected
+    again from there, pinned vertices put back (:func:`pin`), the template's parts
+    moved with the skin nearest to them and kept on their side of it
+    (:mod:`facewrap.wrapping.follow`).
+
+    Folds the first pass leaves (its regions share a budget) are unfolded again,
+    each in a region as wide as it needs (:data:`_WIDE_UNFOLD`).  ``rest`` (n, 3)
+    is the pose a triangle is turned over from: the expression the blend weights
+    make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape is not
+    "unfolded"; default the aligned template.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    summary : dict
+        ``pinned`` and ``unfolded`` (vertices).
+    """
+    template, roles = problem.template, problem.roles
+    aligned = similarity.apply(template.vertices)
+    summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
+    out = vertices
+    if problem.settings.unfold:
+        upright = aligned if rest is None else rest
+        relaxed, settled = np.zeros((2, len(out)), dtype=bool)
+        for extra in ({}, _WIDE_UNFOLD):
+            out, more = relax_flips(template, upright, out, fixed=roles == PINNED,
+                                    order=_UNFOLD_ORDER, **extra)
+            if more.any() and projection is not None:
+                out, projection, again = _project_unfolded(
+                    problem, upright, out, projection, more if extra else None)
+                more |= again
+            relaxed |= more
+            # slivers, one corner each (the second pass would smooth wide in vain)
+            out, corners = settle_turned_corners(
+                template, upright, out, movable=(roles != PINNED) & (roles != PART))
+            settled |= corners
+        summary["unfolded"], summary["settled"] = int(relaxed.sum()), int(settled.sum())
+    out = pin(problem, out, similarity, projection)
+    out = follow_skin(template.triangles, aligned, out, roles)
+    return out, summary
+
+
+#: the second unfolding pass: each fold the first left in a region of its own, as
+#: wide as it needs up to 12 rings (kept only if it unfolds), no budget shared
+_WIDE_UNFOLD = {"rounds": 12, "most_relaxed": None, "each_region": True}
+
+
+def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Projection,
+                      region=None) -> tuple[np.ndarray, Projection, np.ndarray]:
+    """``unfolded`` onto the scan again, keeping the orientation of ``upright``
+    (what the new blend turns over unfolded among the vertices not projected,
+    what still folds stepped back toward ``unfolded``).  With ``region`` (n,)
+    bool, either every vertex or only the region's take the new landing points,
+    whichever fits tighter (:func:`~facewrap.wrapping.projection.seen_fit_p95`):
+    landing everything again can lose more elsewhere than the region gains.
+    Returns the positions, projection and moved vertices."""
+    T, roles = problem.template.triangles, problem.roles
+    again = project(problem, unfolded, upright=upright)
+    landed, moved = unfold_among(problem.template, upright, again.vertices,
+                                 (roles != PINNED) & ~again.projected,
+                                 counted=(roles[T] != PART).all(axis=1))
+    picks = [(landed, again, moved)] + ([] if region is None else [
+        (np.where(region[:, None], landed, unfolded), projection, moved & region)])
+    stepped = [(step_back_new_folds(T, upright, unfolded, out, roles == PINNED), kept,
+                moved) for out, kept, moved in picks]
+    (out, back), kept, moved = min(stepped, key=lambda c: seen_fit_p95(
+        problem.tree, c[0][0][roles == FITTED]))     # the first of equals: everything
+    return out, kept, moved | back

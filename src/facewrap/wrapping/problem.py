@@ -1,0 +1,189 @@
+"""The checked inputs of a wrap: :class:`WrapProblem`, made by :func:`prepare_wrap`.
+
+Landmarks paired (and template landmarks given as points snapped onto the
+template), the model resolved from its registry entry, the plausibility checks
+run, the scan checked and its tree built, and every template vertex given its
+role (fitted, a part that follows, pinned).  The stages of
+:mod:`facewrap.wrapping.stages` read everything they need from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from facewrap.geometry import ClosestPointTree
+from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
+from facewrap.mesh import Mesh
+from facewrap.wrapping.models import ModelSpec, model_spec
+from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
+from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
+                                           check_scale, check_unscaled_size, checked_scan)
+from facewrap.wrapping.roles import FITTED, cached_hidden_surface, vertex_roles
+from facewrap.wrapping.settings import WrapSettings
+
+__all__ = ["WrapProblem", "prepare_wrap", "alignment_weights", "SNAP_TOLERANCE"]
+
+
+@dataclass(frozen=True, eq=False)
+class WrapProblem:
+    """The checked inputs of a wrap (made by :func:`prepare_wrap`).
+
+    Attributes
+    ----------
+    template : Mesh
+    scan : Mesh
+        The scan as fitted: without duplicated faces, faces turned the template's
+        way (see ``warnings``).
+    tree : ClosestPointTree
+        Its tree.
+    landmarks : Landmarks
+        Template landmarks on the mesh that have a scan partner, in pair order.
+    sources : (l, 3) float64
+        Their positions on the template.
+    targets : (l, 3) float64
+        Their partners' positions on the scan.
+    alignment_weights : (l,) float64
+        Weights of the pairs in the similarity.
+    roles : (n,) int8
+        Role of each template vertex (:func:`facewrap.wrapping.roles.vertex_roles`).
+    excluded : (n,) bool
+        Template vertices not pulled onto the scan (``roles != FITTED``).
+    blendshapes : dict or None
+    settings : WrapSettings
+        With ``model`` resolved from "auto".
+    spec : ModelSpec
+        The model's registry entry.
+    graph_cache : GraphCache
+    warnings : tuple of str
+        The plausibility checks' warnings.
+    """
+    template: Mesh
+    scan: Mesh
+    tree: ClosestPointTree
+    landmarks: Landmarks
+    sources: np.ndarray
+    targets: np.ndarray
+    alignment_weights: np.ndarray
+    roles: np.ndarray
+    excluded: np.ndarray
+    blendshapes: dict | None
+    settings: WrapSettings
+    spec: ModelSpec
+    graph_cache: GraphCache
+    warnings: tuple = ()
+
+
+def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
+                 scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
+                 exclude=None, fit_mask=None, pinned=None, blendshapes=None,
+                 scan_tree: ClosestPointTree | None = None,
+                 graph_cache: GraphCache | None = None) -> WrapProblem:
+    """Check a wrap's inputs, resolve its model and pair its landmarks.
+
+    Parameters are those of :func:`wrap`.
+
+    Returns
+    -------
+    WrapProblem
+
+    Raises
+    ------
+    ValueError
+        For a model that needs blendshapes without them, fewer than 3 landmark
+        pairs, template landmarks far off the template, landmarks that only a
+        mirror image matches (unless ``settings.allow_mirrored``), or a bad
+        ``exclude``, ``fit_mask`` or ``pinned``.
+    """
+    s = replace(settings or WrapSettings())
+    spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
+    s.model = spec.name
+    if spec.needs_blendshapes and not blendshapes:
+        raise ValueError(f"model {s.model!r} needs blendshapes")
+    if not template_landmarks.on_mesh:
+        template_landmarks = _snapped_template_landmarks(template, template_landmarks)
+    try:
+        ia, ib = pair_landmarks(template_landmarks, scan_landmarks, ("template", "scan"))
+    except ValueError as exc:  # say what it is about, so a job can name the file
+        raise ValueError(f"scan landmarks: {exc}") from None
+    if len(ia) < 3:
+        raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
+    hidden = (cached_hidden_surface(template.vertices, template.triangles)
+              if not s.fit_hidden and fit_mask is None else None)
+    roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
+                         pinned=pinned)
+    excluded = roles != FITTED
+    template_points = template_landmarks.positions(template)
+    scan_points = scan_landmarks.positions(scan)
+    weights = alignment_weights(template_landmarks, ia)
+    notes, similarity = check_landmarks(template_landmarks, template_points,
+                                        scan_landmarks, scan_points, (ia, ib), weights,
+                                        scale=s.scale, allow_mirrored=s.allow_mirrored)
+    aligned = None
+    if similarity is not None:
+        notes += check_scale(similarity.scale)
+        aligned = similarity.apply(template.vertices)
+    if not s.scale:
+        notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
+    scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
+                                          mask=~excluded)
+    bordered = border_fraction(tree)
+    if s.reject_boundary and bordered > LACY_LIMIT:
+        s.reject_boundary = False
+        scan_notes.append(f"scan: {100 * bordered:.0f} % of its triangles "
+                          "touch a border (full of holes, or a triangle soup?): the ICP "
+                          "keeps scan points near borders (reject_boundary off), the "
+                          "projection still leaves them")
+    return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
+                       template_points[ia], scan_points[ib], weights, roles, excluded,
+                       blendshapes, s, spec,
+                       DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,
+                       tuple(notes + scan_notes))
+
+
+#: template landmarks given as points may lie this far off the template's surface
+#: (fraction of its bounding-box diagonal) and still be snapped onto it
+SNAP_TOLERANCE = 0.02
+
+
+def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmarks:
+    """Template landmarks given as x, y, z points, moved onto the template's
+    surface so they follow it; an error names one that is far off (a point set
+    meant for another mesh or in other units)."""
+    snapped, moved = snap_to_surface(landmarks, template.vertices, template.triangles)
+    limit = SNAP_TOLERANCE * template.scale()
+    if (moved > limit).any():
+        i = int(np.argmax(moved))
+        raise ValueError(f"template landmark {landmarks.label(i)} lies {moved[i]:.4g} "
+                         f"from the template's surface (more than {limit:.4g}, "
+                         f"{100 * SNAP_TOLERANCE:g} % of its size): landmarks for another "
+                         "mesh or in other units?")
+    return snapped
+
+
+def alignment_weights(landmarks: Landmarks, index) -> np.ndarray:
+    """Weights of landmark pairs in the similarity: the jaw line and the mouth
+    move with expressions (a scan with the jaw open would bias the scale and
+    tilt), so when landmarks are named, those get a small weight.
+
+    Parameters
+    ----------
+    landmarks : Landmarks
+        The template landmarks (names, if any, decide the weights).
+    index : (l,) int
+        The landmarks that have a partner, in pair order.
+
+    Returns
+    -------
+    (l,) float64
+        1 for stable landmarks, 0.05 for moving ones (all 1 when unnamed or when
+        fewer than 4 stable ones remain).
+    """
+    if landmarks.names is None:
+        return np.ones(len(index))
+    names = [landmarks.names[i] for i in index]
+    moving = np.array([n.startswith(("jaw", "mouth", "chin", "lip")) for n in names])
+    if (~moving).sum() < 4:
+        return np.ones(len(index))
+    return np.where(moving, 0.05, 1.0)
