@@ -49,7 +49,21 @@ def _errors(found, truth, mm: float) -> dict:
     out = {g: [float(err[s].mean()), float(err[s].max())] for g, s in GROUPS.items()}
     out.update(mean=float(err.mean()), confident_mean=float(err[~low].mean()),
                flagged=int(low.sum()), unflagged_over_8mm=int(np.sum((err > 8) & ~low)))
+    out["split"] = error_split(found, truth, mm)
     return out
+
+
+def error_split(found, truth, mm: float) -> dict:
+    """Per group, mean length (mm) of the error's part in the frontal view's image
+    plane and along its line of sight: the first is the 2D detector's (lifting
+    moves a point along the ray only), the second mostly the lift's (a ray grazing
+    the surface near the face's outline lands far in depth for a pixel's error)."""
+    front = np.asarray(found.views[0]["direction"], dtype=np.float64)
+    d = (found.positions - truth) * mm
+    depth = d @ front
+    plane = np.linalg.norm(d - depth[:, None] * front, axis=1)
+    return {g: [float(plane[s].mean()), float(np.abs(depth[s]).mean())]
+            for g, s in GROUPS.items()}
 
 
 def _moved(mesh: Mesh, R, scale) -> Mesh:
@@ -228,6 +242,13 @@ def markdown(r: dict) -> str:
         cells = " | ".join(f"{e[g][0]:.1f} / {e[g][1]:.1f}" for g in GROUPS)
         lines.append(f"| {name} | {cells} | {e['mean']:.2f} | {e['confident_mean']:.2f} | "
                      f"{e['flagged']} | {e['unflagged_over_8mm']} |")
+    lines += ["", "Where the error lies: per group, mean length (mm) of its part in the "
+              "frontal view's image plane (the 2D detector's) / along its line of sight "
+              "(mostly the lift's):", "",
+              "| case | " + " | ".join(GROUPS) + " |", "|---" * (len(GROUPS) + 1) + "|"]
+    for name, e in r["cases"].items():
+        lines.append(f"| {name} | " + " | ".join(
+            f"{e['split'][g][0]:.1f} / {e['split'][g][1]:.1f}" for g in GROUPS) + " |")
     if "meshmonk_5" in r:
         lines += ["", "MeshMonk demo face, its 5 points to the nearest detected landmark: "
                   + ", ".join(f"{n} {d:.1f} mm" for n, d in r["meshmonk_5"])]
