@@ -72,19 +72,25 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     >>> moved.tolist(), bool(turned_triangles(out, V, T).any())   # both sides of the crease
     ([True, True, True, True], False)
     """
-    was = turned_triangles(before, reference, T)
+    was = turned_triangles(before, reference, T)            # (checks the arrays too)
+    T = np.asarray(T, dtype=np.int64)
     nb = triangle_adjacency(T)
     i, j = np.nonzero(nb > np.arange(len(T))[:, None])     # each shared edge once
     pairs = np.stack([i, nb[i, j]], axis=1)
     out = np.array(after, dtype=np.float64)
     before = np.asarray(before, dtype=np.float64)
     was_apart = _apart(before, T, pairs)
+    # what folds in ``out``, kept per triangle and per shared edge and tested again
+    # each round only where a corner moved: a round moves a few corners of a mesh
+    reference_normals = triangle_normals(np.asarray(reference, dtype=np.float64), T)
+    is_turned = turned(reference_normals, triangle_normals(out, T))
+    unit = face_normals(out, T)
+    is_apart = np.einsum("ij,ij->i", unit[pairs[:, 0]], unit[pairs[:, 1]]) < 0
     moved = np.zeros(len(out), dtype=bool)
     for _ in range(rounds):
-        new = turned_triangles(out, reference, T) & ~was
+        new = is_turned & ~was
         # a crease too: neighbours facing apart that did not in ``before``
-        crease = pairs[_apart(out, T, pairs) & ~was_apart]
-        new[crease.ravel()] = True
+        new[pairs[is_apart & ~was_apart].ravel()] = True
         corners = np.zeros(len(out), dtype=bool)
         corners[T[new]] = True
         corners &= ~fixed
@@ -92,6 +98,12 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
             break
         moved |= corners
         out[corners] += step * (before[corners] - out[corners])
+        touched = corners[T].any(axis=1)
+        t = np.flatnonzero(touched)
+        is_turned[t] = turned(reference_normals[t], triangle_normals(out, T[t]))
+        unit[t] = face_normals(out, T[t])
+        p = np.flatnonzero(touched[pairs[:, 0]] | touched[pairs[:, 1]])
+        is_apart[p] = np.einsum("ij,ij->i", unit[pairs[p, 0]], unit[pairs[p, 1]]) < 0
     return out, moved
 
 
