@@ -5,7 +5,7 @@ import pytest
 
 from facewrap.geometry.arrays import (blocks_by_budget, column_norms, cross_columns, cross_rows,
                                       edge_vectors, normalize_rows, safe_inverse,
-                                      stable_sort_order, unique_integers)
+                                      stable_sort_order, spatial_order, unique_integers)
 
 
 def test_cross_products_match_numpy():
@@ -61,3 +61,22 @@ def test_unique_integers_gives_what_np_unique_gives():
     want = np.unique(a, return_index=True, return_inverse=True, return_counts=True)
     for g, w in zip(got, want):
         np.testing.assert_array_equal(g, w.reshape(-1))
+
+
+def test_spatial_order_is_a_permutation_that_keeps_neighbours_together():
+    rng = np.random.default_rng(4)
+    P = rng.uniform(-3.0, 5.0, size=(2000, 3))
+    order = spatial_order(P)
+    assert order.dtype == np.int64
+    assert np.array_equal(np.sort(order), np.arange(len(P)))
+    # consecutive points in the order are far nearer each other than in random order
+    step = np.linalg.norm(np.diff(P[order], axis=0), axis=1)
+    random_step = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    assert np.median(step) < 0.25 * np.median(random_step)
+
+
+def test_spatial_order_of_degenerate_sets():
+    assert spatial_order(np.zeros((0, 3))).tolist() == []
+    assert spatial_order(np.ones((1, 3))).tolist() == [0]
+    # all points equal: any permutation is right, and it is the stable one
+    assert spatial_order(np.ones((5, 3))).tolist() == [0, 1, 2, 3, 4]

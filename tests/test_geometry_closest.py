@@ -269,3 +269,21 @@ def test_query_finds_a_collinear_triangle_libigl_misses():
     np.testing.assert_allclose(cp.distances, ref, atol=1e-9)
     assert cp.triangles[49] == 1
     check_barycentric(cp.barycentric)
+
+
+def test_many_queries_give_each_point_its_own_answer_in_any_order():
+    # many points (2,000: above closest.py's _ORDERED_FROM) are asked of libigl in
+    # spatial order and the answers put back: shuffling the queries must shuffle the
+    # answers with them
+    V, T = icosphere(3, noise=0.05)
+    P = near_points(V, 2000, spread=0.5, seed=5)
+    tree = geo.ClosestPointTree(V, T)
+    cp = tree.query(P)
+    ref = np.sqrt(brute_force_sq_dist(V, T, P).min(axis=1))
+    np.testing.assert_allclose(cp.distances, ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(P - cp.points, axis=1), cp.distances,
+                               atol=1e-9)
+    shuffle = np.random.default_rng(6).permutation(len(P))
+    again = tree.query(P[shuffle])
+    np.testing.assert_allclose(again.points, cp.points[shuffle], atol=1e-12)
+    np.testing.assert_allclose(again.distances, cp.distances[shuffle], atol=1e-12)

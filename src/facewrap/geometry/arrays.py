@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ["cross_rows", "normalize_rows", "safe_inverse", "edge_vectors",
            "cross_columns", "column_norms", "blocks_by_budget", "unique_integers",
-           "stable_sort_order"]
+           "stable_sort_order", "spatial_order"]
 
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -234,6 +234,51 @@ def stable_sort_order(a) -> tuple[np.ndarray, np.ndarray]:
     code //= k
     code += lo
     return order, code
+
+
+def _spread_bits(q: np.ndarray) -> np.ndarray:
+    """The low 10 bits of each uint64 in ``q``, two zero bits after each (bit ``b``
+    moved to bit ``3 b``): one coordinate of a 30-bit Morton code."""
+    q = q & np.uint64(0x3FF)
+    q = (q | (q << np.uint64(16))) & np.uint64(0x030000FF)
+    q = (q | (q << np.uint64(8))) & np.uint64(0x0300F00F)
+    q = (q | (q << np.uint64(4))) & np.uint64(0x030C30C3)
+    q = (q | (q << np.uint64(2))) & np.uint64(0x09249249)
+    return q
+
+
+def spatial_order(points: np.ndarray) -> np.ndarray:
+    """(k,) int64 permutation putting points that are near each other next to
+    each other: the order of their Morton (z-order) codes on a 1024³ grid over
+    their bounding box.
+
+    Tree queries in this order walk the same nodes one after another, which keeps
+    them in cache: libigl's closest points for a template's vertices on a 60k
+    triangle scan ran about 1.5x faster in it than in the vertices' file order.
+
+    Parameters
+    ----------
+    points : (k, 3) float64, finite
+
+    Returns
+    -------
+    (k,) int64
+
+    Examples
+    --------
+    >>> P = np.array([[1.0, 1, 1], [0, 0, 0], [0.9, 1, 1], [0.1, 0, 0]])
+    >>> spatial_order(P).tolist()
+    [1, 3, 2, 0]
+    """
+    P = np.asarray(points, dtype=np.float64)
+    if len(P) < 2:
+        return np.arange(len(P), dtype=np.int64)
+    lo = P.min(axis=0)
+    extent = float((P.max(axis=0) - lo).max())
+    q = ((P - lo) * (1023.0 / extent if extent > 0 else 0.0)).astype(np.uint64)
+    code = (_spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1))
+            | (_spread_bits(q[:, 2]) << np.uint64(2)))
+    return np.argsort(code, kind="stable").astype(np.int64, copy=False)
 
 
 def unique_integers(a, *, return_index: bool = False, return_inverse: bool = False,

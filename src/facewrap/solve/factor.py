@@ -49,10 +49,11 @@ class Factor:
     ("cholesky": cholespy, "cholmod": cvxopt's CHOLMOD, or "lu": SuperLU).
     """
 
-    def __init__(self, n: int, method: str, solver):
+    def __init__(self, n: int, method: str, solver, pattern=None):
         self.n = n
         self.method = method
         self._solver = solver
+        self._pattern = pattern       # CHOLMOD's input, for refactorize
 
     def solve(self, b) -> np.ndarray:
         """Solve ``A x = b``.
@@ -111,20 +112,34 @@ class Factor:
 
 
 def refactorize(factor: Factor, A, *, check: bool = True) -> Factor:
-    """Factor ``A``, which has the sparsity pattern of the matrix ``factor`` was
-    made from, reusing its ordering and symbolic analysis where the back end allows
-    (CHOLMOD: the symbolic analysis is a good part of a factorisation).
+    """Factor ``A`` reusing ``factor``'s ordering and symbolic analysis when ``A``
+    has exactly the sparsity pattern of the matrix ``factor`` was made from
+    (CHOLMOD: the analysis and the conversion to its format are most of a
+    factorisation on the ICP's graph blocks).
 
     ``factor`` is used up (its storage may hold the new factor); use the returned
-    one.  Any other factor, or a pattern CHOLMOD does not accept, is factored
-    afresh with ``solves="few"``.
+    one.  Any other factor, or a matrix of another pattern, is factored afresh with
+    ``solves="few"`` (CHOLMOD itself does not notice another pattern: it returns a
+    wrong factor, so the pattern is compared here).
+
+    Examples
+    --------
+    >>> import scipy.sparse as sp
+    >>> f = factorize(sp.diags([2.0, 3.0]).tocsr(), solves="few")
+    >>> refactorize(f, sp.diags([4.0, 6.0]).tocsr()).solve([4.0, 6.0])
+    array([1., 1.])
     """
-    if factor.method == "cholmod":
-        A = sp.csr_matrix(A, dtype=np.float64)
-        # refilled in place: ``factor`` now holds the factor of ``A``
-        if (_cholmod(A, analysed=factor._solver) is not None
-                and (not check or _accurate(A, factor))):
-            return factor
+    if factor.method == "cholmod" and factor._pattern is not None:
+        A = _canonical_csr(A)
+        if factor._pattern.matches(A):
+            try:
+                factor._pattern.refill(A)
+                cholmod.numeric(factor._pattern.lower, factor._solver)
+            except (ArithmeticError, ValueError):    # not positive definite
+                pass
+            else:
+                if not check or _accurate(A, factor):
+                    return factor
     return factorize(A, check=check, solves="few")
 
 
@@ -183,28 +198,61 @@ def factorize(A, *, check: bool = True, solves: str = "many") -> Factor:
     return Factor(n, "lu", lu)
 
 
-def _cholmod(A, analysed=None) -> Factor | None:
-    """CHOLMOD's supernodal Cholesky through cvxopt, or None (no cvxopt, ``A`` not
-    positive definite, or not of the pattern ``analysed`` -- a factor's symbolic
-    analysis, refilled in place -- was made for)."""
+def _canonical_csr(A) -> sp.csr_matrix:
+    """``A`` as float64 csr with sorted, unique indices (the pattern compared and
+    refilled by :class:`_LowerPattern`)."""
+    A = sp.csr_matrix(A, dtype=np.float64)
+    if not A.has_canonical_format:
+        A = A.copy()
+        A.sum_duplicates()
+    return A
+
+
+class _LowerPattern:
+    """The lower triangle of a symmetric csr pattern as a cvxopt ``spmatrix``,
+    refilled in place from any matrix of the same pattern.
+
+    CHOLMOD reads only the lower triangle.  Column-major order of the lower triangle
+    is row-major order of the upper one, so a refill is one gather of the csr
+    values (``spmatrix.V`` is assignable: same pattern, new values), where building
+    the ``spmatrix`` anew sorts triplets — more than the factorisation itself on the
+    ICP's graph blocks.
+    """
+
+    def __init__(self, A: sp.csr_matrix):
+        n = A.shape[0]
+        self.indptr, self.indices = A.indptr.copy(), A.indices.copy()
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+        self.upper = np.flatnonzero(A.indices >= rows)    # (entries in csr order)
+        # the lower triangle's (row, column) = the upper one's (column, row)
+        self.lower = cvxopt_spmatrix(A.data[self.upper],
+                                     A.indices[self.upper].astype(np.int64),
+                                     rows[self.upper], A.shape)
+
+    def matches(self, A: sp.csr_matrix) -> bool:
+        """Whether canonical csr ``A`` has exactly this pattern."""
+        return (A.indptr.shape == self.indptr.shape
+                and A.indices.shape == self.indices.shape
+                and np.array_equal(A.indptr, self.indptr)
+                and np.array_equal(A.indices, self.indices))
+
+    def refill(self, A: sp.csr_matrix) -> None:
+        """The values of canonical csr ``A`` (of this pattern) into :attr:`lower`."""
+        self.lower.V = cvxopt_matrix(A.data[self.upper])
+
+
+def _cholmod(A) -> Factor | None:
+    """CHOLMOD's supernodal Cholesky through cvxopt, or None (no cvxopt, or ``A``
+    not positive definite); the factor keeps its pattern for :func:`refactorize`."""
     if cholmod is None:  # pragma: no cover - cvxopt is a dependency
         return None
-    M = _lower_triangle(A)
+    pattern = _LowerPattern(_canonical_csr(A))
     try:
-        F = cholmod.symbolic(M) if analysed is None else analysed
-        cholmod.numeric(M, F)
-    except (ArithmeticError, ValueError):  # not positive definite / other pattern
+        F = cholmod.symbolic(pattern.lower)
+        cholmod.numeric(pattern.lower, F)
+    except (ArithmeticError, ValueError):  # not positive definite
         return None
-    return Factor(A.shape[0], "cholmod", F)
-
-
-def _lower_triangle(A):
-    """The lower triangle of a symmetric csr matrix as a cvxopt ``spmatrix``: all
-    CHOLMOD reads, and half the entries to convert (the conversion costs more
-    than the factorisation on the ICP's graph blocks)."""
-    coo = sp.tril(A, format="coo")
-    return cvxopt_spmatrix(coo.data, coo.row.astype(np.int64), coo.col.astype(np.int64),
-                    A.shape)
+    return Factor(A.shape[0], "cholmod", F, pattern)
 
 
 def _accurate(A, factor: Factor) -> bool:

@@ -153,11 +153,14 @@ class NormalEquations:
         step, from the very residuals the step uses).
     path : {"zero", "dense", "bordered", "sparse"}
         How the system is solved (see :func:`gauss_newton_step`).
+    factor : Factor or None
+        The bordered path's last factor (None before a bordered :meth:`step`): give
+        it to the next iteration's :func:`normal_equations` as ``analysis``.
     """
 
     def __init__(self, n_params: int, energy: float, path: str, parts: dict,
                  method: str = "cg", block: int = 1, max_cg: int = 400,
-                 cg_rtol: float = 1e-3):
+                 cg_rtol: float = 1e-3, analysis=None):
         self.n_params = n_params
         self.energy = energy
         self.path = path
@@ -166,7 +169,13 @@ class NormalEquations:
         self._block = block
         self._max_cg = max_cg
         self._cg_rtol = cg_rtol
-        self._factor = None          # the bordered path's last factor (its pattern)
+        # the bordered path's factor: its symbolic analysis is reused by the next
+        # factorisation of the same pattern (another damping, the next iteration)
+        self._factor = analysis
+
+    @property
+    def factor(self):
+        return self._factor
 
     def step(self, damping: float = 0.0, x0=None) -> np.ndarray:
         """The step ``δ`` (P,) minimising the linearised energy plus
@@ -190,8 +199,8 @@ class NormalEquations:
         """``[A B; Bᵀ C]`` by one sparse Cholesky of ``A`` and the Schur complement
         ``C − Bᵀ A⁻¹ B`` (K×K, dense).  For graphs of a few hundred nodes ``A`` is
         only a few per cent full, so this beats assembling and factoring densely.
-        A second damping has the pattern of the first: its symbolic analysis is
-        reused."""
+        A second damping has the pattern of the first, and so, mostly, has the next
+        ICP iteration: their symbolic analysis is reused."""
         A, g1, Bm, C, g2 = (self._parts[k] for k in ("A", "g1", "B", "C", "g2"))
         K = C.shape[0]
         dA, dC = A.diagonal(), np.diag(C).copy()
@@ -334,11 +343,16 @@ def _sparse_parts(S_rows, D_rows, b_rows) -> dict:
 
 def normal_equations(terms, n_params: int | None = None, method: str = "cg",
                      block: int = 1, max_cg: int = 400,
-                     cg_rtol: float = 1e-3) -> NormalEquations:
+                     cg_rtol: float = 1e-3, analysis=None) -> NormalEquations:
     """Assemble the normal equations of weighted terms once, for any damping.
 
     Parameters are those of :func:`gauss_newton_step` (less ``damping`` and
-    ``x0``, which go to :meth:`NormalEquations.step`).
+    ``x0``, which go to :meth:`NormalEquations.step`), and:
+
+    analysis : Factor, optional
+        An earlier system's :attr:`NormalEquations.factor`: the bordered path
+        reuses its ordering and symbolic analysis where the sparse block has the
+        same pattern (:func:`~facewrap.solve.refactorize`), and uses it up.
 
     Returns
     -------
@@ -364,7 +378,8 @@ def normal_equations(terms, n_params: int | None = None, method: str = "cg",
         S_rows.append(Jw.sparse)
         D_rows.append(Jw.dense)
         b_rows.append(sw * np.asarray(r, dtype=np.float64))
-    options = dict(method=method, block=block, max_cg=max_cg, cg_rtol=cg_rtol)
+    options = dict(method=method, block=block, max_cg=max_cg, cg_rtol=cg_rtol,
+                   analysis=analysis)
     if not S_rows:
         return NormalEquations(n_params or 0, 0.0, "zero", {}, **options)
     n_sparse = S_rows[0].shape[1]

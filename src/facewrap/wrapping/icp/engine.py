@@ -107,6 +107,9 @@ class ICPProblem:
     landmark_targets: np.ndarray | None
     landmark_vertices: np.ndarray
     _around: dict = field(default_factory=dict, repr=False)   # triangles_around's
+    # the last iteration's sparse factor: the next one mostly has its pattern, and
+    # reuses its symbolic analysis (NormalEquations.factor)
+    _factor: list = field(default_factory=lambda: [None], repr=False)
 
     @property
     def has_landmarks(self) -> bool:
@@ -313,10 +316,11 @@ class NonRigidICP:
         # assembled once: a retry with more damping only solves it again, and its
         # energy (the same residuals) is the one the step must lower
         system = normal_equations(terms, n_params=model.n_params, method=model.solver,
-                                  block=model.param_block)
+                                  block=model.param_block, analysis=problem._factor[0])
         e0 = system.energy
         for _ in range(_RETRIES):
             delta = system.step(mu)
+            problem._factor[0] = system.factor
             p_new = model.update(p, delta)
             V_new = model.vertices(p_new)
             e1 = self.energy(problem, stage, pairs, p_new, V_new)
