@@ -362,17 +362,17 @@ class ClosestPointTree:
         """libigl's answer for points ``P`` (k, 3): squared distances (k,),
         triangles (k,) int64 and closest points (k, 3), in the order of ``P``
         (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many)."""
-        if len(P) < _ORDERED_FROM:
-            sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
-                                                                self.triangles, P)
-            return (np.array(sq_dist, dtype=np.float64), np.array(tri, dtype=np.int64),
-                    np.array(closest))
-        order = spatial_order(P)
-        sq_dist, tri, closest = self._tree.squared_distance(
-            self.vertices, self.triangles, np.ascontiguousarray(P[order]))
-        out_d, out_t, out_c = np.empty(len(P)), np.empty(len(P), np.int64), np.empty_like(P)
-        out_d[order], out_t[order], out_c[order] = sq_dist, tri, closest
-        return out_d, out_t, out_c
+        order = spatial_order(P) if len(P) >= _ORDERED_FROM else None
+        asked = P if order is None else np.ascontiguousarray(P[order])
+        sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
+                                                            self.triangles, asked)
+        sq_dist, tri = np.array(sq_dist, dtype=np.float64), np.array(tri, dtype=np.int64)
+        closest = np.array(closest)
+        if order is not None:                  # back to the order of P
+            back = np.empty_like(order)
+            back[order] = np.arange(len(order))
+            sq_dist, tri, closest = sq_dist[back], tri[back], closest[back]
+        return sq_dist, tri, closest
 
     def _interpolate_normals(self, ids: np.ndarray, bary: np.ndarray) -> np.ndarray:
         summed = np.einsum("kc,kcd->kd", bary, self.vertex_normals[ids])

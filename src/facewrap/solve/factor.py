@@ -231,9 +231,7 @@ class _LowerPattern:
 
     def matches(self, A: sp.csr_matrix) -> bool:
         """Whether canonical csr ``A`` has exactly this pattern."""
-        return (A.indptr.shape == self.indptr.shape
-                and A.indices.shape == self.indices.shape
-                and np.array_equal(A.indptr, self.indptr)
+        return (np.array_equal(A.indptr, self.indptr)
                 and np.array_equal(A.indices, self.indices))
 
     def refill(self, A: sp.csr_matrix) -> None:
