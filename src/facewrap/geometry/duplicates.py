@@ -4,14 +4,17 @@ Exporters split a mesh's vertices where its UVs or normals are cut (a seam):
 the two copies are one point of the surface.  :func:`duplicate_rows` finds such
 copies among rows of any width (a position, or a position and its place in every
 blendshape); :func:`any_duplicate_positions` answers "none" cheaply for the
-common case of a mesh without any.
+common case of a mesh without any; :func:`welded` merges a mesh's copies;
+:func:`unique_faces` finds triangles listed twice.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["duplicate_rows", "any_duplicate_positions"]
+from facewrap.geometry.arrays import unique_integers
+
+__all__ = ["duplicate_rows", "any_duplicate_positions", "welded", "unique_faces"]
 
 # odd 64-bit multipliers mixing a position's three bit patterns into one hash
 _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9],
@@ -75,3 +78,56 @@ def any_duplicate_positions(V: np.ndarray) -> bool:
     if not np.any(h[1:] == h[:-1]):   # no equal hashes: no equal rows
         return False
     return len(duplicate_rows(V)[0]) < len(V)
+
+
+def welded(V: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``V`` without duplicate positions and ``T`` on the merged vertices.
+
+    A triangle soup (every triangle with corners of its own, as STL and some
+    scanners write) becomes a connected surface again, with neighbours, borders
+    only where the surface ends, and smooth vertex normals.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+
+    Returns
+    -------
+    V : (u, 3) float64
+        ``V`` itself when no two rows are the same.
+    T : (t, 3) int64
+        Same triangles, same order.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.]])
+    >>> W, F = welded(V, np.array([[0, 1, 2], [3, 5, 4]]))
+    >>> len(W), F.tolist()
+    (4, [[0, 2, 1], [2, 3, 1]])
+    """
+    if not any_duplicate_positions(V):
+        return V, T
+    first, inverse = duplicate_rows(V)
+    return np.asarray(V)[first], inverse[np.asarray(T)]
+
+
+def unique_faces(triangles) -> np.ndarray:
+    """(m,) bool: the first of every set of triangles on the same three vertices
+    (whatever their order or winding).
+
+    >>> unique_faces([[0, 1, 2], [1, 2, 3], [2, 1, 0], [0, 1, 2]]).tolist()
+    [True, True, False, False]
+    """
+    T = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
+    keep = np.zeros(len(T), dtype=bool)
+    if not len(T):
+        return keep
+    if T.max() < 2 ** 21:
+        # one int64 key per sorted row: a 1-D unique, several times faster than
+        # np.unique(axis=0) on a million triangles
+        key = (T[:, 0] << 42) | (T[:, 1] << 21) | T[:, 2]
+        keep[unique_integers(key, return_index=True)[1]] = True
+    else:
+        keep[np.unique(T, axis=0, return_index=True)[1]] = True
+    return keep

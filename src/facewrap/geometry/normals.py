@@ -14,13 +14,17 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from scipy.sparse import csgraph
+
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs
 from facewrap.geometry.arrays import (column_norms, cross_columns, edge_vectors, normalize_rows,
                                       safe_inverse)
 from facewrap.geometry.checks import as_mesh_arrays
 
 __all__ = ["face_normals", "face_areas", "vertex_normals", "trusted_face_normals",
            "trusted_face_areas", "trusted_vertex_normals", "TriangleMeasures",
-           "trusted_normals_and_measures"]
+           "trusted_normals_and_measures", "coherent_orientation", "disagreeing_edges", "spike_vertices",
+           "SPIKE_LIMIT"]
 
 
 def trusted_face_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -212,3 +216,153 @@ def vertex_normals(V, T, weighting: str = "angle") -> np.ndarray:
     if weighting not in ("angle", "area"):
         raise ValueError(f'weighting must be "angle" or "area", got {weighting!r}')
     return trusted_vertex_normals(V, T, weighting)
+
+
+def _manifold_pairs(T: np.ndarray, runs: EdgeRuns | None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two triangles (p,), (p,) of each manifold edge (two half-edges, two
+    triangles), and (p,) bool whether they run along it the same way."""
+    order, starts = edge_runs(T) if runs is None else runs
+    if not len(order):
+        empty = np.zeros(0, np.int64)
+        return empty, empty, np.zeros(0, bool)
+    run = np.cumsum(starts) - 1
+    size = np.bincount(run)[run]
+    first = np.flatnonzero(starts & (size == 2))
+    h1, h2 = order[first], order[first + 1]
+    f1, f2 = h1 // 3, h2 // 3
+    tail = T.reshape(-1)                               # half-edge h starts at tail[h]
+    keep = f1 != f2
+    return f1[keep], f2[keep], tail[h1[keep]] == tail[h2[keep]]
+
+
+def disagreeing_edges(T, runs: EdgeRuns | None = None) -> int:
+    """Manifold edges whose two triangles run along them the same way (wound
+    against each other): 0 for a mesh wound consistently.
+
+    >>> disagreeing_edges([[0, 1, 2], [0, 2, 3]]), disagreeing_edges([[0, 1, 2], [0, 3, 2]])
+    (0, 1)
+    """
+    return int(_manifold_pairs(np.asarray(T, dtype=np.int64), runs)[2].sum())
+
+
+def coherent_orientation(T, runs: EdgeRuns | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Triangles to reverse so that every piece is wound one way.
+
+    Two triangles on a manifold edge agree when they run along it in opposite
+    directions.  Each triangle is two nodes of a graph (as it is, reversed),
+    joined to its neighbours' nodes so that agreeing states are connected; the
+    connected components then give, for each orientable patch, two consistent
+    windings, and the one holding the lower label is chosen.  Non-manifold edges
+    (three or more triangles) join nothing; a patch that cannot be oriented (a
+    Moebius strip, or windings that contradict each other around a fan) is left
+    as it is.
+
+    Parameters
+    ----------
+    T : (t, 3) int64
+    runs : EdgeRuns, optional
+        :func:`~facewrap.geometry.adjacency.edge_runs` of ``T``, when the caller
+        has them.
+
+    Returns
+    -------
+    flip : (t,) bool
+        Triangles whose winding to reverse.
+    patch : (t,) int64
+        The orientable patch of each triangle (edge-connected through manifold
+        edges), labels in ``[0, t)`` not necessarily consecutive.
+    disagreeing : int
+        Manifold edges whose two triangles ran the same way before.
+
+    Examples
+    --------
+    >>> flip, patch, bad = coherent_orientation([[0, 1, 2], [0, 2, 3], [2, 3, 4]])
+    >>> flip.tolist(), bool(patch[0] == patch[2]), bad
+    ([False, False, True], True, 1)
+    """
+    T = np.asarray(T, dtype=np.int64)
+    t = len(T)
+    if t == 0:
+        return np.zeros(0, bool), np.zeros(0, np.int64), 0
+    f1, f2, same = _manifold_pairs(T, runs)
+    if not same.any():   # wound one way already: the patches alone
+        graph = sp.csr_matrix((np.ones(len(f1), np.int8), (f1, f2)), shape=(t, t))
+        return (np.zeros(t, bool), csgraph.connected_components(graph, directed=False)[1],
+                0)
+    rows = np.concatenate([f1, f1 + t])
+    cols = np.concatenate([f2 + t * same, f2 + t * ~same])
+    graph = sp.csr_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(2 * t, 2 * t))
+    labels = csgraph.connected_components(graph, directed=False)[1]
+    kept, turned = labels[:t], labels[t:]
+    return kept > turned, np.minimum(kept, turned), int(same.sum())
+
+
+#: a scan vertex is a spike when it stands farther from the centroid of its
+#: neighbours than this many times their mean distance from that centroid
+SPIKE_LIMIT = 3.0
+
+
+def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = None
+                   ) -> np.ndarray:
+    """Interior vertices that stand far out of (or into) the surface around them.
+
+    A vertex is compared with the ring of its neighbours: the distance from it to
+    the ring's centroid, over the ring's radius (the neighbours' RMS distance from
+    that centroid, which the vertex itself does not change).  A smooth surface
+    keeps that ratio far below 1, a cone as sharp as a nose tip near 1; a scanner's
+    spike, a vertex shot out along the line of sight, several times.  Border
+    vertices (whose ring is one-sided) are never called spikes.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+    limit : float
+        The ratio above which a vertex is a spike.
+    runs : EdgeRuns, optional
+        :func:`~facewrap.geometry.adjacency.edge_runs` of ``T``, when the caller
+        has them (the edges and borders come from them, no sort).
+
+    Returns
+    -------
+    (n,) bool
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0.]])
+    >>> T = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]]
+    >>> spike_vertices(V, T).tolist()
+    [False, False, False, False, False]
+    >>> V[0, 2] = 5.0
+    >>> spike_vertices(V, T).tolist()
+    [True, False, False, False, False]
+    """
+    V, T = as_mesh_arrays(V, T)
+    n = len(V)
+    order, starts = edge_runs(T) if runs is None else runs
+    if not len(order):
+        return np.zeros(n, bool)
+    # one half-edge of each undirected edge; runs of one are border edges
+    first = np.flatnonzero(starts)
+    single = np.diff(np.r_[first, len(order)]) == 1
+    h = order[first]
+    a, b = T.reshape(-1)[h], T[:, [1, 2, 0]].reshape(-1)[h]
+    edge = a != b
+    a, b, single = a[edge], b[edge], single[edge]
+    # sums over each vertex's neighbours by bincount: no sparse matrix to sort
+    degree = np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
+    inv = safe_inverse(degree.astype(np.float64))
+    total = np.stack([np.bincount(a, V[b, k], n) + np.bincount(b, V[a, k], n)
+                      for k in range(3)], axis=1)
+    centroid = total * inv[:, None]
+    squares = np.einsum("ij,ij->i", V, V)
+    spread = ((np.bincount(a, squares[b], n) + np.bincount(b, squares[a], n)) * inv
+              - np.einsum("ij,ij->i", centroid, centroid))
+    radius = np.sqrt(np.maximum(spread, 0.0))
+    offset = np.linalg.norm(V - centroid, axis=1)
+    spike = (degree >= 3) & (offset > limit * radius)
+    spike[a[single]] = False
+    spike[b[single]] = False
+    return spike

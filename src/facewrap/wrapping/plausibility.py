@@ -12,12 +12,15 @@ the wrong thing silently (issue 16):
   two thirds of the spread on the built-in sample and the ICT cases), but move
   neighbours alike, so no swap fits them better.
 * :func:`duplicated_landmarks` — two landmarks at the same point.
-* :func:`unique_faces` — faces listed twice (same three vertices) are dropped.
+* :func:`unique_faces` — faces listed twice (same three vertices) are dropped;
+  vertices at one position (a triangle soup) merged; fins on non-manifold edges
+  (:func:`dangling_fins`) and spikes left out.
 * :func:`opposed_normal_fraction` — the scan's faces turned away from the aligned
-  template's (every face flipped): the scan's faces are reversed for the fit.
+  template's (every face flipped, or pieces wound against each other): each
+  piece is wound one way and turned to face the template for the fit.
 * :func:`check_scale` — a similarity scale that suggests other units.
 
-:func:`checked_scan` runs the last three on the scan; :func:`check_landmarks` the
+:func:`checked_scan` runs the scan's checks; :func:`check_landmarks` the
 first three on the pairs.  Every check returns its warnings as one-line strings,
 each starting with what it is about ("scan: ", "scan landmarks: ", "template
 landmarks: "), so a job can put the file's name there.
@@ -29,15 +32,18 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
                                vertex_normals)
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs
+from facewrap.geometry.duplicates import unique_faces, welded
+from facewrap.geometry.normals import (SPIKE_LIMIT, coherent_orientation, disagreeing_edges,
+                                       spike_vertices)
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.geometry.arrays import unique_integers
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
 
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OPPOSED_SAMPLE",
            "landmark_spread", "robust_similarity", "check_reflection",
            "swapped_pairs", "mispaired_landmarks", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
-           "unique_faces", "opposed_normal_fraction", "checked_scan", "check_scale",
+           "unique_faces", "opposed_normal_fraction", "dangling_fins", "checked_scan", "check_scale",
            "UNSCALED_LIMIT", "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
 
 #: refuse a landmark similarity when the best mirrored fit's residual is below this
@@ -359,25 +365,16 @@ def check_landmarks(template_landmarks: Landmarks, template_positions,
     return notes, similarity if flagged.mean() < 0.5 else None
 
 
-def unique_faces(triangles) -> np.ndarray:
-    """(m,) bool: the first of every set of triangles on the same three vertices
-    (whatever their order or winding).
-
-    >>> unique_faces([[0, 1, 2], [1, 2, 3], [2, 1, 0], [0, 1, 2]]).tolist()
-    [True, True, False, False]
-    """
-    T = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
-    keep = np.zeros(len(T), dtype=bool)
-    if not len(T):
-        return keep
-    if T.max() < 2 ** 21:
-        # one int64 key per sorted row: a 1-D unique, several times faster than
-        # np.unique(axis=0) on a million triangles
-        key = (T[:, 0] << 42) | (T[:, 1] << 21) | T[:, 2]
-        keep[unique_integers(key, return_index=True)[1]] = True
-    else:
-        keep[np.unique(T, axis=0, return_index=True)[1]] = True
-    return keep
+def _opposed_votes(vertices, triangles, normals, tree: ClosestPointTree,
+                   max_distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The scan triangle closest to each point that counts (near, not on a
+    border), and whether it faces against the point's normal."""
+    near = closest_compatible_points(tree, vertices, max_distance=max_distance,
+                                     reject_border=True)
+    # normals of the triangles met only, not of the whole scan
+    scan_normals = face_normals(tree.vertices, np.asarray(triangles)[near.triangles])
+    return near.triangles, np.einsum("ij,ij->i", scan_normals,
+                                     np.asarray(normals)[near.index]) < 0
 
 
 def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree,
@@ -402,20 +399,102 @@ def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree
     float
         In [0, 1]; NaN when no point counts.
     """
-    near = closest_compatible_points(tree, vertices, max_distance=max_distance,
-                                     reject_border=True)
-    if not len(near.index):
-        return float("nan")
-    # normals of the triangles met only, not of the whole scan
-    scan_normals = face_normals(tree.vertices, np.asarray(triangles)[near.triangles])
-    return float(np.mean(np.einsum("ij,ij->i", scan_normals,
-                                   np.asarray(normals)[near.index]) < 0))
+    opposed = _opposed_votes(vertices, triangles, normals, tree, max_distance)[1]
+    return float(np.mean(opposed)) if len(opposed) else float("nan")
+
+
+def dangling_fins(T, runs: EdgeRuns | None = None) -> np.ndarray:
+    """(t,) bool: triangles hanging on a non-manifold edge by that edge alone
+    (their two other edges on a border): fins a scanner or a bad merge left
+    standing off the surface.
+
+    >>> dangling_fins([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 3, 2]]).tolist()
+    [False, False, True, False]
+    """
+    T = np.asarray(T, dtype=np.int64)
+    order, starts = edge_runs(T) if runs is None else runs
+    if not len(order):
+        return np.zeros(len(T), bool)
+    run = np.cumsum(starts) - 1
+    size = np.bincount(run)[run]
+    shared = np.zeros(3 * len(T), bool)
+    shared[order[size > 2]] = True
+    border = np.zeros(3 * len(T), bool)
+    border[order[size == 1]] = True
+    shared, border = shared.reshape(-1, 3), border.reshape(-1, 3)
+    return (shared.sum(axis=1) == 1) & (border.sum(axis=1) == 2)
+
+
+def _tidied_triangles(V, T) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The scan's vertices welded and its triangles without repeats, fins and
+    spikes (see :func:`checked_scan`), with a warning for each change."""
+    notes = []
+    W, T = welded(V, T)
+    if len(W) < len(V):
+        notes.append(f"scan: {len(V) - len(W)} of {len(V)} vertices repeat another's "
+                     "position (a triangle soup, or seams split apart); merged for the "
+                     "fit")
+    keep = unique_faces(T)
+    if not keep.all():
+        notes.append(f"scan: {int((~keep).sum())} of {len(T)} triangles repeat another's "
+                     "vertices (duplicated faces); the fit uses each once")
+        T = T[keep]
+    runs = edge_runs(T)
+    fins = dangling_fins(T, runs)
+    spikes = spike_vertices(W, T, runs=runs)
+    drop = fins | spikes[T].any(axis=1)
+    if fins.any():
+        notes.append(f"scan: {int(fins.sum())} triangle(s) hang off the surface by one "
+                     "edge (non-manifold fins); left out of the fit")
+    if spikes.any():
+        notes.append(f"scan: {int(spikes.sum())} vertices stand far out of the surface "
+                     f"around them (spikes, more than {SPIKE_LIMIT:g} times their "
+                     "neighbours' spread); their triangles are left out of the fit")
+    return W, T[~drop] if drop.any() else T, notes
+
+
+def _oriented(T, tree: ClosestPointTree, aligned, normals, max_distance
+              ) -> tuple[np.ndarray, list[str]]:
+    """The scan's triangles wound one way per piece and facing the template
+    (see :func:`checked_scan`)."""
+    if disagreeing_edges(T, tree.edge_runs) == 0:
+        opposed = (float("nan") if aligned is None else
+                   opposed_normal_fraction(aligned, T, normals, tree, max_distance))
+        if not opposed > OPPOSED_LIMIT:
+            return T, []
+        return T[:, ::-1], [f"scan: {100 * opposed:.0f} % of the scan under the template "
+                            "faces inward (its faces are flipped); the fit uses them "
+                            "reversed"]
+    flip, patch, bad = coherent_orientation(T, tree.edge_runs)
+    U = np.where(flip[:, None], T[:, ::-1], T)
+    # each patch faces the template by the vote of the template points over it;
+    # a patch no point reaches keeps the winding most of its triangles had
+    votes = np.bincount(patch, minlength=len(T)).astype(np.float64)
+    against = np.bincount(patch, flip.astype(np.float64), minlength=len(T))
+    turn = against > 0.5 * votes
+    if aligned is not None:
+        met, opposed = _opposed_votes(aligned, U, normals,
+                                      ClosestPointTree(tree.vertices, U), max_distance)
+        counted = np.bincount(patch[met], minlength=len(T))
+        opposite = np.bincount(patch[met], opposed.astype(np.float64), minlength=len(T))
+        turn = np.where(counted > 0, opposite > 0.5 * counted, turn)
+    U = np.where((flip ^ turn[patch])[:, None], T[:, ::-1], T)
+    changed = int(np.sum(flip ^ turn[patch]))
+    return U, [f"scan: its triangles are wound inconsistently ({bad} edges between "
+               f"triangles wound against each other); the fit turns {changed} of "
+               f"{len(T)} so each piece faces one way, outward"]
 
 
 def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
                  template_triangles, mask=None) -> tuple[Mesh, ClosestPointTree, list[str]]:
-    """The scan as the fit should see it: duplicated faces dropped, faces turned
-    the template's way; with its tree and a warning for each change.
+    """The scan as the fit should see it, with its tree and a warning per change.
+
+    Vertices at one position merged (a triangle soup is a surface again);
+    duplicated faces dropped; fins hanging on a non-manifold edge
+    (:func:`dangling_fins`) and the triangles of spikes
+    (:func:`~facewrap.geometry.normals.spike_vertices`) left out; triangles wound
+    one way in each piece (:func:`~facewrap.geometry.normals.coherent_orientation`)
+    and each piece turned to face the aligned template.
 
     Parameters
     ----------
@@ -424,7 +503,8 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
         The scan's tree, if built (rebuilt only when the scan changes).
     aligned_template : (n, 3) float or None
         Template vertices under the landmark similarity; None when nothing places
-        the template (mis-paired landmarks): the faces' orientation is not checked.
+        the template (mis-paired landmarks): which way the scan faces is not
+        checked (pieces wound against each other still agree after).
     template_triangles : (t, 3) int
     mask : (n,) bool, optional
         Template vertices that take part (not excluded ones).
@@ -433,20 +513,14 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     -------
     scan : Mesh
         ``scan`` itself when nothing was changed, else a triangle mesh of its
-        vertices (UVs dropped: the fit needs none).
+        (welded) vertices (UVs dropped: the fit needs none).
     tree : ClosestPointTree
     warnings : list of str
     """
-    notes = []
-    T = scan.triangles
-    keep = unique_faces(T)
-    if not keep.all():
-        notes.append(f"scan: {int((~keep).sum())} of {len(T)} triangles repeat another's "
-                     "vertices (duplicated faces); the fit uses each once")
-        T, tree = T[keep], None
-    if tree is None:
-        tree = ClosestPointTree(scan.vertices, T)
-    opposed = float("nan")
+    V, T, notes = _tidied_triangles(scan.vertices, scan.triangles)
+    if notes or tree is None:
+        tree = ClosestPointTree(V, T)
+    aligned = normals = None
     if aligned_template is not None:
         aligned = np.asarray(aligned_template, np.float64)
         normals = vertex_normals(aligned, template_triangles)
@@ -455,15 +529,13 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
         # a fraction: every k-th of the vertices estimates it as well as all of them
         # (to a percent at 2,000 points; the test is 50 %), for a fifth of the queries
         step = max(1, len(aligned) // OPPOSED_SAMPLE)
-        opposed = opposed_normal_fraction(aligned[::step], T, normals[::step], tree,
-                                          0.05 * scan.scale())
-    if opposed > OPPOSED_LIMIT:
-        notes.append(f"scan: {100 * opposed:.0f} % of the scan under the template faces "
-                     "inward (its faces are flipped); the fit uses them reversed")
-        T = T[:, ::-1]
-        tree = ClosestPointTree(scan.vertices, T)
+        aligned, normals = aligned[::step], normals[::step]
+    U, turned = _oriented(T, tree, aligned, normals, 0.05 * scan.scale())
+    if turned:
+        notes += turned
+        T, tree = U, ClosestPointTree(V, U)
     if notes:
-        scan = Mesh(scan.vertices, T)
+        scan = Mesh(V, T)
     return scan, tree, notes
 
 
