@@ -10,7 +10,8 @@ the wrong thing silently (issue 16):
   landmarks fit far better swapped: a wrong order, pairing or left/right swap.
   Expressions move landmarks too (an open jaw drops the chin and lips by up to
   two thirds of the spread on the built-in sample and the ICT cases), but move
-  neighbours alike, so no swap fits them better.
+  neighbours alike: no swap fits them better, and a stable landmark (eyes,
+  brows, nose) that moves apart from its neighbours is named (:func:`local_misfit`).
 * :func:`duplicated_landmarks` — two landmarks at the same point.
 * :func:`unique_faces` — faces listed twice (same three vertices) are dropped;
   vertices at one position (a triangle soup) merged; fins on non-manifold edges
@@ -41,8 +42,9 @@ from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
 
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OPPOSED_SAMPLE",
-           "landmark_spread", "robust_similarity", "check_reflection",
-           "swapped_pairs", "mispaired_landmarks", "check_landmark_residuals", "duplicated_landmarks", "check_landmarks",
+           "landmark_spread", "robust_similarity", "check_reflection", "swapped_pairs",
+           "mispaired_landmarks", "LOCAL_LIMIT", "local_misfit", "check_landmark_residuals",
+           "duplicated_landmarks", "check_landmarks",
            "unique_faces", "opposed_normal_fraction", "dangling_fins", "checked_scan", "check_scale",
            "UNSCALED_LIMIT", "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
 
@@ -68,6 +70,9 @@ UNSCALED_LIMIT = 0.05
 #: holes, a triangle soup) keeps its border correspondences: rejecting them
 #: would leave none (the sample's scan with half its triangles dropped)
 LACY_LIMIT = 0.5
+#: a stable landmark (eyes, brows, nose) moved apart from its neighbours by more than
+#: this fraction of the spread is misplaced (james: 20 mm off, 0.33; eyes shut, 0.15)
+LOCAL_LIMIT = 0.25
 #: landmarks off by less than this (fraction of the spread) are never called swapped
 SWAP_MINIMUM = 0.3
 #: landmarks closer than this (fraction of the landmarks' spread) are the same point
@@ -215,14 +220,39 @@ def mispaired_landmarks(sources, targets, weights=None, *, scale: bool = True
     residuals : (k,) float64
         Over the sources' spread (:func:`robust_similarity`).
     flagged : (k,) bool
-        Residual above ``RESIDUAL_LIMIT``, or one of a :func:`swapped_pairs` pair.
+        Residual above ``RESIDUAL_LIMIT``, one of a :func:`swapped_pairs` pair, or
+        (with weights that tell the stable landmarks) a stable landmark moved
+        apart from its neighbours (:func:`local_misfit` over ``LOCAL_LIMIT``).
     """
     X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
     similarity, residuals = robust_similarity(X, Y, weights, scale=scale)
     flagged = residuals > RESIDUAL_LIMIT
     spread = similarity.scale * landmark_spread(X)
-    flagged[swapped_pairs(similarity.apply(X), Y, spread).ravel()] = True
+    aligned = similarity.apply(X)
+    flagged[swapped_pairs(aligned, Y, spread).ravel()] = True
+    if weights is not None and np.ptp(weights) > 0:   # named: the stable ones known
+        stable = np.asarray(weights) >= np.max(weights)
+        flagged |= stable & (local_misfit(aligned, Y) > LOCAL_LIMIT * spread)
     return similarity, residuals, flagged
+
+
+def local_misfit(aligned, targets, neighbours: int = 4) -> np.ndarray:
+    """(k,) float64: how far each landmark's move (target minus aligned point)
+    differs from the median move of its ``neighbours`` nearest landmarks.
+
+    An expression moves neighbours alike; a landmark put in the wrong place alone.
+
+    >>> X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 0, 0.]])
+    >>> Y = X + [0, 0, 1.0]; Y[4, 1] += 3
+    >>> local_misfit(X, Y, 2).round(2).tolist()
+    [0.0, 0.0, 0.0, 0.0, 3.0]
+    """
+    A, Y = np.asarray(aligned, np.float64), np.asarray(targets, np.float64)
+    D = np.linalg.norm(A[:, None] - A[None], axis=2)
+    np.fill_diagonal(D, np.inf)
+    near = np.argsort(D, axis=1, kind="stable")[:, :min(neighbours, len(A) - 1)]
+    moves = Y - A
+    return np.linalg.norm(moves - np.median(moves[near], axis=1), axis=1)
 
 
 def check_landmark_residuals(sources, targets, landmarks: Landmarks, weights=None, *,
@@ -381,23 +411,10 @@ def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree
                             max_distance: float) -> float:
     """Fraction of points whose closest scan triangle faces against their normal.
 
-    Parameters
-    ----------
-    vertices : (n, 3) float
-        Template vertices aligned to the scan.
-    triangles : (m, 3) int
-        The scan's triangles (as in ``tree``).
-    normals : (n, 3) float
-        The aligned template's vertex normals.
-    tree : ClosestPointTree
-        The scan.
-    max_distance : float
-        Points farther from the scan, or closest to its border, do not count.
-
-    Returns
-    -------
-    float
-        In [0, 1]; NaN when no point counts.
+    ``vertices``, ``normals`` (n, 3): the aligned template's (or some of them);
+    ``triangles`` (m, 3): the scan's, as in ``tree``; points farther from the scan
+    than ``max_distance``, or closest to its border, do not count.  Returns a
+    float in [0, 1]; NaN when no point counts.
     """
     opposed = _opposed_votes(vertices, triangles, normals, tree, max_distance)[1]
     return float(np.mean(opposed)) if len(opposed) else float("nan")
@@ -489,12 +506,11 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
                  template_triangles, mask=None) -> tuple[Mesh, ClosestPointTree, list[str]]:
     """The scan as the fit should see it, with its tree and a warning per change.
 
-    Vertices at one position merged (a triangle soup is a surface again);
-    duplicated faces dropped; fins hanging on a non-manifold edge
-    (:func:`dangling_fins`) and the triangles of spikes
-    (:func:`~facewrap.geometry.normals.spike_vertices`) left out; triangles wound
-    one way in each piece (:func:`~facewrap.geometry.normals.coherent_orientation`)
-    and each piece turned to face the aligned template.
+    Vertices at one position merged (a soup is a surface again); duplicated
+    faces dropped; fins (:func:`dangling_fins`) and the triangles of spikes
+    (:func:`~facewrap.geometry.normals.spike_vertices`) left out; each piece wound
+    one way (:func:`~facewrap.geometry.normals.coherent_orientation`), facing the
+    aligned template.
 
     Parameters
     ----------
