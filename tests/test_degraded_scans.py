@@ -1,0 +1,139 @@
+"""Scans as real scanners deliver them: each spoiling alone, first on the geometry
+with a known answer, then through ``wrap`` on the built-in sample, whose result
+must stay close to the clean scan's and say what it fixed."""
+
+import numpy as np
+import pytest
+
+from facewrap.geometry import face_normals, vertex_normals
+from facewrap.geometry.duplicates import welded
+from facewrap.geometry.normals import coherent_orientation, disagreeing_edges, spike_vertices
+from facewrap.landmarks import Landmarks
+from facewrap.mesh import Mesh
+from facewrap.sample import make_scan, make_template
+from facewrap.wrapping import WrapSettings, wrap
+from facewrap.wrapping.plausibility import dangling_fins, local_misfit
+
+
+# -- the geometry alone ---------------------------------------------------------------
+def _grid(k=12):
+    s = np.linspace(0, 1, k + 1)
+    a, b = np.meshgrid(s, s, indexing="ij")
+    V = np.stack([a.ravel(), b.ravel(), 0.1 * np.sin(3 * a.ravel())], axis=1)
+    i = (np.arange(k)[:, None] * (k + 1) + np.arange(k)[None]).ravel()
+    T = np.vstack([np.stack([i, i + k + 1, i + 1], 1),
+                   np.stack([i + 1, i + k + 1, i + k + 2], 1)])
+    return V, T
+
+
+def test_coherent_orientation_winds_every_piece_one_way():
+    V, T = _grid()
+    U = T.copy()
+    turn = np.random.default_rng(0).random(len(T)) < 0.4
+    U[turn] = U[turn, ::-1]
+    flip, patch, bad = coherent_orientation(U)
+    assert bad > 0 and disagreeing_edges(T) == 0
+    W = np.where(flip[:, None], U[:, ::-1], U)
+    assert disagreeing_edges(W) == 0
+    assert len(np.unique(patch)) == 1
+    # one way: all as the grid was, or all reversed
+    agree = np.einsum("ij,ij->i", face_normals(V, W), face_normals(V, T)) > 0
+    assert agree.all() or not agree.any()
+
+
+def test_spikes_are_found_and_a_smooth_surface_has_none():
+    V, T = _grid(16)
+    assert not spike_vertices(V, T).any()
+    W = V.copy()
+    pushed = [40, 100, 200]
+    W[pushed] += 0.3 * vertex_normals(V, T)[pushed] * [[1], [-1], [1]]
+    assert np.flatnonzero(spike_vertices(W, T)).tolist() == pushed
+
+
+def test_welded_soup_and_dangling_fins():
+    V, T = _grid(4)
+    W, F = welded(V[T.reshape(-1)], np.arange(T.size).reshape(-1, 3))
+    assert len(W) == len(V)
+    assert np.allclose(W[F], V[T])
+    fin = np.vstack([T, [[T[5, 0], T[5, 1], len(V)]]])
+    assert np.flatnonzero(dangling_fins(fin)).tolist() == [len(T)]
+    assert not dangling_fins(T).any()
+
+
+def test_local_misfit_tells_a_lone_move_from_a_shared_one():
+    X = np.random.default_rng(1).normal(size=(12, 3))
+    Y = X + [0.5, 0, 0]
+    Y[:4] += [0, 1.0, 0]           # a group moving alike (an expression)
+    Y[9] += [0, 0, 2.0]            # one alone
+    misfit = local_misfit(X, Y)
+    assert np.argmax(misfit) == 9 and misfit[9] > 1.0
+
+
+# -- through wrap on the sample -----------------------------------------------------
+@pytest.fixture(scope="module")
+def sample():
+    template = make_template(resolution=40)
+    scan = make_scan(template, resolution=60)
+    return template, scan, _wrap(template, scan.mesh, scan.landmarks)
+
+
+def _wrap(template, mesh, landmarks):
+    return wrap(template.mesh, mesh, template.landmarks, landmarks,
+                WrapSettings(model="rbf"))
+
+
+def _close(result, good, template, tolerance=0.002):
+    size = template.mesh.scale()
+    d = np.linalg.norm(result.vertices - good.vertices, axis=1)
+    return np.percentile(d, 95) < tolerance * size
+
+
+def _half_reversed(V, T, rng):
+    U = T.copy()
+    turn = rng.random(len(T)) < 0.5
+    U[turn] = U[turn, ::-1]
+    return V, U
+
+
+def _soup(V, T, rng):
+    return V[T.reshape(-1)], np.arange(T.size).reshape(-1, 3)
+
+
+def _fins(V, T, rng):
+    t = rng.choice(len(T), 100, replace=False)
+    a, b = T[t, 0], T[t, 1]
+    tip = 0.5 * (V[a] + V[b]) + 0.02 * np.ptp(V, axis=0).max() * vertex_normals(V, T)[a]
+    k = np.arange(len(t)) + len(V)
+    return np.vstack([V, tip]), np.vstack([T, np.stack([a, b, k], 1)])
+
+
+def _spikes(V, T, rng):
+    W = V.copy()
+    i = rng.choice(len(V), len(V) // 100, replace=False)
+    W[i] += 0.05 * np.ptp(V, axis=0).max() * vertex_normals(V, T)[i]
+    return W, T
+
+
+@pytest.mark.parametrize("spoil, said", [
+    (_half_reversed, "wound inconsistently"), (_soup, "repeat another's position"),
+    (_fins, "non-manifold fins"), (_spikes, "spikes")])
+def test_a_spoiled_scan_fits_as_the_clean_one_and_says_so(sample, spoil, said):
+    template, scan, good = sample
+    V, T = spoil(scan.mesh.vertices, scan.mesh.triangles, np.random.default_rng(3))
+    result = _wrap(template, Mesh(V, T), scan.landmarks)
+    assert any(said in w for w in result.warnings), result.warnings
+    assert _close(result, good, template)
+
+
+def test_a_clean_sample_is_left_alone(sample):
+    assert sample[2].warnings == []
+
+
+def test_one_stable_landmark_far_off_is_named(sample):
+    template, scan, _ = sample
+    P = scan.landmarks.positions(scan.mesh)
+    names = list(scan.landmarks.names)
+    i = names.index("eye_r_inner") if "eye_r_inner" in names else 39
+    P[i] += [0.3 * np.ptp(P[:, 0]), 0, 0]
+    result = _wrap(template, scan.mesh, Landmarks.from_points(P, scan.landmarks.names))
+    assert any(scan.landmarks.label(i) in w for w in result.warnings), result.warnings
