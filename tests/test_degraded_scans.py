@@ -50,6 +50,17 @@ def test_spikes_are_found_and_a_smooth_surface_has_none():
     assert np.flatnonzero(spike_vertices(W, T)).tolist() == pushed
 
 
+def test_noise_as_large_as_the_spacing_is_no_spike():
+    # a dense scan's noise (the sample's at 0.2 mm spacing is 0.2 mm) lifts many
+    # vertices off their ring by more than the ring's radius: none is a spike
+    V, T = _grid(60)
+    rng = np.random.default_rng(2)
+    W = V + rng.normal(scale=1 / 60, size=V.shape)
+    assert not spike_vertices(W, T).any()
+    W[[500, 1500]] += [0, 0, 0.3]
+    assert np.flatnonzero(spike_vertices(W, T)).tolist() == [500, 1500]
+
+
 def test_welded_soup_and_dangling_fins():
     V, T = _grid(4)
     W, F = welded(V[T.reshape(-1)], np.arange(T.size).reshape(-1, 3))
