@@ -31,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_heads as H  # noqa: E402
+from facewrap.geometry import flipped_triangles  # noqa: E402
 from facewrap.mesh import Mesh  # noqa: E402
 from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
 from facewrap.wrapping.follow import side_changes  # noqa: E402
@@ -134,9 +135,12 @@ def _one(template, vmap, ids, scan, scan_lm, truth, fitting, base_roles) -> dict
     seconds = time.perf_counter() - t
     out = H._measures(r, template, scan, fit_v)
     # parts by ICT's table mapped through the variant, whatever the template holds
+    T = template.triangles
+    aligned = r.transform.apply(template.vertices)
     truth_roles = np.where(vmap >= H.SKIN_END, PART, 0).astype(np.int8)
-    out["through"] = int(side_changes(template.triangles, r.transform.apply(
-        template.vertices), r.vertices, truth_roles).sum())
+    out["through"] = int(side_changes(T, aligned, r.vertices, truth_roles).sum())
+    out["part_flips"] = int(flipped_triangles(r.vertices, aligned, T)[
+        (vmap[T] >= H.SKIN_END).all(axis=1)].sum())
     out.update(time=seconds, landmarks=r.metrics["landmark_mean"],
                part_as_skin=int(((vmap >= H.SKIN_END) & (r.roles != PART)).sum()),
                skin_as_part=int(((vmap < H.SKIN_END) & (r.roles == PART)).sum()),
@@ -144,8 +148,14 @@ def _one(template, vmap, ids, scan, scan_lm, truth, fitting, base_roles) -> dict
                roles_changed=int((r.roles != base_roles[vmap]).sum())
                if base_roles is not None else 0, roles=r.roles)
     if truth is not None:
-        e = np.linalg.norm(r.vertices - truth[vmap], axis=1)[fit_v]
-        out.update(truth_mean=float(e.mean()), truth_p95=float(np.percentile(e, 95)))
+        e = np.linalg.norm(r.vertices - truth[vmap], axis=1)
+        inner = fit_v & (base_roles[vmap] == CAVITY) if base_roles is not None else (
+            fit_v & (r.roles == CAVITY))
+        part = vmap >= H.SKIN_END
+        out.update(truth_mean=float(e[fit_v].mean()),
+                   truth_p95=float(np.percentile(e[fit_v], 95)),
+                   inner_lips=float(e[inner].mean()),
+                   parts_max=float(e[part].max()) if part.any() else float("nan"))
     return out
 
 
@@ -179,10 +189,11 @@ def run(only=None) -> dict:
 def _line(x) -> str:
     if "error" in x:
         return f"crash: {x['error']}"
-    truth = (f"{x['truth_mean']:.3f} / {x['truth_p95']:.3f}" if "truth_mean" in x
-             else "–")
+    truth = (f"{x['truth_mean']:.3f} / {x['truth_p95']:.3f} | {x['inner_lips']:.3f} | "
+             f"{x['parts_max']:.1f}" if "truth_mean" in x else "– | – | –")
     return (f"{x['fit_mean']:.3f} / {x['fit_p95']:.3f} | {truth} | {x['flipped']} | "
-            f"{x['through']} | {x['landmarks']:.2f} | {x['part_as_skin']} / "
+            f"{x['through']} | {x['part_flips']} | {x['landmarks']:.2f} | "
+            f"{x['part_as_skin']} / "
             f"{x['skin_as_part']} | {x['roles_changed']} | {x['time']:.1f}")
 
 
@@ -192,17 +203,20 @@ def markdown(r: dict) -> str:
          "wrapped with only its landmark ids (no profile beside it, model auto → graph). "
          "Over ICT's fitting vertices mapped through the variant: fit mean / p95 (mm, "
          "off the scan's border), truth mean / p95 (mm, identities scanned by "
-         "`benchmarks/_head_scans.py`), flipped triangles among them, through = part "
-         "vertices (ICT's parts table) on the other side of the skin than on the "
-         "template, landmark mean error (mm), parts taken as skin / skin taken as "
+         "`benchmarks/_head_scans.py`; inner lips: the fitting vertices that are "
+         "cavities in the run as published; parts: ICT's parts table), flipped "
+         "triangles among them, through = part vertices (ICT's parts table) on the "
+         "other side of the skin than on the template, part flips = flipped part "
+         "triangles, landmark mean error (mm), parts taken as skin / skin taken as "
          "parts (vertices), roles changed = vertices whose role differs from the run "
          "as published. One run each.", ""]
     L += [f"{n}" for n in r.get("notes", [])]
     for s in r["scans"]:
         L += [f"**onto {s['name']}** ({s['landmarks']} landmarks)", "",
-              "| variant | fit mean / p95 (mm) | truth mean / p95 (mm) | flipped | through "
-              "| landmarks (mm) | parts as skin / skin as parts (v) | roles changed (v) "
-              "| time (s) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "| variant | fit mean / p95 (mm) | truth mean / p95 (mm) | inner lips to "
+              "the truth (mm) | parts to the truth, max (mm) | flipped | through | part "
+              "flips | landmarks (mm) | parts as skin / skin as parts (v) | roles "
+              "changed (v) | time (s) |", "|---|" + "---:|" * 11]
         L += [f"| {name} | " + _line(x) + " |" for name, x in s["rows"].items()]
         L.append("")
     return "\n".join(L) + "\n"
