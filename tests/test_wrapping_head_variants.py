@@ -8,9 +8,6 @@ import pytest
 from facewrap.wrapping.follow import follow_skin, side_changes
 from facewrap.wrapping.roles import PART, find_hidden_surface
 
-Z_UP = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0.]])       # +y -> +z
-TURNED = np.diag([-1.0, -1.0, 1.0]) @ Z_UP                 # and 180° about the new up
-
 
 @pytest.fixture(scope="module")
 def sample():
@@ -22,11 +19,9 @@ def sample():
 @pytest.mark.parametrize("change", [
     lambda V: 0.001 * V,                  # the same head in metres
     lambda V: 1000.0 * V,
-    lambda V: V @ Z_UP.T,                 # exported Z-up
-    lambda V: V @ TURNED.T,               # and facing the other way
-    lambda V: 10.0 * V @ TURNED.T + [30.0, 1700.0, -50.0],   # placed on a body
-], ids=["metres", "x1000", "z-up", "turned", "on-a-body"])
-def test_hidden_surface_does_not_depend_on_units_or_frame(sample, change):
+    lambda V: 10.0 * V + [30.0, 1700.0, -50.0],   # placed on a body
+], ids=["metres", "x1000", "on-a-body"])
+def test_hidden_surface_does_not_depend_on_units_or_place(sample, change):
     V, T, base = sample
     found = find_hidden_surface(change(V), T)
     assert found.hidden.any()
@@ -70,14 +65,14 @@ def test_eyeballs_of_a_face_region_stay_with_its_eyelids(ict_identity):
     assert not side_changes(face.triangles, R, out, roles).any()
 
 
-def test_ict_head_has_the_same_cavities_in_metres_and_turned(ict_identity):
-    """ICT's full head (cm) in metres, and Z-up facing the other way: the same
-    parts and cavities (58 and 215 vertices differed when the lines were cast in
-    the file's own frame)."""
+def test_ict_head_has_the_same_cavities_in_metres_and_on_a_body(ict_identity):
+    """ICT's full head (cm) in metres, and 1.7 m up on a body: the same parts and
+    cavities (58 vertices differed in metres when the lines were cast in the
+    file's own units: libigl offsets them by an absolute 1e-5)."""
     head, _ = ict_identity
     V, T = head.vertices, head.triangles
     base = find_hidden_surface(V, T)
-    for changed in (0.01 * V, V @ TURNED.T):
+    for changed in (0.01 * V, V + [0.0, 170.0, 0.0]):
         found = find_hidden_surface(changed, T)
         np.testing.assert_array_equal(found.part, base.part)
         np.testing.assert_array_equal(found.cavity, base.cavity)

@@ -56,7 +56,7 @@ _VIEW_DIRECTIONS = 64
 #: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
 _CACHE_KIND = "hidden-surface"
 _CACHE_VERSION = 2
-#: the RMS radius of the skin in the frame the lines are cast in (see :func:`_upright`)
+#: the RMS radius of the skin in the frame the lines are cast in (see :func:`_normalised`)
 _FRAME_RADIUS = 100.0
 
 
@@ -93,37 +93,28 @@ def _closed_pieces(T, labels, pieces: int) -> np.ndarray:
     return ~open_
 
 
-def _upright(V, T, weights) -> np.ndarray:
-    """``V`` in a frame of the template's own: centred on the area centroid of the
-    triangles ``weights`` (t,) weighs, turned to their principal axes (each axis
-    pointing where the third moment is positive, the least skewed one turned for a
-    right-handed frame) and scaled to an RMS radius of :data:`_FRAME_RADIUS`.
+def _normalised(V, T, weights) -> np.ndarray:
+    """``V`` centred on the area centroid of the triangles ``weights`` (t,) weighs
+    and scaled to their RMS radius :data:`_FRAME_RADIUS`.
 
-    The visibility test casts a fixed set of directions, in float32, and libigl's
-    line casting offsets its lines by an absolute 1e-5: in the head's own frame
-    the same head gives the same cavities in any units, up axis, facing or place.
+    The visibility test casts lines in float32, and libigl's line casting offsets
+    them by an absolute 1e-5: in this frame the same head gives the same cavities
+    in any units and wherever it is placed.  (Not turned to its principal axes:
+    the directions are a fixed set, so a head exported Z-up or facing the other way
+    can still differ on vertices seen from about two directions; see
+    ``benchmarks/bench_head_variants.py``.)
 
     >>> V = np.random.default_rng(0).normal(size=(50, 3)) * [3, 2, 1]
     >>> T = np.arange(48).reshape(16, 3)
-    >>> c, s = np.cos(1.0), np.sin(1.0)
-    >>> R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([1, -1, -1])
-    >>> a, b = _upright(V, T, np.ones(16)), _upright(7 * V @ R.T + 40, T, np.ones(16))
+    >>> a, b = _normalised(V, T, np.ones(16)), _normalised(7 * V + 40, T, np.ones(16))
     >>> bool(np.allclose(a, b))
     True
     """
     C = V[T].mean(axis=1)
     w = weights / max(float(weights.sum()), 1e-300)
     centre = w @ C
-    X = C - centre
-    _, axes = np.linalg.eigh((X * w[:, None]).T @ X)
-    axes = axes[:, ::-1]                      # largest spread first
-    skew = w @ (X @ axes) ** 3
-    axes = axes * np.where(skew < 0, -1.0, 1.0)
-    if np.linalg.det(axes) < 0:
-        axes[:, int(np.argmin(np.abs(skew)))] *= -1.0
-    P = (V - centre) @ axes
-    radius = float(np.sqrt(w @ (X ** 2).sum(axis=1))) or 1.0
-    return P * (_FRAME_RADIUS / radius)
+    radius = float(np.sqrt(w @ ((C - centre) ** 2).sum(axis=1))) or 1.0
+    return (V - centre) * (_FRAME_RADIUS / radius)
 
 
 def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
@@ -180,7 +171,7 @@ def find_hidden_surface(V, T) -> HiddenSurface:
     candidate = area >= _SKIN_AREA_SHARE * area[largest]
     closed = _closed_pieces(T, labels, pieces) & ~candidate
     tri_area = face_areas(V, T)
-    V = _upright(V, T, np.where(candidate[labels[T[:, 0]]], tri_area, 0.0))
+    V = _normalised(V, T, np.where(candidate[labels[T[:, 0]]], tri_area, 0.0))
     seen = _seen(V, T, labels, candidate, closed, normals_out=True)
     cand_v = candidate[labels] & used
     if seen[cand_v].mean() < 0.25:       # normals point inwards: look the other way
