@@ -55,7 +55,7 @@ _VIEW_DIRECTIONS = 64
 #: the version whenever the result of the same template would change (the rules here
 #: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
 _CACHE_KIND = "hidden-surface"
-_CACHE_VERSION = 2
+_CACHE_VERSION = 3
 #: the RMS radius of the skin in the frame the lines are cast in (see :func:`_normalised`)
 _FRAME_RADIUS = 100.0
 
