@@ -16,7 +16,11 @@ vertex that still ends up on the other side of the skin than on the template
 (signed distance by libigl's pseudonormal test; the skin is every triangle that is
 not part) is put back at its template offset from the closest skin point, along
 the skin's normal there; vertices that touch the skin on the template (closer
-than ``2e-4`` of its size) have no side to keep.
+than ``2e-4`` of its size) have no side to keep, nor have those whose closest skin
+point on the template lies on the skin's border (a face region cut from its head:
+an eyeball seen through the eyelids' opening lies beyond the skin, not in front of
+or behind it, and putting it back "in front" along a border normal throws it
+centimetres away).
 """
 
 from __future__ import annotations
@@ -33,14 +37,47 @@ __all__ = ["follow_skin", "side_changes"]
 _ANCHORS = 8           # skin vertices nearest to each part vertex that carry it
 _MOST_ANCHORS = 200    # per piece: enough to follow a socket, a small solve
 _CONTACT = 2e-4        # of the template's size: a part vertex this near touches the skin
+_ON_EDGE = 1e-9        # a barycentric coordinate this small: the closest point is on an edge
 
 
 def _signed(points, V, T):
-    """Signed distances, closest points and normals of ``points`` to ``(V, T)``."""
+    """Signed distances, closest points, normals there and closest triangles of
+    ``points`` to ``(V, T)``."""
     import igl    # the compiled core, loaded on use
-    S, _, C, N = igl.signed_distance(np.ascontiguousarray(points), V, T,
+    S, I, C, N = igl.signed_distance(np.ascontiguousarray(points), V, T,
                                      igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)
-    return S, C, N
+    return S, C, N, np.asarray(I, dtype=np.int64)
+
+
+def _on_border(C, I, V, T, border) -> np.ndarray:
+    """(k,) bool: closest points ``C`` (k, 3), on triangles ``I`` (k,) of ``(V, T)``,
+    that lie on its border: on a border edge, or at a corner that is a border vertex.
+    ``border`` is :func:`_border` of ``T``."""
+    edges, vertices = border
+    if len(C) == 0 or not vertices.any():
+        return np.zeros(len(C), dtype=bool)
+    corners = T[I]
+    P = V[corners]
+    # barycentric coordinates of C: areas of the sub-triangles opposite each corner
+    area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    sub = np.stack([np.linalg.norm(np.cross(P[:, (k + 1) % 3] - C, P[:, (k + 2) % 3] - C),
+                                   axis=1) for k in range(3)], axis=1)
+    low = sub < _ON_EDGE * np.maximum(area, 1e-300)[:, None]
+    n = len(V)
+    out = np.zeros(len(C), dtype=bool)
+    for k in range(3):          # the edge opposite corner k
+        a, b = corners[:, (k + 1) % 3], corners[:, (k + 2) % 3]
+        out |= low[:, k] & np.isin(np.minimum(a, b) * n + np.maximum(a, b), edges)
+    corner = corners[np.arange(len(C)), np.argmax(sub, axis=1)]
+    return out | ((low.sum(axis=1) >= 2) & vertices[corner])
+
+
+def _border(T, n):
+    """Border edges of ``T`` as keys ``min * n + max`` and the (n,) border-vertex mask."""
+    E = np.sort(boundary_edges(T), axis=1)
+    vertices = np.zeros(n, dtype=bool)
+    vertices[E.ravel()] = True
+    return E[:, 0] * n + E[:, 1], vertices
 
 
 class _SkinSides:
@@ -51,15 +88,24 @@ class _SkinSides:
         self.part = np.flatnonzero(roles == PART)
         self.skin_T = T[(roles[T] != PART).all(axis=1)]
         self.usable = bool(len(self.part) and len(self.skin_T))
-        self.s0 = (_signed(R[self.part], R, self.skin_T)[0] if self.usable
-                   else np.zeros(len(self.part)))
-        self.contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
+        self.border = _border(self.skin_T, len(R))
+        contact = _CONTACT * float(np.linalg.norm(R.max(axis=0) - R.min(axis=0)))
+        self.s0 = np.zeros(len(self.part))
+        self.sided = np.zeros(len(self.part), dtype=bool)
+        if self.usable:
+            self.s0, C, _, I = _signed(R[self.part], R, self.skin_T)
+            self.sided = (np.abs(self.s0) > contact) & ~_on_border(C, I, R, self.skin_T,
+                                                                   self.border)
 
     def wrong(self, points, X):
         """Part vertices at ``points`` against the skin of ``X``: (wrong side,
-        closest skin points, skin normals there)."""
-        s1, C, N = _signed(points, X, self.skin_T)
-        return (np.sign(s1) != np.sign(self.s0)) & (np.abs(self.s0) > self.contact), C, N
+        closest skin points, skin normals there).  A vertex whose closest skin
+        point is on the border, on the template or here, has no side."""
+        s1, C, N, I = _signed(points, X, self.skin_T)
+        wrong = (np.sign(s1) != np.sign(self.s0)) & self.sided
+        if wrong.any():
+            wrong[wrong] = ~_on_border(C[wrong], I[wrong], X, self.skin_T, self.border)
+        return wrong, C, N
 
 
 def side_changes(template_triangles, reference, vertices, roles) -> np.ndarray:

@@ -55,7 +55,9 @@ _VIEW_DIRECTIONS = 64
 #: the version whenever the result of the same template would change (the rules here
 #: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
 _CACHE_KIND = "hidden-surface"
-_CACHE_VERSION = 1
+_CACHE_VERSION = 3
+#: the RMS radius of the skin in the frame the lines are cast in (see :func:`_normalised`)
+_FRAME_RADIUS = 100.0
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,30 @@ def _closed_pieces(T, labels, pieces: int) -> np.ndarray:
     if len(E):
         open_[np.unique(labels[E[:, 0]])] = True
     return ~open_
+
+
+def _normalised(V, T, weights) -> np.ndarray:
+    """``V`` centred on the area centroid of the triangles ``weights`` (t,) weighs
+    and scaled to their RMS radius :data:`_FRAME_RADIUS`.
+
+    The visibility test casts lines in float32, and libigl's line casting offsets
+    them by an absolute 1e-5: in this frame the same head gives the same cavities
+    in any units and wherever it is placed.  (Not turned to its principal axes:
+    the directions are a fixed set, so a head exported Z-up or facing the other way
+    can still differ on vertices seen from about two directions; see
+    ``benchmarks/bench_head_variants.py``.)
+
+    >>> V = np.random.default_rng(0).normal(size=(50, 3)) * [3, 2, 1]
+    >>> T = np.arange(48).reshape(16, 3)
+    >>> a, b = _normalised(V, T, np.ones(16)), _normalised(7 * V + 40, T, np.ones(16))
+    >>> bool(np.allclose(a, b))
+    True
+    """
+    C = V[T].mean(axis=1)
+    w = weights / max(float(weights.sum()), 1e-300)
+    centre = w @ C
+    radius = float(np.sqrt(w @ ((C - centre) ** 2).sum(axis=1))) or 1.0
+    return (V - centre) * (_FRAME_RADIUS / radius)
 
 
 def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
@@ -144,6 +170,8 @@ def find_hidden_surface(V, T) -> HiddenSurface:
     largest = int(np.argmax(area))
     candidate = area >= _SKIN_AREA_SHARE * area[largest]
     closed = _closed_pieces(T, labels, pieces) & ~candidate
+    tri_area = face_areas(V, T)
+    V = _normalised(V, T, np.where(candidate[labels[T[:, 0]]], tri_area, 0.0))
     seen = _seen(V, T, labels, candidate, closed, normals_out=True)
     cand_v = candidate[labels] & used
     if seen[cand_v].mean() < 0.25:       # normals point inwards: look the other way
