@@ -6,7 +6,17 @@ import numpy as np
 import pytest
 
 from facewrap.wrapping.follow import follow_skin, side_changes
-from facewrap.wrapping.roles import PART, find_hidden_surface
+from facewrap.wrapping.roles import FITTED, PART, find_hidden_surface, vertex_roles
+
+
+def assert_same_roles(found, base, order=slice(None)):
+    """The same parts and cavities but for a few borderline vertices: the
+    visibility lines are cast in float32 from coordinates computed another way,
+    so a vertex seen from one direction only may tip either way on another CPU
+    (none do here)."""
+    for name in ("part", "cavity"):
+        differ = np.count_nonzero(getattr(found, name) != getattr(base, name)[order])
+        assert differ <= 1e-3 * len(found.part), (name, differ)
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +35,7 @@ def test_hidden_surface_does_not_depend_on_units_or_place(sample, change):
     V, T, base = sample
     found = find_hidden_surface(change(V), T)
     assert found.hidden.any()
-    np.testing.assert_array_equal(found.part, base.part)
-    np.testing.assert_array_equal(found.cavity, base.cavity)
+    assert_same_roles(found, base)
 
 
 def test_hidden_surface_follows_the_vertex_order(sample):
@@ -35,8 +44,7 @@ def test_hidden_surface_follows_the_vertex_order(sample):
     new_id = np.empty_like(order)
     new_id[order] = np.arange(len(V))
     found = find_hidden_surface(V[order], new_id[T])
-    np.testing.assert_array_equal(found.part, base.part[order])
-    np.testing.assert_array_equal(found.cavity, base.cavity[order])
+    assert_same_roles(found, base, order)
 
 
 @pytest.fixture(scope="module")
@@ -73,6 +81,22 @@ def test_ict_head_has_the_same_cavities_in_metres_and_on_a_body(ict_identity):
     V, T = head.vertices, head.triangles
     base = find_hidden_surface(V, T)
     for changed in (0.01 * V, V + [0.0, 170.0, 0.0]):
-        found = find_hidden_surface(changed, T)
-        np.testing.assert_array_equal(found.part, base.part)
-        np.testing.assert_array_equal(found.cavity, base.cavity)
+        assert_same_roles(find_hidden_surface(changed, T), base)
+
+
+def test_icts_fitting_vertices_are_pulled_where_its_shape_looks_hidden(ict_identity, data_dir):
+    """ICT's own fitting vertices (its profile) are what a scanner sees: the inner
+    lips among them meet along a seam the shape test calls a cavity, and were left
+    unpulled (2.2 mm from the james scan); with the profile they are fitted, while
+    the eyeballs and teeth outside it still follow the skin as parts."""
+    from facewrap.io.profile import read_template_profile
+    head, _ = ict_identity
+    profile = read_template_profile(data_dir / "ict-facekit" / "FaceXModel" / "vertex_indices.json")
+    hidden = find_hidden_surface(head.vertices, head.triangles)
+    assert hidden.cavity[profile.fitting].sum() > 100          # the seam of the lips
+    roles = vertex_roles(head.n_vertices, hidden, fit_mask=profile.fitting)
+    assert (roles[profile.fitting] == FITTED).all()
+    assert (roles == FITTED).sum() == len(profile.fitting)
+    outside = np.ones(head.n_vertices, bool)
+    outside[profile.fitting] = False
+    assert (roles[hidden.part & outside] == PART).all() and (hidden.part & outside).sum() > 10000

@@ -183,8 +183,11 @@ def test_vertex_roles_priorities_and_ranges():
             back[a:b] = VERTEX_ROLES.index(name)
     assert np.array_equal(back, roles)
     assert sum(role_counts(roles).values()) == n
-    # a fit mask decides alone
-    assert vertex_roles(n, h, fit_mask=[0, 1]).tolist() == [FITTED] * 2 + [EXCLUDED] * 6
+    # a fit mask decides which vertices are pulled, even a cavity; parts outside it
+    # still follow as parts, the rest are left out
+    assert vertex_roles(n, h, fit_mask=[0, 1]).tolist() == [FITTED] * 2 + [EXCLUDED] * 4 + [PART] * 2
+    assert vertex_roles(n, h, fit_mask=[0, 1, 6], exclude=[1]).tolist() == \
+        [FITTED, CAVITY, EXCLUDED, EXCLUDED, EXCLUDED, EXCLUDED, FITTED, PART]
     with pytest.raises(ValueError, match="exclude"):
         vertex_roles(n, h, exclude=[8])
     with pytest.raises(ValueError, match="fit_mask"):

@@ -13,7 +13,6 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-
 from scipy.sparse import csgraph
 
 from facewrap.geometry.adjacency import EdgeRuns, edge_runs
@@ -23,8 +22,8 @@ from facewrap.geometry.checks import as_mesh_arrays
 
 __all__ = ["face_normals", "face_areas", "vertex_normals", "trusted_face_normals",
            "trusted_face_areas", "trusted_vertex_normals", "TriangleMeasures",
-           "trusted_normals_and_measures", "coherent_orientation", "disagreeing_edges", "spike_vertices",
-           "SPIKE_LIMIT", "SPIKE_NOISE"]
+           "trusted_normals_and_measures", "coherent_orientation", "disagreeing_edges",
+           "spike_vertices", "SPIKE_LIMIT", "SPIKE_NOISE"]
 
 
 def trusted_face_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:

@@ -95,7 +95,7 @@ class WrapJob:
     template_profile : path, optional
         The template's profile (:mod:`facewrap.io.profile`: ICT-FaceKit's
         ``vertex_indices.json`` or facewrap's own): landmarks, and the vertices
-        meant to be fitted (the others are excluded).  Default: the one found
+        meant to be fitted (pulled as a ``fit_mask`` is; the others follow).  Default: the one found
         beside the template (:func:`~facewrap.io.profile.find_template_profile`),
         if any; ``"none"`` uses none.
     blendshapes : path, optional
@@ -103,9 +103,9 @@ class WrapJob:
     exclude : path, optional
         Template vertex ids that follow but are not pulled to the scan.
     fit_mask : path, optional
-        The only template vertex ids pulled onto the scan: replaces the
-        automatic choice of what a scanner can see (``fit_hidden``) and the
-        profile's fitting vertices.
+        The only template vertex ids pulled onto the scan, cavities among them
+        too (replaces the profile's fitting vertices); the template's parts and
+        cavities outside it follow as such unless ``fit_hidden``.
     pin : path, optional
         Template vertex ids kept exactly where the landmark similarity puts them.
     texture : path, optional
@@ -334,12 +334,10 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         None if not path else read_vertex_indices(path, n_vertices=n).vertex
         for path in (job.exclude, job.fit_mask, job.pin))
     if profile is not None and profile.fitting is not None and fit_mask is None:
-        # the profile's fitting vertices: every other one is left out
-        outside = np.ones(n, dtype=bool)
-        outside[profile.fitting] = False
-        if exclude is not None:
-            outside[exclude] = True
-        exclude = np.flatnonzero(outside)
+        # the profile's fitting vertices are the template author's word on what a
+        # scanner sees: pulled, even where the template's shape looks hidden (ICT's
+        # lips meet along a seam that the shape test calls a cavity)
+        fit_mask = profile.fitting
     shapes = None
     if not job.blendshapes and settings is not None and settings.pca_components:
         # without shapes the setting would be dropped silently: say it has no effect

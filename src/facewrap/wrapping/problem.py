@@ -110,7 +110,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if len(ia) < 3:
         raise ValueError(f"need at least 3 landmark pairs, got {len(ia)}")
     hidden = (cached_hidden_surface(template.vertices, template.triangles)
-              if not s.fit_hidden and fit_mask is None else None)
+              if not s.fit_hidden else None)
     roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
                          pinned=pinned)
     excluded = roles != FITTED

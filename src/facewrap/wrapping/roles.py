@@ -258,8 +258,10 @@ def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
         Vertices the user leaves out (parts and cavities among them keep those
         roles).
     fit_mask : (n,) bool or int array, optional
-        The only vertices the user wants fitted: the others are ``excluded``, and
-        the hidden surface is not consulted.
+        The only vertices the user wants fitted (a template profile's fitting
+        vertices, say): these are pulled even where ``hidden`` calls them a cavity,
+        since the template's author knows better than a test on its shape; of the
+        others, parts and cavities keep those roles and the rest are ``excluded``.
     pinned : (n,) bool or int array, optional
         Vertices kept where the similarity puts them (they win over every other role).
 
@@ -279,16 +281,20 @@ def vertex_roles(n: int, hidden: HiddenSurface | None = None, *, exclude=None,
     >>> h = HiddenSurface(np.array([0, 0, 0, 1, 1], bool), np.array([1, 0, 0, 0, 0], bool), 1)
     >>> vertex_roles(5, h, exclude=[0, 1, 4]).tolist()
     [2, 3, 0, 1, 1]
+    >>> vertex_roles(5, h, fit_mask=[0, 1]).tolist()      # the mask wins over a cavity
+    [0, 0, 3, 1, 1]
     """
-    roles = np.full(n, FITTED, dtype=np.int8)
-    if fit_mask is not None:
-        roles[~as_vertex_mask(fit_mask, n, "fit_mask")] = EXCLUDED
-    roles[as_vertex_mask(exclude, n, "exclude", default=False)] = EXCLUDED
-    if fit_mask is None and hidden is not None:
-        # what a vertex is wins over why it is left out: an excluded eyeball is
-        # still a part, and follows as one
-        roles[hidden.cavity] = CAVITY
-        roles[hidden.part] = PART
+    found = np.full(n, FITTED, dtype=np.int8)       # what the template's shape says
+    if hidden is not None:
+        found[hidden.cavity] = CAVITY
+        found[hidden.part] = PART
+    pulled = (found == FITTED if fit_mask is None
+              else as_vertex_mask(fit_mask, n, "fit_mask"))
+    pulled &= ~as_vertex_mask(exclude, n, "exclude", default=False)
+    # what a vertex is wins over why it is left out: an excluded eyeball is still
+    # a part, and follows as one
+    roles = np.where(pulled, FITTED, np.where(found == FITTED, EXCLUDED, found))
+    roles = roles.astype(np.int8)
     roles[as_vertex_mask(pinned, n, "pinned", default=False)] = PINNED
     return roles
 

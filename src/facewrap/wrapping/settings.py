@@ -113,7 +113,8 @@ class WrapSettings:
         template's pieces that are not skin (eyeballs, teeth, tongue, lashes) and
         its cavities (nostrils, mouth and eye sockets) follow the skin instead
         (:func:`~facewrap.wrapping.roles.find_hidden_surface`).  On: every vertex
-        not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` replaces both.
+        not excluded is pulled.  A ``fit_mask`` given to :func:`wrap` decides what is
+        pulled; outside it, parts and cavities follow as such (unless this is on).
     unfold : bool
         Unfold triangles the fit turned over (facing away from the aligned
         template) by smoothing them and a ring around them

@@ -225,8 +225,9 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         smoothly.  The template's parts and cavities follow anyway
         (unless ``settings.fit_hidden``).
     fit_mask : (n,) bool or int array, optional
-        The only vertices pulled onto the scan (replaces the automatic choice of
-        ``fit_hidden``; ``exclude`` still applies).
+        The only vertices pulled onto the scan, even those the automatic choice
+        calls cavities; outside it, the template's parts and cavities follow as such
+        (unless ``settings.fit_hidden``); ``exclude`` still applies.
     pinned : (n,) bool or int array, optional
         Vertices kept exactly where the landmark similarity puts the template
         (a neck seam that must meet a body, say); the fit blends into them.
