@@ -148,3 +148,21 @@ def test_one_stable_landmark_far_off_is_named(sample):
     P[i] += [0.3 * np.ptp(P[:, 0]), 0, 0]
     result = _wrap(template, scan.mesh, Landmarks.from_points(P, scan.landmarks.names))
     assert any(scan.landmarks.label(i) in w for w in result.warnings), result.warnings
+
+
+def test_noisy_landmarks_are_not_pulled_into_folds_and_are_named(sample):
+    """Landmarks 4 % of the face off at random (5.7 mm RMS on this 143 mm face):
+    the pull onto them is held back where it would fold the skin, and the wrap
+    says so; clean landmarks are pulled in full, silently."""
+    template, scan, _ = sample
+    P = scan.landmarks.positions(scan.mesh)
+    noise = np.random.default_rng(1).normal(size=P.shape)
+    settings = WrapSettings(model="graph")
+    noisy = P + 0.04 * np.ptp(P, axis=0).max() / np.sqrt(3) * noise
+    result = wrap(template.mesh, scan.mesh, template.landmarks,
+                  Landmarks.from_points(noisy, scan.landmarks.names), settings)
+    assert result.metrics["landmark_pull"]["held_back"] > 0
+    assert any("were not pulled onto their targets" in w for w in result.warnings)
+    clean = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks, settings)
+    assert clean.metrics["landmark_pull"]["held_back"] == 0
+    assert not any("were not pulled" in w for w in clean.warnings)

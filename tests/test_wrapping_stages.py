@@ -185,13 +185,34 @@ def test_fit_model_closed_form_and_icp(sample, problem):
 
 
 def test_pull_landmarks_moves_far_landmarks_to_the_tolerance(sample, problem):
+    """After the fit, as in a wrap: every landmark left farther than the tolerance
+    is pulled to it, none held back."""
     template, _, _ = sample
-    V = align(problem).apply(template.mesh.vertices)
+    similarity = align(problem)
+    V = fit_model(problem, similarity.apply(template.mesh.vertices), similarity).vertices
     moved, summary = pull_landmarks(problem, V)
-    assert summary["pulled"] > 0
+    assert summary["pulled"] > 0 and summary["held_back"] == 0
     lm = problem.landmarks.positions(moved, template.mesh.triangles)
     left = np.linalg.norm(lm - problem.targets, axis=1)
     assert left.max() <= summary["tolerance"] * 1.5
+
+
+def test_pull_landmarks_holds_back_pulls_that_would_fold(sample, problem):
+    """Straight from the similarity (no fit between), the open jaw's and closed
+    eyes' landmarks are many millimetres off: pulled there alone they would fold
+    the skin, so they are held back and counted; no fitted triangle turns over."""
+    from facewrap.geometry.quality import turned_triangles
+    template, _, _ = sample
+    T = template.mesh.triangles
+    V = align(problem).apply(template.mesh.vertices)
+    moved, summary = pull_landmarks(problem, V)
+    left = np.linalg.norm(problem.landmarks.positions(moved, T) - problem.targets, axis=1)
+    short = left > summary["tolerance"] * 1.05   # (a surface landmark moves with
+    # its triangle's corners, not exactly as the warp at its own point)
+    assert summary["pulled"] > 0 and summary["held_back"] >= short.sum() > 0
+    assert summary["held_short"] >= left.max() - summary["tolerance"] - 1e-6
+    fitted = ~problem.excluded[T].any(axis=1)
+    assert not turned_triangles(moved, V, T)[fitted].any()
 
 
 def test_project_puts_vertices_on_the_scan(sample, problem):

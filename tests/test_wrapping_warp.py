@@ -92,6 +92,36 @@ def test_pull_to_landmarks_shortens_offsets_by_the_tolerance():
         pull_to_landmarks(P, P[lm], targets, -1.0)
 
 
+def test_pull_never_folds_the_surface_between_disagreeing_landmarks():
+    """Noisy landmarks pulled a spacing apart in opposite directions would turn
+    the skin between them over: the pulls around the fold are cut until none is
+    turned, while a landmark far from them keeps its whole pull."""
+    from facewrap.geometry.quality import turned_triangles
+    k = 20
+    s = np.linspace(0, 1, k + 1)
+    a, b = np.meshgrid(s, s, indexing="ij")
+    P = np.stack([a.ravel(), b.ravel(), np.zeros(a.size)], axis=1)
+    i = (np.arange(k)[:, None] * (k + 1) + np.arange(k)[None]).ravel()
+    T = np.vstack([np.stack([i, i + k + 1, i + 1], 1),
+                   np.stack([i + 1, i + k + 1, i + k + 2], 1)])
+    lm = np.array([4 * 21 + 4, 4 * 21 + 6, 6 * 21 + 4, 6 * 21 + 6,    # a tight square
+                   16 * 21 + 16])                                  # and one far off
+    targets = P[lm].copy()
+    targets[:4] = P[lm[[3, 2, 1, 0]]]          # each corner of the square to the opposite
+    targets[4] += [0.05, 0.02, 0.0]
+    free, free_pulls = pull_to_landmarks(P, P[lm], targets, 0.0)
+    assert turned_triangles(free, P, T).sum() > 10
+    held, pulls = pull_to_landmarks(P, P[lm], targets, 0.0, triangles=T)
+    assert not turned_triangles(held, P, T).any()
+    assert (pulls[:4] < 0.5 * free_pulls[:4]).all()
+    np.testing.assert_allclose(pulls[4], free_pulls[4], rtol=1e-12)
+    np.testing.assert_allclose(held[lm[4]], targets[4], atol=1e-6)
+    # landmarks that agree are pulled exactly as without the guard
+    gentle = P[lm] + [0.01, 0.005, 0.0]
+    np.testing.assert_allclose(pull_to_landmarks(P, P[lm], gentle, 0.0, triangles=T)[0],
+                               pull_to_landmarks(P, P[lm], gentle, 0.0)[0], atol=1e-12)
+
+
 def test_nearest_other_distances_against_a_brute_force_oracle():
     from facewrap.wrapping.warp import nearest_other_distances
     rng = np.random.default_rng(3)

@@ -169,7 +169,10 @@ def fit_model(problem: WrapProblem, vertices, similarity: Similarity,
 
 def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
     """``WrapSettings.landmark_pull``: landmarks farther than ``landmark_tolerance``
-    (fraction of the size of ``vertices``) from their targets are pulled to it.
+    (fraction of the size of ``vertices``) from their targets are pulled to it, as
+    far as that turns no fitted triangle over (landmarks that disagree with each
+    other or with the surface are held back; see
+    :func:`~facewrap.wrapping.warp.pull_to_landmarks`).
 
     Excluded islands (eyeballs, teeth) move by their mean pull, so they keep their
     shape.
@@ -178,13 +181,19 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
     -------
     vertices : (n, 3) float64
     summary : dict
-        Tolerance, how many landmarks were pulled, mean and largest pull.
+        Tolerance, how many landmarks were pulled, mean and largest pull, and how
+        many were held back (``held_back``) with the largest distance they were
+        left short of the tolerance (``held_short``), both in scan units.
     """
     V, T, excluded = vertices, problem.template.triangles, problem.excluded
     tolerance = problem.settings.landmark_tolerance
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    moved, pulls = pull_to_landmarks(V, problem.landmarks.positions(V, T),
-                                     problem.targets, tolerance * size)
+    fitted = problem.landmarks.positions(V, T)
+    moved, pulls = pull_to_landmarks(V, fitted, problem.targets, tolerance * size,
+                                     triangles=T[~excluded[T].any(axis=1)])
+    short = np.maximum(np.linalg.norm(problem.targets - fitted, axis=1)
+                       - tolerance * size - pulls, 0.0)
+    held = short > 1e-6 * size
     if excluded.any() and pulls.any():
         island = connected_components(T[excluded[T].all(axis=1)], len(V))[excluded]
         shift = moved[excluded] - V[excluded]
@@ -192,7 +201,9 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
         mean = np.stack([np.bincount(island, shift[:, c]) for c in range(3)], 1)
         moved[excluded] = V[excluded] + mean[island] / count[island, None]
     return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
-                   "mean": float(pulls.mean()), "max": float(pulls.max())}
+                   "mean": float(pulls.mean()), "max": float(pulls.max()),
+                   "held_back": int(held.sum()),
+                   "held_short": float(short.max()) if held.any() else 0.0}
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
     """``stage(*args, **kw)``, its seconds in ``timings[key]``, one step of ``bar``."""
@@ -304,4 +315,25 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
-                      warnings=list(problem.warnings), roles=problem.roles)
+                      warnings=list(problem.warnings) + _pull_warnings(pull, problem),
+                      roles=problem.roles)
+
+
+#: the landmark pull's guard is reported when it left a landmark farther than this
+#: many tolerances from its target: hand-clicked landmarks (james's) hold none
+#: back, 0.7-1.4 mm of noise on the sample leaves them at most 3.4 tolerances
+#: short, 5 mm on james 4.5-10
+_HELD_SHORT_TOLERANCES = 4.0
+
+
+def _pull_warnings(pull: dict | None, problem: WrapProblem) -> list:
+    """One line when the landmark pull was held back far from the targets: the
+    landmarks disagree with each other or with the scan's surface (noisy or
+    mis-clicked points)."""
+    if not pull or pull["held_short"] <= _HELD_SHORT_TOLERANCES * pull["tolerance"]:
+        return []
+    return [f"scan landmarks: {pull['held_back']} of {len(problem.targets)} landmarks "
+            f"were not pulled onto their targets, as that would fold the surface "
+            f"between them (left up to {pull['held_short']:.3g} scan units short): "
+            f"they disagree with each other or with the scan's surface; check the "
+            f"landmark file (noisy or mis-clicked points?)"]

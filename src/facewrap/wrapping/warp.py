@@ -166,7 +166,14 @@ class RBFWarp:
         return X + self.displacement(X)
 
 
-def pull_to_landmarks(points, fitted, targets, tolerance: float
+#: rounds in which the pulls of the landmarks around a triangle the pull would turn
+#: over are halved, before those landmarks are not pulled at all
+_GUARD_ROUNDS = 6
+#: a landmark is "around" a turned triangle within this many RBF widths
+_GUARD_REACH = 2.0
+
+
+def pull_to_landmarks(points, fitted, targets, tolerance: float, *, triangles=None
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Move points so that no landmark ends farther than ``tolerance`` from its target.
 
@@ -176,6 +183,16 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float
     landmarks (the median distance to the nearest one), carries these pulls to the
     points, so the correction stays local and vanishes far from the landmarks.
     Landmarks at the same position are merged (their pulls averaged).
+
+    Given ``triangles``, the pull never turns one of them over: landmarks that
+    disagree with each other or with the fitted surface (noisy or mis-clicked
+    points, a few millimetres apart in opposite directions) would fold the skin
+    between them, so the pulls of the landmarks around a triangle the pull turns
+    past 90° from where it was are halved, round by round, and dropped after
+    :data:`_GUARD_ROUNDS` rounds.  (Measured from where it was, not from the
+    template: a small pull that tips a triangle already near 90° is left to the
+    unfolding that follows in a wrap; on ICT's face -> james with clean
+    landmarks no landmark is held back.)
 
     Parameters
     ----------
@@ -187,12 +204,15 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float
         Where they should be.
     tolerance : float
         How far a landmark may stay from its target (same units; 0 pins exactly).
+    triangles : (t, 3) int, optional
+        Triangles over ``points`` the pull must not turn over.
 
     Returns
     -------
     moved : (n, 3) float64
     pulls : (k,) float64
-        How far each landmark was pulled (0 within the tolerance).
+        How far each landmark was pulled (0 within the tolerance); less than its
+        distance beyond the tolerance where the guard held it back.
 
     Examples
     --------
@@ -200,6 +220,16 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float
     >>> moved, pulls = pull_to_landmarks(P, P[:3], P[:3] + [[0.5, 0, 0], [0, 0, 0], [0, 0, 0]], 0.1)
     >>> pulls.round(3).tolist(), moved[0].round(3).tolist(), moved[3].round(3).tolist()
     ([0.4, 0.0, 0.0], [0.4, 0.0, 0.0], [5.0, 5.0, 5.0])
+
+    Two neighbouring landmarks pulled across each other would turn the triangle
+    between them over; the guard halves their pulls until it does not:
+
+    >>> P = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> swap = P[:2][::-1] + [[0, 0.01, 0], [0, -0.01, 0]]
+    >>> pull_to_landmarks(P, P[:2], swap, 0.0)[1].round(2).tolist()
+    [1.0, 1.0]
+    >>> pull_to_landmarks(P, P[:2], swap, 0.0, triangles=[[0, 1, 2]])[1].round(2).tolist()
+    [0.25, 0.25]
     """
     X = np.asarray(points, dtype=np.float64)
     F = np.asarray(fitted, dtype=np.float64)
@@ -215,14 +245,38 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float
     centers, group = np.unique(F, axis=0, return_inverse=True)
     group = group.ravel()
     counts = np.bincount(group, minlength=len(centers))
-    shifts = np.stack([np.bincount(group, D[:, c], len(centers)) for c in range(3)],
-                      axis=1) / counts[:, None]
     if len(centers) > 1:
         width = float(np.median(nearest_other_distances(centers)))
     else:
         width = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) * 0.1 or 1.0
     warp = RBFWarp(kernel="gaussian", width=width, smoothing=1e-9, affine=False)
-    return warp.fit(centers, shifts).transform(X), pulls
+
+    def pulled(scale):
+        shifts = np.stack([np.bincount(group, D[:, c] * scale, len(centers))
+                           for c in range(3)], axis=1) / counts[:, None]
+        return warp.fit(centers, shifts).transform(X)
+
+    scale = np.ones(len(F))
+    moved = pulled(scale)
+    if triangles is None:
+        return moved, pulls
+    from facewrap.geometry.quality import turned_triangles
+    T = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    # after the halving rounds, each round drops at least one more landmark
+    for round_ in range(_GUARD_ROUNDS + len(F) + 1):
+        new = turned_triangles(moved, X, T)
+        if not new.any():
+            return moved, pulls * scale
+        # the landmarks around each new turn, and at least the nearest pulled one
+        gap = np.linalg.norm(X[T[new]].mean(axis=1)[:, None] - F[None], axis=2)
+        gap[:, scale == 0] = np.inf
+        if not np.isfinite(gap).any():
+            break
+        near = (gap < _GUARD_REACH * width).any(axis=0)
+        near[np.argmin(gap, axis=1)] = True
+        scale[near] = 0.0 if round_ >= _GUARD_ROUNDS else 0.5 * scale[near]
+        moved = pulled(scale)
+    return X.copy(), np.zeros_like(pulls)
 
 
 #: below this many points a distance table beats building a KD-tree (and a wrap
