@@ -10,6 +10,7 @@ for every expression without a blink), moved by random head motions.
 import numpy as np
 import pytest
 
+from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.normals import vertex_normals
 from facewrap.geometry.similarity import Similarity
 from facewrap.landmarks import Landmarks
@@ -17,6 +18,7 @@ from facewrap.mesh import Mesh
 from facewrap.params import SettingsError
 from facewrap.rig import (ExampleSettings, build_rig, fit_examples, fit_weights,
                           least_moving, stabilise)
+from facewrap.rig.stabilise import refine_pose
 from facewrap.sample import make_scan, make_template
 
 SEED = 3
@@ -129,7 +131,10 @@ def test_held_out_expressions_come_closer_to_the_truth(built, person):
 def test_head_motion_is_removed(built, person):
     """The pose found for each example against the truth's (the motion applied):
     vertices a head motion of up to 15 degrees and 20 mm moves by tens of mm end
-    within a fraction of a millimetre, the wrap's own error."""
+    within 0.1 mm on average (issue 19's acceptance).  The prediction's vertices are
+    trusted less the more it moves them: an 80 % trimmed ICP that trusted them all
+    alike left the open jaw at 0.16 mm and the smile with an open jaw at 0.12 mm
+    (0.07 and 0.05 now)."""
     rig, motions, truths = built
     face = np.asarray(person.tpl.parts["face"])
     for pose, motion, truth in zip(rig.examples.poses, motions, truths):
@@ -137,7 +142,41 @@ def test_head_motion_is_removed(built, person):
         off = np.linalg.norm(pose.apply(truth[face]) - motion.inverse().apply(truth[face]),
                              axis=1)
         assert moved.mean() > 10.0
-        assert off.mean() < 0.25, off.mean()
+        assert off.mean() < 0.1, off.mean()
+
+
+def test_refine_pose_trusts_what_the_expression_moves_less(person):
+    """The person's smile is 1.4 times stronger on their left than the rig predicts
+    (up to 3 mm off at the mouth corner): weighing each vertex by how far the
+    prediction moves it puts the skull within 0.1 mm, near half the error
+    of trusting every vertex alike (pulled toward the stronger side)."""
+    tpl = person.tpl
+    face, keep = tpl.mesh.submesh(tpl.mesh.face_groups == 0)       # no eyeballs
+    neutral = person.base.ground_truth[keep]
+    prediction = neutral + (person.parts["smile"].ground_truth[keep] - neutral)
+    moves = np.linalg.norm(prediction - neutral, axis=1)
+    motion = _head_motions(1, seed=7)[0]
+    truth, scan, _ = person.truth_and_scan({"smile": 1.0}, motion)
+    truth = truth[keep]
+    assert np.linalg.norm(motion.inverse().apply(truth) - prediction, axis=1).max() > 2.0
+    tree = ClosestPointTree(scan.vertices, scan.triangles)
+    # the robust fit's pose: off by half a degree and a millimetre or so
+    start = Similarity(_rotation([1, 2, 0], 0.5), [0.5, -0.5, 0.3], 1.0).compose(
+        motion.inverse())
+    ids = np.arange(len(neutral))
+
+    def off(pose):
+        return np.linalg.norm(pose.apply(truth) - motion.inverse().apply(truth),
+                              axis=1).mean()
+
+    weighted = off(refine_pose(prediction, face.triangles, tree, start, ids, moves))
+    alike = off(refine_pose(prediction, face.triangles, tree, start, ids,
+                            np.zeros(len(neutral))))
+    assert off(start) > 1.0
+    assert weighted < 0.1, weighted
+    assert weighted < 0.6 * alike, (weighted, alike)
+    with pytest.raises(ValueError, match="motion"):
+        refine_pose(prediction, face.triangles, tree, start, ids, moves[:-1])
         assert abs(pose.scale - 1.0) < 1e-12
 
 

@@ -203,7 +203,8 @@ def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, wei
     """Each expression wrap moved onto the neutral's head pose: a robust rigid fit on
     the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds of the prior rig's
     weights for it and :func:`~facewrap.rig.stabilise.refine_pose` of that
-    prediction onto the scan.  ``weights`` and ``residual`` of each are the rigid
+    prediction onto the scan (its vertices trusted less the more the prediction
+    moves them from the neutral).  ``weights`` and ``residual`` of each are the rigid
     fit's (which rigid vertices the expression moved)."""
     V = result.vertices
     names = list(prior)
@@ -220,8 +221,9 @@ def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, wei
             alpha = fit_weights(D[both].reshape(-1, len(names)),
                                 (pose.apply(w.vertices) - V)[both].reshape(-1, 1),
                                 prior=target, gamma=gamma)[0]
-            pose = refine_pose(V + D @ alpha, result.mesh.triangles, tree, pose,
-                               np.flatnonzero(both))
+            moved = D @ alpha                                           # (n, 3)
+            pose = refine_pose(V + moved, result.mesh.triangles, tree, pose,
+                               np.flatnonzero(both), np.linalg.norm(moved, axis=1))
         out.append(Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual))
     return out
 
