@@ -34,10 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from facewrap.geometry.matching import closest_compatible_points
 from facewrap.geometry.normals import vertex_normals
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.wrapping.models.base import rotation_exp
+from facewrap.wrapping.align import rigid_icp
 
 __all__ = ["least_moving", "stabilise", "refine_pose", "Stabilised", "ROBUST_SCALE",
            "ROBUST_ITERATIONS", "REFINE_STILL_ERROR", "REFINE_MOTION_ERROR",
@@ -247,31 +246,6 @@ def refine_pose(prediction, triangles, tree, pose: Similarity, vertices,
     # pull the skull's pose along, so they count less the more the skin moves
     weights = 1.0 / ((REFINE_STILL_ERROR * size) ** 2
                      + (REFINE_MOTION_ERROR * moved[ids]) ** 2)
-    return _weighted_icp(X[ids], vertex_normals(X, triangles)[ids], weights, tree,
-                         pose.inverse(), REFINE_DISTANCE * size).inverse()
-
-
-def _weighted_icp(P, N, weights, tree, motion: Similarity, max_distance: float,
-                  iterations: int = 30) -> Similarity:
-    """Point-to-plane rigid ICP of points ``P`` (normals ``N``) onto ``tree`` from
-    ``motion``, each accepted pair's squared plane distance times its weight; stops
-    when a step moves the points by less than :data:`REFINE_TOLERANCE` of their
-    extent (RMS).  Returns the motion (points → surface)."""
-    extent = float(np.linalg.norm(np.ptp(P, axis=0))) or 1.0
-    for _ in range(iterations):
-        X = motion.apply(P)
-        m = closest_compatible_points(tree, X, motion.apply_vectors(N),
-                                      max_distance=max_distance, max_normal_angle=60.0)
-        if len(m.index) < 6:
-            break
-        Xk, root = X[m.index], np.sqrt(weights[m.index])
-        # minimise sum w ((R X + t - Y) . n)^2 with R = I + [omega]x (linearised)
-        A = np.hstack([np.cross(Xk, m.normals), m.normals]) * root[:, None]
-        b = np.einsum("ij,ij->i", m.points - Xk, m.normals) * root
-        sol, *_ = np.linalg.lstsq(A, b, rcond=None)
-        updated = Similarity(rotation_exp(sol[:3]), sol[3:], 1.0).compose(motion)
-        change = float(np.sqrt(np.mean((updated.apply(P) - X) ** 2)))
-        motion = updated
-        if change < REFINE_TOLERANCE * extent:
-            break
-    return motion
+    return rigid_icp(X[ids], tree, vertex_normals(X, triangles)[ids], pose.inverse(),
+                     trim=1.0, max_distance=REFINE_DISTANCE * size, tol=REFINE_TOLERANCE,
+                     weights=weights).transform.inverse()

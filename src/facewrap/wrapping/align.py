@@ -31,7 +31,8 @@ class RigidICPResult:
 def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
               iterations: int = 30, trim: float = 0.9, max_distance: float | None = None,
               max_normal_angle: float = 60.0, scale: bool = False,
-              point_to_plane: bool = True, tol: float = 1e-7) -> RigidICPResult:
+              point_to_plane: bool = True, tol: float = 1e-7,
+              weights=None) -> RigidICPResult:
     """Refine a rigid (or similarity) transform of ``points`` onto a surface.
 
     Each iteration: closest compatible points on the surface (``tree``, built once
@@ -53,6 +54,10 @@ def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
     iterations, trim, max_distance, max_normal_angle, scale, point_to_plane, tol
         See above; ``tol`` stops when the RMS change of the points is below
         ``tol`` times the point set's size.
+    weights : (n,) float, optional
+        Each point's pair weighs this much in the point-to-plane step (how much
+        the point is trusted; default all alike).  Not with ``scale`` or
+        ``point_to_plane=False``.
 
     Returns
     -------
@@ -63,6 +68,12 @@ def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
         raise ValueError(f"points must be (n, 3), got {P.shape}")
     if not 0 < trim <= 1:
         raise ValueError("trim must be in (0, 1]")
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if weights.shape != (len(P),) or not (weights >= 0).all():
+            raise ValueError(f"weights must be ({len(P)},) and >= 0")
+        if scale or not point_to_plane:
+            raise ValueError("weights are for the rigid point-to-plane step only")
     similarity = init if init is not None else Similarity()
     size = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0))) or 1.0
     history = []
@@ -85,6 +96,9 @@ def rigid_icp(points, tree, normals=None, init: Similarity | None = None, *,
             # minimise sum ((R X + t - Y) . n)^2 with R = I + [omega]x (linearised)
             A = np.hstack([np.cross(Xk, Nk), Nk])
             b = np.einsum("ij,ij->i", Yk - Xk, Nk)
+            if weights is not None:
+                root = np.sqrt(weights[keep])
+                A, b = A * root[:, None], b * root
             sol, *_ = np.linalg.lstsq(A, b, rcond=None)
             step = Similarity(rotation_exp(sol[:3]), sol[3:], 1.0)
         else:
