@@ -57,6 +57,26 @@ def test_rigid_icp_recovers_a_small_motion():
     assert res.history[-1]["rms"] < res.history[0]["rms"]
 
 
+def test_rigid_icp_weights_keep_a_moved_region_from_pulling_the_pose():
+    """Points on a bulge the target does not have (an expression) pull an
+    unweighted fit off; weighted down, they leave the rigid pose to the rest."""
+    V, Q = quad_ellipsoid()
+    tree = ClosestPointTree(V, Mesh(V, Q).triangles)
+    source = V.copy()
+    bulge = V[:, 0] > 0.6 * V[:, 0].max()
+    source[bulge] += [0.0, 0.08, 0.0]                 # moved along the surface
+    kw = dict(trim=1.0, iterations=60)
+    plain = rigid_icp(source, tree, **kw).transform
+    weights = np.where(bulge, 1e-6, 1.0)
+    weighted = rigid_icp(source, tree, weights=weights, **kw).transform
+    off = lambda T: np.abs(T.apply(V[~bulge]) - V[~bulge]).max()
+    assert off(weighted) < 1e-3 < off(plain)
+    with pytest.raises(ValueError, match="weights"):
+        rigid_icp(source, tree, weights=np.ones(3))
+    with pytest.raises(ValueError, match="weights"):
+        rigid_icp(source, tree, weights=np.ones(len(V)), scale=True)
+
+
 def test_rigid_icp_rejects_far_and_flipped_pairs_and_trims():
     V, Q = quad_ellipsoid()
     mesh = Mesh(V, Q)
