@@ -25,6 +25,7 @@ __all__ = [
     "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
     "triangle_adjacency", "EdgeRuns", "edge_runs", "non_manifold_edge_count",
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
+    "counting_sort_order",
 ]
 
 
@@ -230,10 +231,76 @@ def edge_runs(T) -> EdgeRuns:
         return EdgeRuns(np.zeros(0, np.int64), np.zeros(0, bool))
     a, b = _half_edges(T)
     n = int(T.max()) + 1
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))   # self-loops: unique keys
-    order, sorted_key = stable_sort_order(key)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    loop = a == b
+    key = lo * n + hi
+    key[loop] = -1 - np.arange(np.count_nonzero(loop))   # self-loops: unique keys
+    if n > _COUNTING_SPAN * len(key):
+        # vertex ids far beyond the edge count: a counting sort's buckets would
+        # outweigh the edges, so sort the keys themselves
+        order, sorted_key = stable_sort_order(key)
+    else:
+        order = _edge_key_order(lo, hi, loop, n)
+        sorted_key = key[order]
     return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+
+
+#: vertex ids up to this many times the half-edge count are counted, not sorted
+_COUNTING_SPAN = 8
+
+
+def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of integers in ``[0, m)``, by counting.
+
+    scipy's COO-to-CSR conversion is a counting sort written in C: it buckets the
+    entries by row in O(k + m), keeping their input order within a row.  With the
+    keys as rows and each entry's place as its column, the CSR column indices are
+    the stable order; where the places within a row are already increasing no
+    further sort happens.  On this machine (no vectorised sort) two such passes
+    order a million-triangle scan's 2.85M half-edges in about half the time of one
+    ``np.sort`` of their packed keys.
+
+    Parameters
+    ----------
+    keys : (k,) int64
+        Values in ``[0, m)`` (not checked).
+    m : int
+        One more than the largest possible key.
+
+    Returns
+    -------
+    (k,) int64
+        The stable sorting permutation.
+
+    Examples
+    --------
+    >>> counting_sort_order(np.array([2, 0, 2, 1]), 3).tolist()
+    [1, 3, 0, 2]
+    """
+    k = len(keys)
+    if k == 0:
+        return np.zeros(0, np.int64)
+    buckets = sp.csr_matrix((np.ones(k, np.int8), (keys, np.arange(k))), shape=(m, k))
+    return buckets.indices.astype(np.int64, copy=False)
+
+
+def _edge_key_order(lo: np.ndarray, hi: np.ndarray, loop: np.ndarray, n: int
+                    ) -> np.ndarray:
+    """(k,) int64: the stable order of half-edges by ``(lo, hi)`` (k,), k, (k,)
+    int64 vertex ids below ``n``, self-loops (``loop`` (k,) bool) first and in
+    reverse order, as the stable sort of :func:`edge_runs`'s keys puts them.
+
+    Two stable counting passes, least significant first (a radix sort): by ``hi``,
+    then by ``lo``; self-loops are bucket 0 of both, so they keep their order.
+    """
+    loops = int(np.count_nonzero(loop))
+    if not loops:
+        by_hi = counting_sort_order(hi, n)
+        return by_hi[counting_sort_order(lo[by_hi], n)]
+    by_hi = counting_sort_order(np.where(loop, 0, hi + 1), n + 1)
+    order = by_hi[counting_sort_order(np.where(loop, 0, lo + 1)[by_hi], n + 1)]
+    order[:loops] = order[:loops][::-1]
+    return order
 
 
 def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
