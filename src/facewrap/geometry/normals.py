@@ -298,6 +298,20 @@ def coherent_orientation(T, runs: EdgeRuns | None = None
     return kept > turned, np.minimum(kept, turned), int(same.sum())
 
 
+def _neighbour_sums(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, 3): at each vertex, the sum of ``X`` (n, 3) over its neighbours across
+    the edges ``a - b`` (e,), (e,) int64 (each edge once).
+
+    The columns are gathered from a coordinate-major copy of ``X``: contiguous
+    reads, twice as fast as ``X[b, k]`` on a million-triangle scan, with the same
+    values summed in the same order.
+    """
+    n = len(X)
+    Xt = np.ascontiguousarray(X.T)
+    return np.stack([np.bincount(a, x[b], n) + np.bincount(b, x[a], n) for x in Xt],
+                    axis=1)
+
+
 #: a scan vertex is a spike when it stands farther off the centroid of its
 #: neighbours, along their mean normal, than this many times their RMS distance
 #: from that centroid (james: at most 1.2 on its interior vertices; 54 of 64
@@ -309,8 +323,8 @@ SPIKE_LIMIT = 1.5
 SPIKE_NOISE = 10.0
 
 
-def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = None
-                   ) -> np.ndarray:
+def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = None,
+                   normals: np.ndarray | None = None) -> np.ndarray:
     """Interior vertices that stand far out of (or into) the surface around them.
 
     A vertex is compared with the ring of its neighbours: its distance from the
@@ -333,6 +347,10 @@ def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = 
     runs : EdgeRuns, optional
         :func:`~facewrap.geometry.adjacency.edge_runs` of ``T``, when the caller
         has them (the edges and borders come from them, no sort).
+    normals : (n, 3) float64, optional
+        The angle-weighted :func:`vertex_normals` of ``V``, ``T``, when the caller
+        has them (a scan's :class:`~facewrap.geometry.ClosestPointTree` does:
+        its ``vertex_normals``), instead of a second pass over the triangles.
 
     Returns
     -------
@@ -359,22 +377,25 @@ def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = 
     first = np.flatnonzero(starts)
     single = np.diff(np.r_[first, len(order)]) == 1
     h = order[first]
-    a, b = T.reshape(-1)[h], T[:, [1, 2, 0]].reshape(-1)[h]
+    # half-edge h = 3 f + j runs from corner j of triangle f to corner j + 1 (mod 3):
+    # one gather each, no reordered copy of T
+    head = h + 1
+    head[h % 3 == 2] -= 3
+    corners = T.reshape(-1)
+    a, b = corners[h], corners[head]
     edge = a != b
     a, b, single = a[edge], b[edge], single[edge]
     # sums over each vertex's neighbours by bincount: no sparse matrix to sort
     degree = np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
     inv = safe_inverse(degree.astype(np.float64))
-    total = np.stack([np.bincount(a, V[b, k], n) + np.bincount(b, V[a, k], n)
-                      for k in range(3)], axis=1)
+    total = _neighbour_sums(V, a, b)
     centroid = total * inv[:, None]
     squares = np.einsum("ij,ij->i", V, V)
     spread = ((np.bincount(a, squares[b], n) + np.bincount(b, squares[a], n)) * inv
               - np.einsum("ij,ij->i", centroid, centroid))
     radius = np.sqrt(np.maximum(spread, 0.0))
-    N = trusted_vertex_normals(V, T)
-    ring = np.stack([np.bincount(a, N[b, k], n) + np.bincount(b, N[a, k], n)
-                     for k in range(3)], axis=1)
+    N = trusted_vertex_normals(V, T) if normals is None else np.asarray(normals, np.float64)
+    ring = _neighbour_sums(N, a, b)
     offset = np.abs(np.einsum("ij,ij->i", V - centroid, ring)) * safe_inverse(
         np.linalg.norm(ring, axis=1))
     interior = degree >= 3
