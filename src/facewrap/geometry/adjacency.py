@@ -229,24 +229,72 @@ def edge_runs(T) -> EdgeRuns:
     T = as_triangles(T)
     if len(T) == 0:
         return EdgeRuns(np.zeros(0, np.int64), np.zeros(0, bool))
-    a, b = _half_edges(T)
     n = int(T.max()) + 1
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    loop = a == b
-    key = lo * n + hi
-    key[loop] = -1 - np.arange(np.count_nonzero(loop))   # self-loops: unique keys
-    if n > _COUNTING_SPAN * len(key):
+    if n > _COUNTING_SPAN * T.size:
         # vertex ids far beyond the edge count: a counting sort's buckets would
-        # outweigh the edges, so sort the keys themselves
-        order, sorted_key = stable_sort_order(key)
-    else:
-        order = _edge_key_order(lo, hi, loop, n)
-        sorted_key = key[order]
-    return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+        # outweigh the edges, so sort packed keys instead
+        return _edge_runs_by_sort(T, n)
+    return _edge_runs_by_counting(T, n)
 
 
 #: vertex ids up to this many times the half-edge count are counted, not sorted
 _COUNTING_SPAN = 8
+
+
+def _edge_runs_by_sort(T: np.ndarray, n: int) -> EdgeRuns:
+    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``: one stable sort
+    of packed ``min * n + max`` keys; self-loops get unique negative keys, so they
+    come first, the last one first."""
+    a, b = _half_edges(T)
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))
+    order, sorted_key = stable_sort_order(key)
+    return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+
+
+def _edge_runs_by_counting(T: np.ndarray, n: int) -> EdgeRuns:
+    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``, in the order
+    :func:`_edge_runs_by_sort` gives, by two stable counting passes (a radix sort:
+    by the larger end of each edge, then by the smaller).
+
+    The temporaries are int32 when the ids allow: on a million-triangle scan they
+    are what sets the peak memory of its checks, and the passes read half the bytes.
+    """
+    k = T.size
+    dtype = np.int32 if max(n + 1, k) < 2 ** 31 else np.int64
+    tail = T.reshape(-1).astype(dtype)
+    head = np.empty_like(tail)
+    head.reshape(-1, 3)[:, :2] = tail.reshape(-1, 3)[:, 1:]
+    head.reshape(-1, 3)[:, 2] = tail.reshape(-1, 3)[:, 0]
+    loop = tail == head
+    loops = int(np.count_nonzero(loop))
+    lo = np.minimum(tail, head)
+    hi = np.maximum(tail, head, out=head)
+    del tail
+    if loops:   # self-loops: bucket 0 of both passes, so they keep their order
+        lo += 1
+        lo[loop] = 0
+        hi += 1
+        hi[loop] = 0
+    place = np.arange(k, dtype=dtype)
+    by_hi = _bucket_order(hi, n + 1, place)
+    order = by_hi[_bucket_order(lo[by_hi], n + 1, place)].astype(np.int64)
+    del by_hi, place
+    order[:loops] = order[:loops][::-1]
+    lo, hi = lo[order], hi[order]
+    starts = np.empty(k, dtype=bool)
+    np.not_equal(lo[1:], lo[:-1], out=starts[1:])
+    starts[1:] |= hi[1:] != hi[:-1]
+    starts[:loops + 1] = True   # each self-loop a run, and the first edge after them
+    return EdgeRuns(order, starts)
+
+
+def _bucket_order(keys: np.ndarray, m: int, place: np.ndarray) -> np.ndarray:
+    """The stable order of ``keys`` (k,) in ``[0, m)``, ``place`` (k,) being
+    ``arange(k)``, as scipy's index dtype (see :func:`counting_sort_order`)."""
+    buckets = sp.csr_matrix((np.ones(len(keys), np.int8), (keys, place)),
+                            shape=(m, len(keys)))
+    return buckets.indices
 
 
 def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
@@ -255,14 +303,14 @@ def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
     scipy's COO-to-CSR conversion is a counting sort written in C: it buckets the
     entries by row in O(k + m), keeping their input order within a row.  With the
     keys as rows and each entry's place as its column, the CSR column indices are
-    the stable order; where the places within a row are already increasing no
-    further sort happens.  On this machine (no vectorised sort) two such passes
+    the stable order (sorted by column within a row, which is the same thing, if
+    scipy ever sorted them).  On this machine (no vectorised sort) two such passes
     order a million-triangle scan's 2.85M half-edges in about half the time of one
     ``np.sort`` of their packed keys.
 
     Parameters
     ----------
-    keys : (k,) int64
+    keys : (k,) int array
         Values in ``[0, m)`` (not checked).
     m : int
         One more than the largest possible key.
@@ -280,27 +328,7 @@ def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
     k = len(keys)
     if k == 0:
         return np.zeros(0, np.int64)
-    buckets = sp.csr_matrix((np.ones(k, np.int8), (keys, np.arange(k))), shape=(m, k))
-    return buckets.indices.astype(np.int64, copy=False)
-
-
-def _edge_key_order(lo: np.ndarray, hi: np.ndarray, loop: np.ndarray, n: int
-                    ) -> np.ndarray:
-    """(k,) int64: the stable order of half-edges by ``(lo, hi)`` (k,), k, (k,)
-    int64 vertex ids below ``n``, self-loops (``loop`` (k,) bool) first and in
-    reverse order, as the stable sort of :func:`edge_runs`'s keys puts them.
-
-    Two stable counting passes, least significant first (a radix sort): by ``hi``,
-    then by ``lo``; self-loops are bucket 0 of both, so they keep their order.
-    """
-    loops = int(np.count_nonzero(loop))
-    if not loops:
-        by_hi = counting_sort_order(hi, n)
-        return by_hi[counting_sort_order(lo[by_hi], n)]
-    by_hi = counting_sort_order(np.where(loop, 0, hi + 1), n + 1)
-    order = by_hi[counting_sort_order(np.where(loop, 0, lo + 1)[by_hi], n + 1)]
-    order[:loops] = order[:loops][::-1]
-    return order
+    return _bucket_order(keys, m, np.arange(k)).astype(np.int64, copy=False)
 
 
 def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
