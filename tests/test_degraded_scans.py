@@ -5,7 +5,7 @@ must stay close to the clean scan's and say what it fixed."""
 import numpy as np
 import pytest
 
-from facewrap.geometry import face_normals, vertex_normals
+from facewrap.geometry import ClosestPointTree, face_normals, vertex_normals
 from facewrap.geometry.duplicates import welded
 from facewrap.geometry.normals import coherent_orientation, disagreeing_edges, spike_vertices
 from facewrap.landmarks import Landmarks
@@ -48,6 +48,17 @@ def test_spikes_are_found_and_a_smooth_surface_has_none():
     pushed = [40, 100, 200]
     W[pushed] += 0.3 * vertex_normals(V, T)[pushed] * [[1], [-1], [1]]
     assert np.flatnonzero(spike_vertices(W, T)).tolist() == pushed
+
+
+def test_spikes_with_the_callers_normals_and_runs():
+    # a scan's tree has the normals and edge runs already: the same spikes with them
+    V, T = _grid(16)
+    W = V.copy()
+    W[[40, 200]] += 0.3 * vertex_normals(V, T)[[40, 200]]
+    tree = ClosestPointTree(W, T)
+    got = spike_vertices(W, T, runs=tree.edge_runs, normals=tree.vertex_normals)
+    assert np.flatnonzero(got).tolist() == [40, 200]
+    assert np.array_equal(got, spike_vertices(W, T))
 
 
 def test_noise_as_large_as_the_spacing_is_no_spike():

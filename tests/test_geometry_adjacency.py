@@ -7,6 +7,8 @@ import pytest
 import scipy.sparse as sp
 
 import facewrap.geometry as geo
+from facewrap.geometry.adjacency import counting_sort_order, edge_runs
+from facewrap.geometry.arrays import stable_sort_order
 from facewrap.mesh import Mesh
 
 from geometry_meshes import grid, icosphere
@@ -142,3 +144,40 @@ def test_connected_components():
     labels = geo.connected_components(T, 2 * len(V1) + 1)
     assert labels.dtype == np.int64
     np.testing.assert_array_equal(labels, np.repeat([0, 1, 2], [len(V1), len(V1), 1]))
+
+
+def test_counting_sort_order_is_the_stable_argsort():
+    keys = np.random.default_rng(1).integers(0, 40, 3000)
+    np.testing.assert_array_equal(counting_sort_order(keys, 40),
+                                  np.argsort(keys, kind="stable"))
+    assert counting_sort_order(np.zeros(0, np.int64), 5).dtype == np.int64
+
+
+def _edge_runs_by_one_sort(T):
+    """edge_runs as one stable sort of packed edge keys (self-loops first, last
+    one first): the order the counting passes must reproduce."""
+    a, b = T.reshape(-1), T[:, [1, 2, 0]].reshape(-1)
+    n = int(T.max()) + 1
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))
+    order, s = stable_sort_order(key)
+    return order, np.r_[True, s[1:] != s[:-1]]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_edge_runs_counted_match_one_sort(seed):
+    # small vertex ranges: repeated, non-manifold and self-loop edges are common
+    rng = np.random.default_rng(seed)
+    T = rng.integers(0, int(rng.integers(2, 30)), (int(rng.integers(1, 80)), 3))
+    runs, (order, starts) = edge_runs(T), _edge_runs_by_one_sort(T)
+    np.testing.assert_array_equal(runs.order, order)
+    np.testing.assert_array_equal(runs.starts, starts)
+    assert runs.order.dtype == np.int64
+
+
+def test_edge_runs_with_sparse_vertex_ids_sort_the_keys():
+    # ids far beyond the edge count take the sort, with the same answer
+    T = np.array([[0, 10**7, 5], [5, 10**7, 0], [3, 3, 10**7]])
+    runs, (order, starts) = edge_runs(T), _edge_runs_by_one_sort(T)
+    np.testing.assert_array_equal(runs.order, order)
+    np.testing.assert_array_equal(runs.starts, starts)

@@ -25,6 +25,7 @@ __all__ = [
     "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
     "triangle_adjacency", "EdgeRuns", "edge_runs", "non_manifold_edge_count",
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
+    "counting_sort_order",
 ]
 
 
@@ -228,12 +229,106 @@ def edge_runs(T) -> EdgeRuns:
     T = as_triangles(T)
     if len(T) == 0:
         return EdgeRuns(np.zeros(0, np.int64), np.zeros(0, bool))
-    a, b = _half_edges(T)
     n = int(T.max()) + 1
+    if n > _COUNTING_SPAN * T.size:
+        # vertex ids far beyond the edge count: a counting sort's buckets would
+        # outweigh the edges, so sort packed keys instead
+        return _edge_runs_by_sort(T, n)
+    return _edge_runs_by_counting(T, n)
+
+
+#: vertex ids up to this many times the half-edge count are counted, not sorted
+_COUNTING_SPAN = 8
+
+
+def _edge_runs_by_sort(T: np.ndarray, n: int) -> EdgeRuns:
+    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``: one stable sort
+    of packed ``min * n + max`` keys; self-loops get unique negative keys, so they
+    come first, the last one first."""
+    a, b = _half_edges(T)
     key = np.minimum(a, b) * n + np.maximum(a, b)
-    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))   # self-loops: unique keys
+    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))
     order, sorted_key = stable_sort_order(key)
     return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+
+
+def _edge_runs_by_counting(T: np.ndarray, n: int) -> EdgeRuns:
+    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``, in the order
+    :func:`_edge_runs_by_sort` gives, by two stable counting passes (a radix sort:
+    by the larger end of each edge, then by the smaller).
+
+    The temporaries are int32 when the ids allow: on a million-triangle scan they
+    are what sets the peak memory of its checks, and the passes read half the bytes.
+    """
+    k = T.size
+    dtype = np.int32 if max(n + 1, k) < 2 ** 31 else np.int64
+    tail = T.reshape(-1).astype(dtype)
+    head = np.empty_like(tail)
+    head.reshape(-1, 3)[:, :2] = tail.reshape(-1, 3)[:, 1:]
+    head.reshape(-1, 3)[:, 2] = tail.reshape(-1, 3)[:, 0]
+    loop = tail == head
+    loops = int(np.count_nonzero(loop))
+    lo = np.minimum(tail, head)
+    hi = np.maximum(tail, head, out=head)
+    del tail
+    if loops:   # self-loops: bucket 0 of both passes, so they keep their order
+        lo += 1
+        lo[loop] = 0
+        hi += 1
+        hi[loop] = 0
+    place = np.arange(k, dtype=dtype)
+    by_hi = _bucket_order(hi, n + 1, place)
+    order = by_hi[_bucket_order(lo[by_hi], n + 1, place)].astype(np.int64)
+    del by_hi, place
+    order[:loops] = order[:loops][::-1]
+    lo, hi = lo[order], hi[order]
+    starts = np.empty(k, dtype=bool)
+    np.not_equal(lo[1:], lo[:-1], out=starts[1:])
+    starts[1:] |= hi[1:] != hi[:-1]
+    starts[:loops + 1] = True   # each self-loop a run, and the first edge after them
+    return EdgeRuns(order, starts)
+
+
+def _bucket_order(keys: np.ndarray, m: int, place: np.ndarray) -> np.ndarray:
+    """The stable order of ``keys`` (k,) in ``[0, m)``, ``place`` (k,) being
+    ``arange(k)``, as scipy's index dtype (see :func:`counting_sort_order`)."""
+    buckets = sp.csr_matrix((np.ones(len(keys), np.int8), (keys, place)),
+                            shape=(m, len(keys)))
+    return buckets.indices
+
+
+def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of integers in ``[0, m)``, by counting.
+
+    scipy's COO-to-CSR conversion is a counting sort written in C: it buckets the
+    entries by row in O(k + m), keeping their input order within a row.  With the
+    keys as rows and each entry's place as its column, the CSR column indices are
+    the stable order (sorted by column within a row, which is the same thing, if
+    scipy ever sorted them).  On this machine (no vectorised sort) two such passes
+    order a million-triangle scan's 2.85M half-edges in about half the time of one
+    ``np.sort`` of their packed keys.
+
+    Parameters
+    ----------
+    keys : (k,) int array
+        Values in ``[0, m)`` (not checked).
+    m : int
+        One more than the largest possible key.
+
+    Returns
+    -------
+    (k,) int64
+        The stable sorting permutation.
+
+    Examples
+    --------
+    >>> counting_sort_order(np.array([2, 0, 2, 1]), 3).tolist()
+    [1, 3, 0, 2]
+    """
+    k = len(keys)
+    if k == 0:
+        return np.zeros(0, np.int64)
+    return _bucket_order(keys, m, np.arange(k)).astype(np.int64, copy=False)
 
 
 def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
