@@ -25,7 +25,7 @@ __all__ = [
     "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
     "triangle_adjacency", "EdgeRuns", "edge_runs", "non_manifold_edge_count",
     "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
-    "counting_sort_order",
+    "counting_sort_order", "dangling_fins",
 ]
 
 
@@ -576,3 +576,25 @@ def connected_components(T, n) -> np.ndarray:
     A = sp.csr_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(n, n))
     _, labels = csgraph.connected_components(A, directed=False)
     return labels.astype(np.int64)
+
+
+def dangling_fins(T, runs: EdgeRuns | None = None) -> np.ndarray:
+    """(t,) bool: triangles hanging on a non-manifold edge by that edge alone
+    (their two other edges on a border): fins a scanner or a bad merge left
+    standing off the surface.
+
+    >>> dangling_fins([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 3, 2]]).tolist()
+    [False, False, True, False]
+    """
+    T = np.asarray(T, dtype=np.int64)
+    order, starts = edge_runs(T) if runs is None else runs
+    if not len(order):
+        return np.zeros(len(T), bool)
+    run = np.cumsum(starts) - 1
+    size = np.bincount(run)[run]
+    shared = np.zeros(3 * len(T), bool)
+    shared[order[size > 2]] = True
+    border = np.zeros(3 * len(T), bool)
+    border[order[size == 1]] = True
+    shared, border = shared.reshape(-1, 3), border.reshape(-1, 3)
+    return (shared.sum(axis=1) == 1) & (border.sum(axis=1) == 2)

@@ -186,6 +186,9 @@ class ClosestPointTree:
     vertices : (n, 3) float64, read-only
     triangles : (t, 3) int64, read-only
     vertex_normals : (n, 3) float64, read-only
+    own_normals : bool
+        Whether ``vertex_normals`` are the mesh's own angle-weighted normals (none
+        were given), so that other checks of the mesh may reuse them.
     doubled_areas, flat_triangles, edge_runs, triangle_neighbours, boundary_triangles
         Facts of the mesh found once, on first use (the areas with the normals).
 
@@ -227,6 +230,7 @@ class ClosestPointTree:
                 raise ValueError(f"vertex_normals must have shape {V.shape}, "
                                  f"got {normals.shape}")
         self.vertex_normals = _readonly(normals)
+        self.own_normals = vertex_normals is None
         # (libigl's build holds the GIL: a background thread would gain nothing)
         self._tree = igl.AABB()
         self._tree.init(self.vertices, self.triangles)

@@ -15,7 +15,7 @@ the wrong thing silently (issue 16):
 * :func:`duplicated_landmarks` — two landmarks at the same point.
 * :func:`unique_faces` — faces listed twice (same three vertices) are dropped;
   vertices at one position (a triangle soup) merged; fins on non-manifold edges
-  (:func:`dangling_fins`) and spikes left out.
+  (:func:`~facewrap.geometry.adjacency.dangling_fins`) and spikes left out.
 * :func:`opposed_normal_fraction` — the scan's faces turned away from the aligned
   template's (every face flipped, or pieces wound against each other): each
   piece is wound one way and turned to face the template for the fit.
@@ -33,7 +33,7 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
                                vertex_normals)
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs
+from facewrap.geometry.adjacency import dangling_fins, edge_runs
 from facewrap.geometry.duplicates import unique_faces, welded
 from facewrap.geometry.normals import (SPIKE_LIMIT, coherent_orientation, disagreeing_edges,
                                        spike_vertices)
@@ -44,9 +44,9 @@ from facewrap.mesh import Mesh
 __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OPPOSED_SAMPLE",
            "landmark_spread", "robust_similarity", "check_reflection", "swapped_pairs",
            "mispaired_landmarks", "LOCAL_LIMIT", "local_misfit", "check_landmark_residuals",
-           "duplicated_landmarks", "check_landmarks",
-           "unique_faces", "opposed_normal_fraction", "dangling_fins", "checked_scan", "check_scale",
-           "UNSCALED_LIMIT", "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
+           "duplicated_landmarks", "check_landmarks", "unique_faces", "opposed_normal_fraction",
+           "dangling_fins", "checked_scan", "check_scale", "UNSCALED_LIMIT",
+           "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
 
 #: refuse a landmark similarity when the best mirrored fit's residual is below this
 #: fraction of the best proper fit's (nearly planar or few landmarks fit both alike)
@@ -420,31 +420,11 @@ def opposed_normal_fraction(vertices, triangles, normals, tree: ClosestPointTree
     return float(np.mean(opposed)) if len(opposed) else float("nan")
 
 
-def dangling_fins(T, runs: EdgeRuns | None = None) -> np.ndarray:
-    """(t,) bool: triangles hanging on a non-manifold edge by that edge alone
-    (their two other edges on a border): fins a scanner or a bad merge left
-    standing off the surface.
-
-    >>> dangling_fins([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 3, 2]]).tolist()
-    [False, False, True, False]
-    """
-    T = np.asarray(T, dtype=np.int64)
-    order, starts = edge_runs(T) if runs is None else runs
-    if not len(order):
-        return np.zeros(len(T), bool)
-    run = np.cumsum(starts) - 1
-    size = np.bincount(run)[run]
-    shared = np.zeros(3 * len(T), bool)
-    shared[order[size > 2]] = True
-    border = np.zeros(3 * len(T), bool)
-    border[order[size == 1]] = True
-    shared, border = shared.reshape(-1, 3), border.reshape(-1, 3)
-    return (shared.sum(axis=1) == 1) & (border.sum(axis=1) == 2)
-
-
-def _tidied_triangles(V, T) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def _tidied_triangles(V, T, tree: ClosestPointTree | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """The scan's vertices welded and its triangles without repeats, fins and
-    spikes (see :func:`checked_scan`), with a warning for each change."""
+    spikes (see :func:`checked_scan`), with a warning for each change; the scan's
+    ``tree`` lends its edge runs and normals if nothing was welded or dropped."""
     notes = []
     W, T = welded(V, T)
     if len(W) < len(V):
@@ -456,9 +436,11 @@ def _tidied_triangles(V, T) -> tuple[np.ndarray, np.ndarray, list[str]]:
         notes.append(f"scan: {int((~keep).sum())} of {len(T)} triangles repeat another's "
                      "vertices (duplicated faces); the fit uses each once")
         T = T[keep]
-    runs = edge_runs(T)
+    same = tree is not None and len(W) == len(V) and bool(keep.all())
+    runs = tree.edge_runs if same else edge_runs(T)
     fins = dangling_fins(T, runs)
-    spikes = spike_vertices(W, T, runs=runs)
+    own = tree.vertex_normals if same and tree.own_normals else None
+    spikes = spike_vertices(W, T, runs=runs, normals=own)
     drop = fins | spikes[T].any(axis=1)
     if fins.any():
         notes.append(f"scan: {int(fins.sum())} triangle(s) hang off the surface by one "
@@ -507,8 +489,9 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     """The scan as the fit should see it, with its tree and a warning per change.
 
     Vertices at one position merged (a soup is a surface again); duplicated
-    faces dropped; fins (:func:`dangling_fins`) and the triangles of spikes
-    (:func:`~facewrap.geometry.normals.spike_vertices`) left out; each piece wound
+    faces dropped; fins (:func:`~facewrap.geometry.adjacency.dangling_fins`) and
+    the triangles of spikes (:func:`~facewrap.geometry.normals.spike_vertices`)
+    left out; each piece wound
     one way (:func:`~facewrap.geometry.normals.coherent_orientation`), facing the
     aligned template.
 
@@ -533,7 +516,7 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     tree : ClosestPointTree
     warnings : list of str
     """
-    V, T, notes = _tidied_triangles(scan.vertices, scan.triangles)
+    V, T, notes = _tidied_triangles(scan.vertices, scan.triangles, tree)
     if notes or tree is None:
         tree = ClosestPointTree(V, T)
     aligned = normals = None
