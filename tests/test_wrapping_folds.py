@@ -139,4 +139,11 @@ def test_ict_face_onto_james_folds_nothing_it_fits_whatever_the_last_bits(
     inside = fitting[face.triangles].all(axis=1)
     assert not turned_triangles(out, fitted.rest, face.triangles)[inside].any()
     fit = surface_distances(out, scan, mask=fitting).summary("")
-    assert fit["p95"] < 1.1 and fit["mean"] < 0.16        # mm; 0.81-0.95 / 0.11-0.13
+    # The fit's figures move with the last bits as much as the folds once did: seed 1's
+    # p95 is 1.071 mm here (AVX-512, numpy 2.4), 1.102 with numpy's AVX2 loops or
+    # numpy 1.26 (make test-lowest), 1.111 with OpenBLAS's Haswell kernels.  Over
+    # seeds 0-11 on those builds: p95 0.85-1.12 mm, mean 0.127-0.151 mm.  The bounds
+    # sit above that spread and below a finish that does not land: the projection
+    # before finish_fit has mean 0.176-0.187 mm and p95 1.20-1.39; unprojected
+    # 0.76 / 2.5.
+    assert fit["p95"] < 1.25 and fit["mean"] < 0.17
