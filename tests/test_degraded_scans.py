@@ -161,19 +161,27 @@ def test_one_stable_landmark_far_off_is_named(sample):
     assert any(scan.landmarks.label(i) in w for w in result.warnings), result.warnings
 
 
-def test_noisy_landmarks_are_not_pulled_into_folds_and_are_named(sample):
-    """Landmarks 4 % of the face off at random (5.7 mm RMS on this 143 mm face):
-    the pull onto them is held back where it would fold the skin, and the wrap
-    says so; clean landmarks are pulled in full, silently."""
+def test_folds_the_pull_leaves_land_again_with_the_pull_held_back(sample, monkeypatch):
+    """When the unfolding leaves folds after a pull that turned triangles over
+    (landmarks that disagree: 2-5 mm of noise on james leaves 22-250; the
+    sample's unfolding repairs all it is given, so the count is stubbed here),
+    the wrap lands again with the pull held back where it folds, keeps the one
+    with fewer folds, and names the landmarks left far from their targets."""
+    import facewrap.wrapping.stages as stages
     template, scan, _ = sample
     P = scan.landmarks.positions(scan.mesh)
     noise = np.random.default_rng(1).normal(size=P.shape)
-    settings = WrapSettings(model="graph")
-    noisy = P + 0.04 * np.ptp(P, axis=0).max() / np.sqrt(3) * noise
-    result = wrap(template.mesh, scan.mesh, template.landmarks,
-                  Landmarks.from_points(noisy, scan.landmarks.names), settings)
-    assert result.metrics["landmark_pull"]["held_back"] > 0
+    noisy = Landmarks.from_points(P + 0.04 * np.ptp(P, axis=0).max() / np.sqrt(3) * noise,
+                                  scan.landmarks.names)
+    counted = []
+    monkeypatch.setattr(stages, "_folds", lambda *a: counted.append(1) or (5, 0)[len(counted) - 1])
+    result = wrap(template.mesh, scan.mesh, template.landmarks, noisy,
+                  WrapSettings(model="graph"))
+    pull = result.metrics["landmark_pull"]
+    assert len(counted) == 2 and "landmark_guard" in result.timings
+    assert pull["held_back"] > 0 and pull["turned"] == 0
     assert any("were not pulled onto their targets" in w for w in result.warnings)
-    clean = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks, settings)
-    assert clean.metrics["landmark_pull"]["held_back"] == 0
+    clean = wrap(template.mesh, scan.mesh, template.landmarks, scan.landmarks,
+                 WrapSettings(model="graph"))
+    assert "landmark_guard" not in clean.timings
     assert not any("were not pulled" in w for w in clean.warnings)

@@ -199,13 +199,17 @@ def test_pull_landmarks_moves_far_landmarks_to_the_tolerance(sample, problem):
 
 def test_pull_landmarks_holds_back_pulls_that_would_fold(sample, problem):
     """Straight from the similarity (no fit between), the open jaw's and closed
-    eyes' landmarks are many millimetres off: pulled there alone they would fold
-    the skin, so they are held back and counted; no fitted triangle turns over."""
+    eyes' landmarks are many millimetres off: pulled there alone they fold the
+    skin; with the guard they are held back and counted, no fitted triangle
+    turned over."""
     from facewrap.geometry.quality import turned_triangles
     template, _, _ = sample
     T = template.mesh.triangles
     V = align(problem).apply(template.mesh.vertices)
-    moved, summary = pull_landmarks(problem, V)
+    free = pull_landmarks(problem, V)[1]
+    assert free["held_back"] == 0 and free["turned"] > 0
+    moved, summary = pull_landmarks(problem, V, guard=True)
+    assert summary["turned"] == 0
     left = np.linalg.norm(problem.landmarks.positions(moved, T) - problem.targets, axis=1)
     short = left > summary["tolerance"] * 1.05   # (a surface landmark moves with
     # its triangle's corners, not exactly as the warp at its own point)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from facewrap.evaluate import surface_distances
-from facewrap.geometry import ClosestPointTree, connected_components
+from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
@@ -37,6 +37,7 @@ from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.models.graph import GraphCache
 from facewrap.wrapping.problem import WrapProblem, alignment_weights, prepare_wrap
 from facewrap.wrapping.projection import Projection
+from facewrap.wrapping.roles import FITTED
 from facewrap.wrapping.seams import seam_weld
 from facewrap.wrapping.settings import WrapSettings
 from facewrap.wrapping.warp import pull_to_landmarks
@@ -167,11 +168,12 @@ def fit_model(problem: WrapProblem, vertices, similarity: Similarity,
     return fitted
 
 
-def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
+def pull_landmarks(problem: WrapProblem, vertices, guard: bool = False
+                   ) -> tuple[np.ndarray, dict]:
     """``WrapSettings.landmark_pull``: landmarks farther than ``landmark_tolerance``
-    (fraction of the size of ``vertices``) from their targets are pulled to it, as
-    far as that turns no fitted triangle over (landmarks that disagree with each
-    other or with the surface are held back; see
+    (fraction of the size of ``vertices``) from their targets are pulled to it;
+    with ``guard``, only as far as that turns no fitted triangle over (landmarks
+    that disagree with each other or with the surface are held back; see
     :func:`~facewrap.wrapping.warp.pull_to_landmarks`).
 
     Excluded islands (eyeballs, teeth) move by their mean pull, so they keep their
@@ -181,16 +183,18 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
     -------
     vertices : (n, 3) float64
     summary : dict
-        Tolerance, how many landmarks were pulled, mean and largest pull, and how
+        Tolerance, how many landmarks were pulled, mean and largest pull, how
         many were held back (``held_back``) with the largest distance they were
-        left short of the tolerance (``held_short``), both in scan units.
+        left short of the tolerance (``held_short``), both in scan units, and how
+        many fitted triangles the pull turned over (``turned``).
     """
     V, T, excluded = vertices, problem.template.triangles, problem.excluded
     tolerance = problem.settings.landmark_tolerance
     size = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
     fitted = problem.landmarks.positions(V, T)
+    skin = T[~excluded[T].any(axis=1)]
     moved, pulls = pull_to_landmarks(V, fitted, problem.targets, tolerance * size,
-                                     triangles=T[~excluded[T].any(axis=1)])
+                                     triangles=skin if guard else None)
     short = np.maximum(np.linalg.norm(problem.targets - fitted, axis=1)
                        - tolerance * size - pulls, 0.0)
     held = short > 1e-6 * size
@@ -203,14 +207,16 @@ def pull_landmarks(problem: WrapProblem, vertices) -> tuple[np.ndarray, dict]:
     return moved, {"tolerance": tolerance * size, "pulled": int(np.count_nonzero(pulls)),
                    "mean": float(pulls.mean()), "max": float(pulls.max()),
                    "held_back": int(held.sum()),
-                   "held_short": float(short.max()) if held.any() else 0.0}
+                   "held_short": float(short.max()) if held.any() else 0.0,
+                   "turned": int(turned_triangles(moved, V, skin).sum())}
 
 def _timed(timings: dict, key: str, bar, stage, *args, **kw):
     """``stage(*args, **kw)``, its seconds in ``timings[key]``, one step of ``bar``."""
     t = time.perf_counter()
     out = stage(*args, **kw)
     timings[key] = time.perf_counter() - t
-    bar.advance()
+    if bar is not None:
+        bar.advance()
     return out
 
 
@@ -288,20 +294,22 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
             time.perf_counter() - t - fitted.setup_seconds)
         bar.advance()
 
-        pull = None
-        if problem.spec.fitted_by_icp and problem.settings.landmark_pull:
-            bar.update(description="wrap: pulling landmarks")
-            V, pull = _timed(timings, "landmark_pull", bar, pull_landmarks, problem, V)
-        else:
-            bar.advance()
-        bar.update(description="wrap: projecting onto the scan")
+        pulled = problem.spec.fitted_by_icp and problem.settings.landmark_pull
         rest = (similarity.apply(template.vertices) if fitted.rest is None
                 else fitted.rest)
-        projection = _timed(timings, "project", bar, project, problem, V, reference=rest)
-        bar.update(description="wrap: unfolding, parts following")
-        out, finish = _timed(timings, "finish", bar, finish_fit, problem,
-                             V if projection is None else projection.vertices,
-                             similarity, projection, rest=fitted.rest)
+        V, pull, projection, out, finish = _land(problem, V, similarity, fitted, rest,
+                                                 pulled, timings=timings, bar=bar)
+        folds = _folds(problem, out, rest) if pull and pull["turned"] else 0
+        if folds:
+            # the pull turned triangles over and the unfolding left folds: landmarks
+            # that disagree with each other (noisy, mis-clicked).  Landed again with
+            # the pull held back where it folds; the one with fewer folds is kept
+            t = time.perf_counter()
+            again = _land(problem, fitted.vertices, similarity, fitted, rest, pulled,
+                          guard=True)
+            if _folds(problem, again[3], rest) < folds:
+                V, pull, projection, out, finish = again
+            timings["landmark_guard"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
 
     metrics = fit_metrics(out, problem.tree,
@@ -324,6 +332,35 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
 #: back, 0.7-1.4 mm of noise on the sample leaves them at most 3.4 tolerances
 #: short, 5 mm on james 4.5-10
 _HELD_SHORT_TOLERANCES = 4.0
+
+
+def _land(problem: WrapProblem, V, similarity, fitted, rest, pulled: bool, *,
+          guard: bool = False, timings=None, bar=None):
+    """The fit's vertices ``V`` pulled to the landmarks (when ``pulled``),
+    projected and finished: (pulled vertices, pull summary or None, projection,
+    result, finish summary)."""
+    timings = {} if timings is None else timings
+    step = (lambda text: bar.update(description=text)) if bar else (lambda text: None)
+    pull = None
+    if pulled:
+        step("wrap: pulling landmarks")
+        V, pull = _timed(timings, "landmark_pull", bar, pull_landmarks, problem, V, guard)
+    elif bar:
+        bar.advance()
+    step("wrap: projecting onto the scan")
+    projection = _timed(timings, "project", bar, project, problem, V, reference=rest)
+    step("wrap: unfolding, parts following")
+    out, finish = _timed(timings, "finish", bar, finish_fit, problem,
+                         V if projection is None else projection.vertices,
+                         similarity, projection, rest=fitted.rest)
+    return V, pull, projection, out, finish
+
+
+def _folds(problem: WrapProblem, vertices, rest) -> int:
+    """Fitted triangles of ``vertices`` turned past 90 degrees from ``rest``."""
+    T = problem.template.triangles
+    return int(turned_triangles(vertices, rest, T)[(problem.roles[T] == FITTED)
+                                                  .all(axis=1)].sum())
 
 
 def _pull_warnings(pull: dict | None, problem: WrapProblem) -> list:
