@@ -256,6 +256,11 @@ def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
     from facewrap.batch.engines import quiet_dask_on_interrupt
     loggers = [logging.getLogger(n) for n in ("distributed", "tornado")]
     levels = [lg.level for lg in loggers]
+    inherited = signal.getsignal(signal.SIGINT)
+    # Python's own Ctrl-C handler, as in a terminal: a process started in the
+    # background by a shell script inherits SIGINT ignored, and Python then
+    # installs none (the context manager is then rightly a no-op)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     before = signal.getsignal(signal.SIGINT)
     seen = []
     try:
@@ -269,6 +274,10 @@ def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
                     raise
         assert seen == [logging.CRITICAL, logging.CRITICAL]
         assert signal.getsignal(signal.SIGINT) is before        # handler restored
+        signal.signal(signal.SIGINT, signal.SIG_IGN)            # ignored: left alone
+        with quiet_dask_on_interrupt():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
+        signal.signal(signal.SIGINT, inherited)
         for lg, level in zip(loggers, levels):
             lg.setLevel(level)
