@@ -223,9 +223,12 @@ def _scanned_markdown(s) -> list:
                  f"({x['n_inner']} v) | {x['flipped']} | {x['through']} |")
     L += [""] + [f"- {n}" for n in s["notes"]] + [""] * bool(s["notes"])
     rows = s["rows"]
-    pairs = [(rows[k], rows[k.replace("landmarks only", "by hand")]) for k in rows
-             if k.endswith("landmarks only") and k.replace("landmarks only", "by hand")
-             in rows]
+    heads = {}                               # identity -> run name -> row
+    for key, row in rows.items():
+        identity, run = key.split(", ", 1)
+        heads.setdefault(identity, {})[run] = row
+    pairs = [(h["landmarks only"], h["by hand"]) for h in heads.values()
+             if "landmarks only" in h and "by hand" in h]
     fit_prefers_hand = sum(h["fit_p95"] < a["fit_p95"] for a, h in pairs)
     truth_prefers_auto = sum(a["inner_lips"] < h["inner_lips"] for a, h in pairs)
     L += [f"Of {len(pairs)} heads, the fit p95 prefers the run by hand on "
@@ -234,11 +237,9 @@ def _scanned_markdown(s) -> list:
           f"that lets them follow the skin are nearer on {truth_prefers_auto}; its part "
           f"vertices through the skin: {sum(a['through'] for a, _ in pairs)}, against "
           f"{sum(h['through'] for _, h in pairs)} by hand.", ""]
-    profiled = [(rows[k.replace("landmarks only", "ICT's profile")], a, h) for k, a, h in
-                ((k, rows[k], rows[k.replace("landmarks only", "by hand")]) for k in rows
-                 if k.endswith("landmarks only")
-                 and k.replace("landmarks only", "ICT's profile") in rows
-                 and k.replace("landmarks only", "by hand") in rows)]
+    profiled = [(h["ICT's profile"], h["landmarks only"], h["by hand"])
+                for h in heads.values()
+                if {"ICT's profile", "landmarks only", "by hand"} <= h.keys()]
     if profiled:
         best = sum(p["truth_p95"] < min(a["truth_p95"], h["truth_p95"])
                    for p, a, h in profiled)

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs, run_sizes
 from facewrap.geometry.arrays import (column_norms, cross_columns, edge_vectors, normalize_rows,
                                       safe_inverse)
 from facewrap.geometry.checks import as_mesh_arrays
@@ -233,9 +233,7 @@ def _manifold_pairs(T: np.ndarray, runs: EdgeRuns | None
     if not len(order):
         empty = np.zeros(0, np.int64)
         return empty, empty, np.zeros(0, bool)
-    run = np.cumsum(starts) - 1
-    size = np.bincount(run)[run]
-    first = np.flatnonzero(starts & (size == 2))
+    first = np.flatnonzero(starts & (run_sizes(starts) == 2))
     h1, h2 = order[first], order[first + 1]
     f1, f2 = h1 // 3, h2 // 3
     tail = T.reshape(-1)                               # half-edge h starts at tail[h]

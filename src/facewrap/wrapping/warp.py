@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from facewrap.geometry.quality import turned_triangles
+
 __all__ = ["RBFWarp", "rbf_kernel", "pull_to_landmarks", "nearest_other_distances", "KERNELS"]
 
 KERNELS = ("biharmonic", "thin_plate", "exponential", "gaussian")
@@ -260,7 +262,6 @@ def pull_to_landmarks(points, fitted, targets, tolerance: float, *, triangles=No
     moved = pulled(scale)
     if triangles is None:
         return moved, pulls
-    from facewrap.geometry.quality import turned_triangles
     T = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     # after the halving rounds, each round drops at least one more landmark
     for round_ in range(_GUARD_ROUNDS + len(F) + 1):
