@@ -255,6 +255,11 @@ def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
     import logging
     from facewrap.batch.engines import quiet_dask_on_interrupt
     loggers = [logging.getLogger(n) for n in ("distributed", "tornado")]
+    # distributed's logging config gives this one a level of its own (ERROR): it
+    # logged the cancelled callback's traceback in a CI run while its parent was quiet
+    child = logging.getLogger("tornado.application")
+    child_level = child.level
+    child.setLevel(logging.ERROR)
     levels = [lg.level for lg in loggers]
     inherited = signal.getsignal(signal.SIGINT)
     # Python's own Ctrl-C handler, as in a terminal: a process started in the
@@ -273,11 +278,13 @@ def test_ctrl_c_quiets_dask_before_the_interrupt_unwinds():
                     seen = [lg.level for lg in loggers]
                     raise
         assert seen == [logging.CRITICAL, logging.CRITICAL]
+        assert child.level == logging.CRITICAL
         assert signal.getsignal(signal.SIGINT) is before        # handler restored
         signal.signal(signal.SIGINT, signal.SIG_IGN)            # ignored: left alone
         with quiet_dask_on_interrupt():
             assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, inherited)
+        child.setLevel(child_level)
         for lg, level in zip(loggers, levels):
             lg.setLevel(level)

@@ -193,8 +193,12 @@ def _quiet_task(func, bj) -> dict:
 
 
 def _silence_dask_logs() -> None:
-    """No shutdown noise: Dask's own, and tornado's callbacks cancelled mid-close."""
-    for name in ("distributed", "tornado"):
+    """No shutdown noise: Dask's own, and tornado's callbacks cancelled mid-close.
+    Every logger below them too: distributed's logging config gives some their own
+    level (``tornado.application: error``), which a parent's does not override."""
+    names = [name for name in list(logging.root.manager.loggerDict)
+             if name.startswith(("distributed.", "tornado."))]
+    for name in ("distributed", "tornado", *names):
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
