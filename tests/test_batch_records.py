@@ -66,7 +66,13 @@ def test_remove_stale_deletes_the_record_and_temporary_files(tmp_path):
     finish(job, WrapSettings())
     litter = tmp_path / "out" / ".tmp-123-a.obj"
     litter.write_text("half")
+    # staged by a worker stopped before moving it into place (a batch's Ctrl-C)
+    staged = tmp_path / "out" / ".facewrap-staged-0a1b2c3d-a.obj"
+    staged.write_text("whole, never committed")
+    other = tmp_path / "out" / ".facewrap-staged-0a1b2c3d-xa.obj"   # another output's
+    other.write_text("kept")
     remove_stale(job)
     assert read_done_record(job) is None and not litter.exists()
+    assert not staged.exists() and other.exists()
     assert os.path.exists(job.output)                               # outputs stay
     assert path_stat(tmp_path / "missing") == {"missing": True}

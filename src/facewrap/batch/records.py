@@ -16,12 +16,14 @@ import glob
 import hashlib
 import json
 import os
+import shutil
 import socket
 import time
 from dataclasses import asdict
 
 from facewrap.batch.manifest import done_record_path
 from facewrap.io.atomic import atomic_write
+from facewrap.io.paths import STAGE_PREFIX
 from facewrap.jobs import kind_of
 from facewrap.version import __version__
 
@@ -150,13 +152,21 @@ def write_done_record(job, fp: dict, report: dict, seconds: float) -> None:
 
 
 def remove_stale(job) -> None:
-    """Delete a stale done-record and temporary files a killed run left behind."""
+    """Delete a stale done-record and the temporary and staged files (or staged
+    folders) a killed run left behind: a worker stopped by Ctrl-C or SIGKILL
+    between staging an output and moving it into place."""
     record = done_record_path(job)
     with contextlib.suppress(FileNotFoundError):
         os.unlink(record)
     for out in kind_of(job).outputs(job) + [record]:
         folder, base = os.path.split(os.path.abspath(out))
-        for tmp in glob.glob(os.path.join(glob.escape(folder),
-                                          ".tmp-*-" + glob.escape(base))):
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        # (a staged name's token is 8 hex digits: "*" could reach into another
+        # output's name that ends in this one's)
+        for pattern in (".tmp-*-" + glob.escape(base),
+                        STAGE_PREFIX + "?" * 8 + "-" + glob.escape(base)):
+            for tmp in glob.glob(os.path.join(glob.escape(folder), pattern)):
+                if os.path.isdir(tmp) and not os.path.islink(tmp):
+                    shutil.rmtree(tmp, ignore_errors=True)
+                else:
+                    with contextlib.suppress(OSError):
+                        os.unlink(tmp)
