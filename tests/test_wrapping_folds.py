@@ -87,6 +87,27 @@ def test_finish_fit_unfolds_a_cluster_wider_than_the_first_pass_allows():
     assert summary["unfolded"] > 0.05 * len(V)
 
 
+def test_finish_fit_turns_triangles_on_the_edge_of_a_fold_back_a_little():
+    """Triangles a fit leaves at 89 degrees are folds from a pose a degree away:
+    the finish brings them within 88, stepping their corner only part of the way
+    (a relaxation would put it back on the plane), and moves nothing else."""
+    V, T = _grid(12)
+    X = V.copy()
+    X[65, 2] = 60.0                       # an interior vertex: its six triangles ~89 deg
+    template = Mesh(V, T)
+    assert turned_triangles(X, V, T, 88.0).sum() == 6
+    assert not turned_triangles(X, V, T).any()
+    scan = Mesh(*_grid(16, 0.8))
+    ids = np.array([0, 11, 132, 143, 70])
+    problem = prepare_wrap(template, scan, Landmarks.from_vertices(ids),
+                           Landmarks.from_points(V[ids]), WrapSettings(model="rigid"))
+    out, _ = finish_fit(problem, X, Similarity(), None)
+    assert not turned_triangles(out, V, T, 88.0).any()
+    assert 10.0 < out[65, 2] < 60.0
+    others = np.arange(len(V)) != 65
+    assert np.array_equal(out[others], X[others])
+
+
 @pytest.fixture(scope="module")
 def ict_face_on_james(data_dir, tmp_path_factory):
     """ICT-FaceKit's face region (9,409 v, its 68 landmarks and 53 expression

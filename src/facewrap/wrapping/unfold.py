@@ -20,7 +20,8 @@ from facewrap.geometry.similarity import similarity_transform
 from facewrap.mesh import Mesh
 from facewrap.wrapping.blend import extension_operator, smooth_extension
 
-__all__ = ["relax_flips", "unfold_among", "settle_turned_corners", "step_back_new_folds"]
+__all__ = ["relax_flips", "unfold_among", "settle_turned_corners", "step_back_new_folds",
+           "turn_back_within"]
 
 
 def _apart(V, T, pairs) -> np.ndarray:
@@ -30,15 +31,16 @@ def _apart(V, T, pairs) -> np.ndarray:
 
 
 def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.25,
-                        rounds: int = 30) -> tuple[np.ndarray, np.ndarray]:
+                        rounds: int = 30, angle: float = 90.0, creases: bool = True
+                        ) -> tuple[np.ndarray, np.ndarray]:
     """``after`` with the folds it made that ``before`` does not have brought back
     toward ``before``.
 
-    A fold is a triangle turned past 90 degrees from ``reference``, or a crease: two
-    edge neighbours facing apart (their normals' dot product below 0).  Each round,
-    the corners of the folds ``after`` still has and ``before`` has not move
-    ``step`` of the way back to their ``before`` positions; after ``rounds`` they
-    are there within 0.75**30 ~ 2e-4 of the way.  Small steps move only as many
+    A fold is a triangle turned past ``angle`` (90 degrees) from ``reference``, or
+    (with ``creases``) a crease: two edge neighbours facing apart (their normals' dot
+    product below 0).  Each round, the corners of the folds ``after`` still has and
+    ``before`` has not move ``step`` of the way back to their ``before`` positions;
+    after ``rounds`` they are there within 0.75**30 ~ 2e-4 of the way.  Small steps move only as many
     vertices, as little, as it takes: on ICT's head onto james, a second
     projection's one fold came back by moving 15 vertices (fit p95 1.907 -> 1.918
     mm), where putting vertices back at once moved 53 (2.030 mm).  Counting creases
@@ -57,6 +59,10 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     step : float
         In (0, 1].
     rounds : int
+    angle : float
+        Degrees: a triangle turned past it is a fold.
+    creases : bool
+        Count creases as folds.
 
     Returns
     -------
@@ -72,7 +78,7 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     >>> moved.tolist(), bool(turned_triangles(out, V, T).any())   # both sides of the crease
     ([True, True, True, True], False)
     """
-    was = turned_triangles(before, reference, T)            # (checks the arrays too)
+    was = turned_triangles(before, reference, T, angle)     # (checks the arrays too)
     T = np.asarray(T, dtype=np.int64)
     nb = triangle_adjacency(T)
     i, j = np.nonzero(nb > np.arange(len(T))[:, None])     # each shared edge once
@@ -83,14 +89,15 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     # what folds in ``out``, kept per triangle and per shared edge and tested again
     # each round only where a corner moved: a round moves a few corners of a mesh
     reference_normals = triangle_normals(np.asarray(reference, dtype=np.float64), T)
-    is_turned = turned(reference_normals, triangle_normals(out, T))
+    is_turned = turned(reference_normals, triangle_normals(out, T), angle)
     unit = face_normals(out, T)
     is_apart = np.einsum("ij,ij->i", unit[pairs[:, 0]], unit[pairs[:, 1]]) < 0
     moved = np.zeros(len(out), dtype=bool)
     for _ in range(rounds):
         new = is_turned & ~was
         # a crease too: neighbours facing apart that did not in ``before``
-        new[pairs[is_apart & ~was_apart].ravel()] = True
+        if creases:
+            new[pairs[is_apart & ~was_apart].ravel()] = True
         corners = np.zeros(len(out), dtype=bool)
         corners[T[new]] = True
         corners &= ~fixed
@@ -100,7 +107,7 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
         out[corners] += step * (before[corners] - out[corners])
         touched = corners[T].any(axis=1)
         t = np.flatnonzero(touched)
-        is_turned[t] = turned(reference_normals[t], triangle_normals(out, T[t]))
+        is_turned[t] = turned(reference_normals[t], triangle_normals(out, T[t]), angle)
         unit[t] = face_normals(out, T[t])
         p = np.flatnonzero(touched[pairs[:, 0]] | touched[pairs[:, 1]])
         is_apart[p] = np.einsum("ij,ij->i", unit[pairs[p, 0]], unit[pairs[p, 1]]) < 0
@@ -115,17 +122,17 @@ _MOST_RELAXED = 0.02
 
 def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int = 1,
                 rounds: int = 10, fewest: bool = False,
-                most_relaxed: float | None = _MOST_RELAXED, each_region: bool = False
-                ) -> tuple[np.ndarray, np.ndarray]:
+                most_relaxed: float | None = _MOST_RELAXED, each_region: bool = False,
+                angle: float = 90.0) -> tuple[np.ndarray, np.ndarray]:
     """Unfold triangles that face away from ``reference``, by smoothing locally.
 
     A fit can leave a few triangles turned over where the scan ends, in a crease
     or beside a cavity.  Their vertices and one ring around them give up their
     displacement from ``reference`` and take the smooth extension of their
     neighbours' (:func:`smooth_extension`); the relaxed region grows by a ring a
-    round until no triangle is turned past 90 degrees, ``rounds`` are done (no
-    region is wider than about ``rounds`` rings), three rounds unfold nothing
-    more or ``most_relaxed`` of the vertices are relaxed.  With ``each_region``,
+    round until no triangle is turned past ``angle`` (90 degrees), ``rounds`` are
+    done (no region is wider than about ``rounds`` rings), three rounds unfold
+    nothing more or ``most_relaxed`` of the vertices are relaxed.  With ``each_region``,
     only the connected pieces of the region that still hold a turned triangle
     grow, rounds that unfold nothing included (a wide fold unfolds all at once),
     and a piece that has not unfolded its triangles after ``rounds`` is put
@@ -164,6 +171,9 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
         better start for a fit projected again afterwards (on ICT's ground-truth
         cases with the graph model, a tighter one).
 
+    angle : float
+        Degrees: a triangle turned past it is a fold.
+
     Returns
     -------
     vertices : (n, 3) float64
@@ -195,7 +205,7 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
     last, stalled = len(T) + 1, 0
     best = (len(T) + 1, X, relaxed)
     for _ in range(rounds):
-        flipped = turned(n0, face_normals(out, T), 90.0) & ~folded
+        flipped = turned(n0, face_normals(out, T), angle) & ~folded
         if flipped.sum() < best[0]:
             best = (int(flipped.sum()), out, relaxed.copy())
         if not flipped.any():
@@ -219,9 +229,9 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
         out[~relaxed] = X[~relaxed]
     if each_region and relaxed.any():
         out, relaxed = _unfolded_regions_only(A, X, out, relaxed,
-                                              T[turned(n0, face_normals(out, T), 90.0)
+                                              T[turned(n0, face_normals(out, T), angle)
                                                 & ~folded])
-    elif fewest and turned(n0, face_normals(out, T), 90.0)[~folded].sum() >= best[0]:
+    elif fewest and turned(n0, face_normals(out, T), angle)[~folded].sum() >= best[0]:
         return best[1], best[2]
     return out, relaxed
 
@@ -385,3 +395,68 @@ def _settle_corner(out, R, T, n0, counted, adjacency, a, b, c) -> bool:
         return True
     out[c] = kept
     return False
+
+
+def turn_back_within(template: Mesh, reference, vertices, angle: float, *, fixed=None,
+                     order: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles turned past ``angle`` degrees from ``reference`` brought within it,
+    moving their corners only as far as it takes.
+
+    For a margin below 90 degrees: a triangle an unfolding left at 89.9 degrees
+    from one pose is past 90 from a pose a degree away.  Where
+    :func:`relax_flips` (at ``angle``, each region as wide as it needs) turns
+    such a triangle back, its corners step a tenth of the way at a time toward
+    the relaxed pose (:func:`step_back_new_folds`, creases not counted) until it
+    is within ``angle``; far less than the relaxation moves them.  Nothing
+    changes when that would leave more triangles turned past 90 degrees.
+
+    Parameters
+    ----------
+    template : Mesh
+        Topology.
+    reference : (n, 3) float
+        Positions whose orientation is right.
+    vertices : (n, 3) float
+        The fit.
+    angle : float
+        Degrees.
+    fixed : (n,) bool, optional
+        Vertices that must not move.
+    order : {1, 2}
+        Of the relaxation's smooth extension.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    moved : (n,) bool
+
+    Examples
+    --------
+    >>> from facewrap.mesh import Mesh
+    >>> g = np.stack(np.meshgrid(np.arange(4.0), np.arange(4.0)), -1).reshape(-1, 2)
+    >>> V = np.c_[g, np.zeros(16)]
+    >>> T = np.array([[i, i + 1, i + 5] for i in (0, 1, 2, 4, 5, 6, 8, 9, 10)]
+    ...              + [[i, i + 5, i + 4] for i in (0, 1, 2, 4, 5, 6, 8, 9, 10)])
+    >>> fit = V.copy(); fit[5, 2] = 10.0       # its triangles turn 84-86 degrees
+    >>> out, moved = turn_back_within(Mesh(V, T), V, fit, 80.0)
+    >>> bool(turned_triangles(fit, V, T, 80.0).any()), bool(turned_triangles(out, V, T,
+    ...                                                                      80.0).any())
+    (True, False)
+    >>> round(float(out[5, 2]), 2)       # part of the way down (relaxed, it would be 0)
+    3.87
+    """
+    T = template.triangles
+    X = np.array(vertices, dtype=np.float64)
+    n0 = face_normals(np.asarray(reference, dtype=np.float64), T)
+    if not (turned(n0, face_normals(X, T), angle) & ~folded_in(n0, T)).any():
+        return X, np.zeros(len(X), bool)          # (most fits: nothing to turn)
+    fixed = np.zeros(len(X), bool) if fixed is None else np.asarray(fixed, bool)
+    toward, _ = relax_flips(template, reference, vertices, fixed=fixed, order=order,
+                            angle=angle, rounds=12, most_relaxed=None, each_region=True)
+    out, moved = step_back_new_folds(T, reference, toward, vertices, fixed, angle=angle,
+                                     step=0.1, rounds=60, creases=False)
+    # (a corner stepped part of the way can turn a neighbour over: then nothing moves)
+    if turned_triangles(out, reference, T).sum() > turned_triangles(vertices, reference,
+                                                                    T).sum():
+        return np.array(vertices, dtype=np.float64), np.zeros(len(vertices), bool)
+    return out, moved
