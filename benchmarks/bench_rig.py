@@ -131,10 +131,13 @@ def _blend(neutral, shapes, weights):
     return neutral + sum(w * (shapes[k] - neutral) for k, w in weights.items())
 
 
-def _example_cases(identity, examples):
-    """The neutral case, the person's model and each example's case and motion."""
+def _example_cases(identity, examples, n_triangles: int = 60000):
+    """The neutral case, the person's model and each example's case and motion,
+    scanned with about ``n_triangles`` triangles."""
     kit = cases.ict_kit()
-    neutral = cases.ict_case(f"neutral {identity}", identity, {})
+    size = "" if n_triangles == 60000 else f" {n_triangles}"
+    neutral = cases.ict_case(f"neutral {identity}{size}", identity, {},
+                             n_triangles=n_triangles)
     V0 = neutral.template.vertices
     face = V0 + (kit.shape(identity)[:cases.N_FACE] - kit.neutral.vertices[:cases.N_FACE])
     own = person_displacements(V0, neutral.blendshapes)
@@ -145,8 +148,9 @@ def _example_cases(identity, examples):
         m = _head_motion(rng)
         P = face + sum(x * own[k] for k, x in w.items())
         rigid = (m.rotation @ frame.rotation, m.rotation @ frame.translation + m.translation)
-        out.append((cases.ict_case(f"rig example {identity} {j}", identity, {}, person=P,
-                                   rigid=rigid, seed=j + 1), m))
+        out.append((cases.ict_case(f"rig example {identity} {j}{size}", identity, {},
+                                   person=P, rigid=rigid, seed=j + 1,
+                                   n_triangles=n_triangles), m))
     return neutral, face, own, frame, out
 
 

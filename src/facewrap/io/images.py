@@ -80,7 +80,9 @@ def png_bytes(image) -> bytes:
     if image.shape[2] == 1:
         image = image[:, :, 0]
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
+    # zlib's fastest level: Pillow's default (6) took 5x the time (0.37 against
+    # 0.07 s) for a file 4 % smaller on a baked 1024^2 skin texture
+    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG", compress_level=1)
     return buf.getvalue()
 
 

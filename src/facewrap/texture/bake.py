@@ -345,9 +345,12 @@ def _beyond_border(tree, points: np.ndarray, cp, hair: float) -> np.ndarray:
     under the point along the normal; the scan says nothing about such points.
     Points within ``hair`` of the scan are on it, whatever rounding says.
     """
-    offset = np.abs(np.einsum("kd,kd->k", points - cp.points, cp.normals))
-    return (tree.boundary_triangles[cp.triangles] & (cp.distances > hair)
-            & (offset < _COS_45 * cp.distances))
+    out = tree.boundary_triangles[cp.triangles] & (cp.distances > hair)
+    k = np.flatnonzero(out)         # (the normals of these few only)
+    offset = np.abs(np.einsum("kd,kd->k", points[k] - cp.points[k],
+                              tree.normals_at(cp.triangles[k], cp.barycentric[k])))
+    out[k] = offset < _COS_45 * cp.distances[k]
+    return out
 
 
 _COS_45 = float(np.cos(np.pi / 4))
