@@ -151,6 +151,44 @@ def test_a_clean_sample_is_left_alone(sample):
     assert sample[2].warnings == []
 
 
+def _without(mesh: Mesh, drop) -> Mesh:
+    keep = np.flatnonzero(~drop)
+    used = np.unique(mesh.triangles[keep])
+    new = np.full(mesh.n_vertices, -1)
+    new[used] = np.arange(len(used))
+    return Mesh(mesh.vertices[used], new[mesh.triangles[keep]])
+
+
+def test_a_scan_cut_off_below_the_mouth_is_said(sample):
+    # the chin's scan landmarks go with the cut; the template's stay, and end up
+    # past the scan's edge
+    template, scan, _ = sample
+    P = scan.landmarks.positions(scan.mesh)
+    y = 0.5 * (P[57, 1] + P[8, 1])
+    V, T = scan.mesh.vertices, scan.mesh.triangles
+    cut = _without(scan.mesh, (V[T, 1] < y).any(axis=1))
+    kept = np.flatnonzero(ClosestPointTree(cut.vertices, cut.triangles).query(P).distances
+                          < 0.002 * scan.mesh.scale())
+    result = _wrap(template, cut, scan.landmarks.subset(kept))
+    said = [w for w in result.warnings if "past the edge of the scan" in w]
+    assert len(said) == 1 and "jaw_8" in said[0], result.warnings
+
+
+def test_a_hole_under_the_landmarks_is_said_and_not_a_miss_of_the_fit(sample):
+    template, scan, good = sample
+    P = scan.landmarks.positions(scan.mesh)
+    V, T = scan.mesh.vertices, scan.mesh.triangles
+    eye = P[36:42].mean(axis=0)
+    size = np.ptp(P[:, 0])
+    holed = _without(scan.mesh, (np.linalg.norm(V[T] - eye, axis=2)
+                                 < 0.12 * size).any(axis=1))
+    result = _wrap(template, holed, scan.landmarks)
+    said = [w for w in result.warnings if "past the edge of the scan" in w]
+    assert len(said) == 1 and "eye_r_" in said[0], result.warnings
+    # the clean scan has those places: nothing said (test_a_clean_sample_is_left_alone)
+    assert not any("past the edge" in w for w in good.warnings)
+
+
 def test_one_stable_landmark_far_off_is_named(sample):
     template, scan, _ = sample
     P = scan.landmarks.positions(scan.mesh)

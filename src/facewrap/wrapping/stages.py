@@ -28,10 +28,11 @@ import numpy as np
 from facewrap.evaluate import surface_distances
 from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.landmarks import Landmarks
+from facewrap.landmarks import Landmarks, pair_landmarks
 from facewrap.mesh import Mesh
 from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
+from facewrap.wrapping.coverage import landmarks_off_scan
 from facewrap.wrapping.finish import finish_fit, pin, project
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.models.graph import GraphCache
@@ -323,7 +324,8 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     return WrapResult(template.with_vertices(out), similarity, V, projection, timings,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
-                      warnings=list(problem.warnings) + _pull_warnings(pull, problem),
+                      warnings=list(problem.warnings) + _pull_warnings(pull, problem)
+                      + _off_scan(template_landmarks, scan_landmarks, problem, out),
                       roles=problem.roles)
 
 
@@ -361,6 +363,19 @@ def _folds(problem: WrapProblem, vertices, rest) -> int:
     T = problem.template.triangles
     return int(turned_triangles(vertices, rest, T)[(problem.roles[T] == FITTED)
                                                   .all(axis=1)].sum())
+
+
+def _off_scan(template_landmarks: Landmarks, scan_landmarks: Landmarks,
+              problem: WrapProblem, vertices) -> list:
+    """:func:`~facewrap.wrapping.coverage.landmarks_off_scan` of all the template's
+    landmarks, their scan partners where they have them (points off the template:
+    the paired ones only, snapped onto it)."""
+    if template_landmarks.on_mesh:
+        paired = pair_landmarks(template_landmarks, scan_landmarks)[0]
+    else:
+        template_landmarks, paired = problem.landmarks, np.arange(len(problem.targets))
+    return landmarks_off_scan(template_landmarks, vertices, problem.template.triangles,
+                              problem.tree, paired, problem.targets)
 
 
 def _pull_warnings(pull: dict | None, problem: WrapProblem) -> list:
