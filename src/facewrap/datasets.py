@@ -334,6 +334,9 @@ def load_shape_folder(folder, reference: Mesh | None = None,
         if reference is not None and np.array_equal(v, reference.vertices):
             continue
         shapes[p.stem] = v
+    if not shapes and files:   # "none found" would send the user looking for files
+        raise InputError(f"no shapes: its {len(files)} OBJ file(s) all equal the "
+                         "neutral exactly", folder)
     if not shapes:
         raise InputError("no OBJ shapes found", folder)
     return shapes

@@ -82,7 +82,10 @@ class Landmarks:
             if len(names) != k:
                 raise ValueError(f"{len(names)} names for {k} landmarks")
             if len(set(names)) != k:
-                raise ValueError("landmark names must be unique")
+                seen = set()
+                twice = next(n for n in names if n in seen or seen.add(n))
+                raise ValueError(f"landmark names must be unique ({twice!r} is given "
+                                 "twice)")
         self.vertex, self.triangle = _ro(vertex), _ro(triangle)
         self.barycentric, self.points = _ro(barycentric), _ro(points)
         self.names = names

@@ -17,7 +17,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import COORDINATE_LIMIT, first_too_large
+from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
@@ -52,6 +52,8 @@ def read_ground_truth(path, result):
         Naming ``path``: unreadable, or not one row per vertex of ``result``.
     """
     if str(path).lower().endswith(".npy"):
+        if not Path(path).is_file():   # np.load would wait on a fifo forever
+            raise not_a_file(path)
         try:
             G = np.load(path, allow_pickle=False)
         except FileNotFoundError:

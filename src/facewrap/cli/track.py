@@ -130,7 +130,7 @@ def cmd_track(args) -> int:
     for i, mesh in enumerate(meshes):
         own = lms[i] if i < len(given) else None     # the frame's landmark file's
         found = check_scan(mesh, own, scans[i], given[i] if own is not None else None,
-                           survey=False)[3]
+                           survey=False, units=args.units)[3]
         checked += [f"frame {i} ({scans[i]}): {note}" for note in found]
     if detections and not args.quiet:
         for what, found in detections.items():

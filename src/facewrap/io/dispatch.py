@@ -59,6 +59,8 @@ def read_mesh(path) -> Mesh:
         mesh = read_ply(path)
     else:
         mesh = read_trimesh_format(path)
+    if mesh.n_vertices == 0:   # a PLY may declare "element vertex 0"; nothing has no size
+        raise InputError("holds no vertices", path)
     # the readers are exact; no head is 1e30 across, and its squares would overflow
     check_coordinates(mesh.vertices, path)
     return mesh

@@ -197,6 +197,8 @@ def read_json(path):
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"invalid JSON: {exc.msg}", path, exc.lineno) from None
+    except ValueError as exc:   # an integer of more digits than int() converts
+        raise InputError(f"invalid JSON: {str(exc).split(';')[0]}", path) from None
     except RecursionError:   # the C decoder recurses once per nesting level
         raise InputError("invalid JSON: nested too deeply", path) from None
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import not_a_file
 
 __all__ = ["as_image", "to_uint8", "png_bytes", "save_png", "load_image", "check_image"]
 
@@ -164,6 +165,10 @@ def check_image(path) -> tuple[int, int]:
 def _image_errors(path):
     """Pillow's failures on ``path`` as one :class:`InputError` naming it."""
     from PIL import Image
+    if os.path.lexists(path) and not os.path.isfile(path):
+        # Pillow would open a fifo and wait for a writer forever (or read
+        # /dev/zero to the memory limit): say what it is before opening it
+        raise not_a_file(path)
     try:
         yield
     except FileNotFoundError:

@@ -332,7 +332,9 @@ def read_landmarks(path, kind: str = "auto") -> Landmarks:
     path : str or os.PathLike
     kind : {"auto", "vertices", "points"}
         For plain text: ``"auto"`` reads integer text as vertex ids unless every
-        line has exactly three values; anything else is read as ``x y z`` points.
+        line has exactly three values, and one value a line as vertex ids (a
+        value that is not an id is then named with its line); anything else is
+        read as ``x y z`` points.
     """
     landmarks = _read_any_landmarks(path, kind)
     # free points no head could hold (a 1e308 passed the NaN check and
@@ -361,7 +363,10 @@ def _read_any_landmarks(path, kind: str) -> Landmarks:
         raise ValueError(f"kind must be 'auto', 'vertices' or 'points', got {kind!r}")
     rows = [s.replace(",", " ").split() for _, s in _content_lines(_text(path))]
     all_int = all(_INT.match(t) for r in rows for t in r)
-    if all_int and not all(len(r) == 3 for r in rows):
+    # one value a line is an id list even with a bad id in it ("12.0" on line 3),
+    # so the error names that line, not "expected 'x y z'" on line 1
+    one_column = all(len(r) == 1 for r in rows)
+    if one_column or (all_int and not all(len(r) == 3 for r in rows)):
         return read_vertex_indices(path)
     return read_points(path)
 

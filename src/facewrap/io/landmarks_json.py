@@ -29,6 +29,8 @@ __all__ = ["read_landmarks_json", "write_landmarks_json", "read_landmark_details
 
 #: Largest index a file may hold (int64); larger ones are errors, not overflows.
 _MAX_INDEX = 2**63 - 1
+#: How far barycentric coordinates written with a few decimals may stray.
+_BARY_SLACK = 1e-3
 
 
 def read_landmarks_json(path) -> Landmarks:
@@ -52,7 +54,7 @@ def read_landmarks_json(path) -> Landmarks:
                 vertex[i] = _nonneg_int(it["vertex"])
             elif keys[0] == "triangle":
                 triangle[i] = _nonneg_int(it["triangle"])
-                bary[i] = _three_numbers(it.get("barycentric"), "barycentric")
+                bary[i] = _barycentric(it.get("barycentric"))
             else:
                 points[i] = _three_numbers(it["point"], "point")
         except (TypeError, ValueError) as exc:
@@ -74,6 +76,19 @@ def _three_numbers(value, key: str) -> np.ndarray:
     if not np.isfinite(out).all():
         raise ValueError(f"'{key}' must be 3 finite numbers")
     return out
+
+
+def _barycentric(value) -> np.ndarray:
+    """Coordinates of a point inside its triangle: each in [0, 1], summing to 1.
+
+    Others put the point off the surface, or (1e300) overflow the alignment into
+    an unnamed numerical failure; rounding in a written file is allowed for.
+    """
+    b = _three_numbers(value, "barycentric")
+    if b.min() < -_BARY_SLACK or abs(b.sum() - 1.0) > _BARY_SLACK:
+        raise ValueError("'barycentric' must be 3 numbers in [0, 1] that sum to 1, "
+                         f"got {value}")
+    return b
 
 
 def _nonneg_int(x) -> int:

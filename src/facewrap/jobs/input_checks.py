@@ -5,6 +5,10 @@ cannot be fitted with an :class:`~facewrap.errors.InputError` naming the file:
 :func:`survey_mesh` (repeated vertices, zero-area triangles, non-manifold edges,
 loose pieces), :func:`weld_duplicates` (exact duplicate scan vertices merged, so
 seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
+:func:`check_distinct_landmarks` (two template landmarks at one place),
+:func:`unpaired_landmarks` (named landmarks left out of the pairing),
+:func:`nothing_to_fit` (every vertex excluded or pinned), :func:`oversized_shapes`
+(blendshapes larger than the head),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
 (and of each frame of a track) in one call.
 """
@@ -22,9 +26,11 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
+from facewrap.units import UNKNOWN, format_distance, resolve_units
 
-__all__ = ["doubled_areas", "survey_mesh", "weld_duplicates",
-           "check_landmark_spread", "check_landmarks_on_scan", "check_scan"]
+__all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
+           "check_distinct_landmarks", "unpaired_landmarks", "nothing_to_fit",
+           "oversized_shapes", "check_landmarks_on_scan", "check_scan"]
 
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
@@ -114,24 +120,97 @@ def check_landmark_spread(points: np.ndarray, path) -> None:
                          "alignment needs at least three landmarks not in a line", path)
 
 
-def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path) -> list[str]:
-    """Scan landmarks should lie on (or near) the scan surface."""
+def check_distinct_landmarks(points: np.ndarray, names, path) -> None:
+    """Two template landmarks at one position (a vertex id listed twice) are refused.
+
+    The landmark warp needs one place per landmark: two at one point would pull it
+    toward two scan points at once (the RBF system is singular).  A scan landmark
+    given twice is only odd, and the wrap's plausibility checks name it.
+    """
+    first, inverse = duplicate_rows(points)
+    owner = first[inverse]          # the first landmark at each one's position
+    twice = np.flatnonzero(owner != np.arange(len(points)))
+    if len(twice):
+        i, j = int(owner[twice[0]]), int(twice[0])
+        label = (lambda k: str(k) if names is None else f"{k} ({names[k]})")
+        raise InputError(f"landmarks {label(i)} and {label(j)} are at the same position "
+                         f"({len(twice)} such pair(s)): each landmark needs a place of "
+                         "its own (a vertex id listed twice?)", path)
+
+
+def unpaired_landmarks(template: Landmarks, scan: Landmarks, template_path,
+                       scan_path) -> list[str]:
+    """One line naming the landmarks left out of a pairing by name, if any.
+
+    Named sets pair by the names they share and the rest is dropped: legal (a scan
+    may carry a subset), but a typo or another naming scheme drops landmarks the
+    user meant to fit, so the count and an example are said.
+    """
+    if template.names is None or scan.names is None:
+        return []
+    common = set(template.names) & set(scan.names)
+    out = []
+    for lm, path, what in ((scan, scan_path, "scan"), (template, template_path,
+                                                        "template")):
+        alone = [n for n in lm.names if n not in common]
+        if alone and common:
+            out.append(f"{path}: {len(alone)} of {len(lm)} {what} landmarks pair with no "
+                       f"landmark of the same name and are left out (e.g. {alone[0]!r}); "
+                       f"the fit uses the {len(common)} shared names")
+    return out
+
+
+def nothing_to_fit(n_vertices: int, held: dict) -> list[str]:
+    """One line when the vertex lists of ``held`` (path → (k,) int ids: excluded,
+    pinned) together cover every template vertex: nothing is pulled onto the scan,
+    and the result is the landmark alignment alone, which looks like a fit."""
+    covered = np.zeros(n_vertices, dtype=bool)
+    for ids in held.values():
+        covered[ids] = True
+    if not covered.all():
+        return []
+    files = " and ".join(str(p) for p in held)
+    return [f"{files}: every template vertex is excluded or pinned; nothing is pulled "
+            "onto the scan (the result only follows the landmarks)"]
+
+
+def oversized_shapes(shapes: dict, template: Mesh, path) -> list[str]:
+    """One line naming the blendshapes that move a vertex farther than half the
+    template's size: no expression does, a shape in other units (or of another
+    head) does, and the fit would quietly give it no weight."""
+    size = template.scale()
+    moves = {name: float(np.linalg.norm(V - template.vertices, axis=1).max())
+             for name, V in shapes.items()}
+    big = [name for name, m in moves.items() if m > 0.5 * size]
+    if not big:
+        return []
+    return [f"{path}: {len(big)} shape(s) move a vertex farther than half the template's "
+            f"size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its size): other "
+            "units, or not this template's shapes?"]
+
+
+def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path,
+                            unit: str = UNKNOWN) -> list[str]:
+    """Scan landmarks should lie on (or near) the scan surface; distances are said
+    in ``unit`` (the scan's, see :func:`~facewrap.units.resolve_units`)."""
     d = tree.query(points).distances
     far = d > 0.05 * scale
     if np.median(d) > 0.1 * scale:
         raise InputError(f"landmarks are not on the scan: median distance to its "
-                         f"surface {np.median(d):.4g}, scan size {scale:.4g} (wrong "
-                         "landmark file, or other units?)", path)
+                         f"surface {format_distance(np.median(d), unit)}, scan size "
+                         f"{format_distance(scale, unit)} (wrong landmark file, or "
+                         "other units?)", path)
     if far.any():
         worst = int(np.argmax(d))
         label = names[worst] if names is not None else str(worst)
         return [f"{path}: {int(far.sum())} landmark(s) lie off the scan surface "
-                f"(farthest: {label}, {d[worst]:.4g} away; scan size {scale:.4g})"]
+                f"(farthest: {label}, {format_distance(d[worst], unit)} away; scan size "
+                f"{format_distance(scale, unit)})"]
     return []
 
 
 def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=None, *,
-               survey: bool = True):
+               survey: bool = True, units: str = "auto"):
     """Every check of a scan (and its landmarks) before it is fitted.
 
     Parameters
@@ -146,6 +225,9 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
         Also merge duplicate vertices and survey the mesh (:func:`survey_mesh`);
         off, only the refusals and the landmark warnings (a track, whose frames
         are fitted as they are).
+    units : str
+        The unit choice (``"auto"`` infers it from the scan's size): distances in
+        the messages carry it.
 
     Returns
     -------
@@ -189,5 +271,6 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
     points = landmarks.positions(scan)
     check_landmark_spread(points, landmarks_path or path)
     notes += check_landmarks_on_scan(points, landmarks.names, tree, size,
-                                     landmarks_path or path)
+                                     landmarks_path or path,
+                                     resolve_units(units, scan.vertices)[0])
     return scan, landmarks, tree, notes

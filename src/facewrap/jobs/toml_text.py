@@ -118,6 +118,10 @@ def read_toml(path) -> tuple[dict, TomlSource]:
         m = _LOCATION.search(msg)
         line = int(m.group(1)) if m else None
         raise InputError(f"invalid TOML: {_LOCATION.sub('', msg)}", path, line) from None
+    except ValueError as exc:   # an integer of more digits than int() converts
+        raise InputError(f"invalid TOML: {str(exc).split(';')[0]}", path) from None
+    except RecursionError:   # tomllib recurses once per level of nested arrays
+        raise InputError("invalid TOML: nested too deeply", path) from None
 
 
 _ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n",

@@ -43,7 +43,9 @@ from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import check_landmark_spread, check_scan, survey_mesh
+from facewrap.jobs.input_checks import (check_distinct_landmarks, check_landmark_spread,
+                                        check_scan, nothing_to_fit, oversized_shapes,
+                                        survey_mesh, unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
@@ -326,13 +328,19 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
                          job.template)
     notes += survey_mesh(template, job.template, "template", pieces=False)
     check_landmark_spread(tl.positions(template), job.template_landmarks)
-    scan, sl, tree, scan_notes = check_scan(scan, sl, job.scan, job.scan_landmarks)
+    check_distinct_landmarks(tl.positions(template), tl.names, tl_source)
+    if job.scan_landmarks:   # detected ones are a confident subset by design
+        notes += unpaired_landmarks(tl, sl, tl_source, job.scan_landmarks)
+    scan, sl, tree, scan_notes = check_scan(scan, sl, job.scan, job.scan_landmarks,
+                                            units=job.units)
     notes += scan_notes
 
     n = template.n_vertices
     exclude, fit_mask, pinned = (
         None if not path else read_vertex_indices(path, n_vertices=n).vertex
         for path in (job.exclude, job.fit_mask, job.pin))
+    notes += nothing_to_fit(n, {p: ids for p, ids in ((job.exclude, exclude),
+                                                      (job.pin, pinned)) if p})
     if profile is not None and profile.fitting is not None and fit_mask is None:
         # the profile's fitting vertices are the template author's word on what a
         # scanner sees: pulled, even where the template's shape looks hidden (ICT's
@@ -346,6 +354,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
+        notes += oversized_shapes(shapes, template, job.blendshapes)
         k = None if settings is None else settings.pca_components
         if k is not None and k > len(shapes):   # the basis has one axis per shape
             raise InputError(f"pca_components (--pca-components) is {k} but the folder "

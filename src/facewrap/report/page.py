@@ -45,7 +45,7 @@ from facewrap.errors import InputError
 from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
-from facewrap.io.files import read_json
+from facewrap.io.files import not_a_file, read_json
 from facewrap.io.images import check_image, load_image, png_bytes
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.profile import read_template_profile
@@ -88,14 +88,19 @@ def _existing(path, report_path: Path, key: str) -> Path:
                      f"{report_path.parent} and in the current folder)", report_path)
 
 
+#: Sections of a run report that are JSON objects when present.
+_OBJECT_SECTIONS = ("settings", "timings", "metrics", "texture", "vertex_roles",
+                    "detected_landmarks", "blend_weights", "template_profile")
+
+
 def load_run_report(report_path) -> dict:
     """Read a wrap run's JSON report.
 
     Raises
     ------
     InputError
-        When the file is missing, not JSON, or has no ``job`` with template, scan
-        and output paths.
+        When the file is missing, not JSON, has no ``job`` with template, scan
+        and output paths, or a section the page reads as an object is not one.
     """
     report_path = Path(report_path)
     if not report_path.exists():
@@ -110,6 +115,10 @@ def load_run_report(report_path) -> dict:
                                                                "output")):
         raise InputError("not a facewrap wrap report: 'job' with template, scan and "
                          "output paths expected", report_path)
+    for key in _OBJECT_SECTIONS:   # read with .get(...) by the page's tables
+        if key in run and not isinstance(run[key], dict):
+            raise InputError(f"'{key}' must be an object, got "
+                             f"{type(run[key]).__name__}", report_path)
     return run
 
 
@@ -349,7 +358,7 @@ def _pictures(run: dict, report_path: Path, images) -> list[tuple[str, Path]]:
         pictures.append((Path(p).name, Path(p)))
     for _, p in pictures:
         if not Path(p).is_file():
-            raise InputError("no such file", p)
+            raise not_a_file(p)   # says what it is: missing, a folder, a fifo ...
         check_image(p)
     return pictures
 
