@@ -232,3 +232,19 @@ def test_a_folder_of_copies_of_the_neutral_says_so(sample, tmp_path, capsys):
     rc = facewrap(*wrap_argv(sample, tmp_path / "o.obj", "--blendshapes", shapes,
                              "--model", "hybrid"))
     error_line(capsys, rc, "shapes: no shapes: its 2 OBJ file(s) all equal the neutral")
+
+
+def test_template_landmark_points_off_the_template_name_their_file(sample, tmp_path,
+                                                                     capsys):
+    # points for another mesh: one 40 units off the template's surface
+    from facewrap.io import read_mesh
+    template = read_mesh(sample["template"])
+    ids = np.loadtxt(sample["template_landmarks"], dtype=np.int64)
+    P = template.vertices[ids]
+    P[11] += [0.0, 0.0, 0.2 * template.scale()]
+    points = tmp_path / "tl_points.txt"
+    np.savetxt(points, P)
+    argv = wrap_argv(sample, tmp_path / "out.obj")
+    argv[argv.index(sample["template_landmarks"])] = points
+    error_line(capsys, facewrap(*argv), "tl_points.txt: ", "landmark 11",
+               "template units")

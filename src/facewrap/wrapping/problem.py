@@ -155,10 +155,10 @@ def _snapped_template_landmarks(template: Mesh, landmarks: Landmarks) -> Landmar
     limit = SNAP_TOLERANCE * template.scale()
     if (moved > limit).any():
         i = int(np.argmax(moved))
-        raise ValueError(f"template landmark {landmarks.label(i)} lies {moved[i]:.4g} "
-                         f"from the template's surface (more than {limit:.4g}, "
-                         f"{100 * SNAP_TOLERANCE:g} % of its size): landmarks for another "
-                         "mesh or in other units?")
+        raise ValueError(f"template landmarks: landmark {landmarks.label(i)} lies "
+                         f"{moved[i]:.4g} template units from the template's surface "
+                         f"(more than {limit:.4g}, {100 * SNAP_TOLERANCE:g} % of its size): "
+                         "landmarks for another mesh or in other units?")
     return snapped
 
 
