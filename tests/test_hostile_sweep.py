@@ -19,17 +19,9 @@ import numpy as np
 import pytest
 
 from facewrap.landmarks import Landmarks
-from facewrap.sample import make_scan, make_template, write_sample
 from conftest import facewrap
-
-
-@pytest.fixture(scope="module")
-def sample(tmp_path_factory) -> dict:
-    """The built-in sample at its smallest (template 24, scan 40), as files."""
-    folder = tmp_path_factory.mktemp("sample")
-    template = make_template(24)
-    return write_sample(folder, template, make_scan(template, resolution=40,
-                                                    texture_size=16))
+# the fixture: the built-in sample at its smallest (template 24, scan 40), as files
+from test_hostile_more import sample  # noqa: F401
 
 
 def wrap_argv(p: dict, out: Path, *more) -> list:
