@@ -240,3 +240,35 @@ def test_template_landmark_points_off_the_template_name_their_file(sample, tmp_p
     argv[argv.index(sample["template_landmarks"])] = points
     error_line(capsys, facewrap(*argv), "tl_points.txt: ", "landmark 11",
                "template units")
+
+
+def _transfer_onto(sample, tmp_path, target_vertices):
+    """``facewrap transfer`` of the sample's shapes onto the template moved to
+    ``target_vertices`` (same topology), 12 landmark ids paired with themselves."""
+    from facewrap.io import read_mesh, write_mesh
+    template = read_mesh(sample["template"])
+    target = tmp_path / "target.obj"
+    V = target_vertices(template.vertices)
+    write_mesh(target, type(template)(V, template.triangles))
+    markers = tmp_path / "markers.txt"
+    ids = sample["template_landmarks"].read_text().split()[:12]
+    markers.write_text("".join(f"{i} {i}\n" for i in ids))
+    return facewrap("transfer", sample["template"], target, "--markers", markers,
+                    "--source-shapes", sample["blendshapes/blink"].parent, "-o",
+                    tmp_path / "shapes", "-q")
+
+
+@pytest.mark.parametrize("moved, said", [
+    (lambda V: V * [-1.0, 1.0, 1.0], "mirror image of the source"),
+    (lambda V: V / 1000.0, "0.001 times the source's size")])
+def test_transfer_onto_a_mirrored_or_rescaled_target_is_said(sample, tmp_path, capsys,
+                                                              moved, said):
+    """transfer ran a mirrored target, or one 1000 times smaller, silently (exit 0)."""
+    lines = warning_lines(capsys, _transfer_onto(sample, tmp_path, moved), said)
+    assert "markers.txt: " in lines[0]
+
+
+def test_transfer_onto_a_moved_copy_says_nothing(sample, tmp_path, capsys):
+    rc = _transfer_onto(sample, tmp_path, lambda V: 1.5 * V + [10.0, 0.0, 0.0])
+    err = capsys.readouterr().err
+    assert rc == 0 and "warning" not in err, err

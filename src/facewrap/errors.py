@@ -3,14 +3,14 @@
 Every problem with a user's file is one :class:`InputError` whose message names the
 file (and the line where there is one) and the problem, so the CLI can print it as a
 single line and exit non-zero.  It derives from ``ValueError`` so library users can
-catch it the usual way.
+catch it the usual way.  An input that is legal but odd is an :class:`InputWarning`.
 """
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["InputError"]
+__all__ = ["InputError", "InputWarning"]
 
 
 class InputError(ValueError):
@@ -40,3 +40,7 @@ class InputError(ValueError):
         if self.path is not None:
             where = self.path + (f":{line}" if line is not None else "") + ": "
         super().__init__(where + problem)
+
+
+class InputWarning(UserWarning):
+    """An input that is legal but odd; the message names the file and the oddity."""

@@ -12,7 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Similarity", "similarity_transform"]
+__all__ = ["Similarity", "similarity_transform", "mirror_fit", "MIRROR_RATIO"]
+
+#: a paired point set is mirrored when its best mirrored fit leaves less than this
+#: fraction of the best proper fit's residual (nearly planar sets or few points fit
+#: both alike)
+MIRROR_RATIO = 0.5
 
 
 @dataclass(frozen=True)
@@ -121,3 +126,38 @@ def similarity_transform(source, target, weights=None, scale: bool = True) -> Si
     var_x = float(w @ (Xc ** 2).sum(axis=1))
     s = float(np.trace(np.diag(S) @ D) / var_x) if scale and var_x > 0 else 1.0
     return Similarity(R, my - s * R @ mx, s)
+
+
+def mirror_fit(source, target, weights=None, scale: bool = True) -> tuple[float, float]:
+    """Residuals of the best proper similarity from ``source`` to ``target`` and of
+    the best one from ``source`` mirrored (x negated): a pairing with left and
+    right swapped fits far better mirrored (below :data:`MIRROR_RATIO` of the
+    proper residual).
+
+    Parameters
+    ----------
+    source, target : (k, 3) float
+        Paired points, k >= 3.
+    weights : (k,) float, optional
+    scale : bool
+
+    Returns
+    -------
+    proper, mirrored : float
+        Weighted RMS distances, in ``target``'s units.
+
+    Examples
+    --------
+    >>> P = np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [2, 1, 3], [-1, 2, 0.5]])
+    >>> proper, mirrored = mirror_fit(P, P * [-1, 1, 1])     # left and right swapped
+    >>> bool(mirrored < MIRROR_RATIO * proper)
+    True
+    """
+    X, Y = np.asarray(source, dtype=np.float64), np.asarray(target, dtype=np.float64)
+    w = np.ones(len(X)) if weights is None else np.asarray(weights, dtype=np.float64)
+    out = []
+    for Z in (X, X * np.array([-1.0, 1.0, 1.0])):
+        d2 = ((similarity_transform(Z, Y, weights=w, scale=scale).apply(Z) - Y) ** 2
+              ).sum(axis=1)
+        out.append(float(np.sqrt(w @ d2 / w.sum())))
+    return out[0], out[1]

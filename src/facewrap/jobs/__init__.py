@@ -33,7 +33,7 @@ _PUBLIC = {
     "run_transfer_job": "facewrap.jobs.transfer_job",
     "transfer_job_inputs": "facewrap.jobs.transfer_job",
     "transfer_job_outputs": "facewrap.jobs.transfer_job",
-    "InputWarning": "facewrap.jobs.wrap_job",
+    "InputWarning": "facewrap.errors",
     "WrapJob": "facewrap.jobs.wrap_job",
     "check_job_paths": "facewrap.jobs.wrap_job",
     "job_inputs": "facewrap.jobs.wrap_job",

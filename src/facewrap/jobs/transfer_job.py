@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -37,7 +38,7 @@ import numpy as np
 
 from facewrap.avatar import IBUG51_PARTS, AvatarTransfer, read_parts
 from facewrap.datasets import load_shape_folder
-from facewrap.errors import InputError
+from facewrap.errors import InputError, InputWarning
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.gltf import gltf_format, write_gltf_morphs
@@ -50,6 +51,7 @@ from facewrap.jobs.fields import input_field, output_field
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
+from facewrap.transfer.constraints import marker_placement
 
 __all__ = ["TransferJobSettings", "TransferJob", "run_transfer_job",
            "transfer_job_inputs", "transfer_job_outputs", "check_transfer_job_paths",
@@ -221,6 +223,9 @@ def _read_inputs(job: TransferJob) -> dict:
             raise InputError("has no faces; deformation transfer needs a surface", path)
     src_ids, tgt_ids = check_markers(read_markers(job.markers), source.n_vertices,
                                      target.n_vertices, job.markers)
+    # a mirrored pairing, other units, too few pairs: said, with the file
+    notes = [f"{job.markers}: {w}" for w in marker_placement(source.vertices[src_ids],
+                                                              target.vertices[tgt_ids])]
     anchor = job.settings.anchor
     if anchor is not None and not job.settings.landmark_guided \
             and anchor >= target.n_vertices:
@@ -232,7 +237,7 @@ def _read_inputs(job: TransferJob) -> dict:
         corr = Correspondence.load(job.correspondence)
         corr.check(source, target, job.correspondence)
     return {"source": source, "target": target, "markers": (src_ids, tgt_ids),
-            "shapes": shapes, "correspondence": corr}
+            "shapes": shapes, "correspondence": corr, "warnings": notes}
 
 
 def _fit(job: TransferJob, inputs: dict):
@@ -333,6 +338,8 @@ def run_transfer_job(job: TransferJob) -> dict:
     check_transfer_job_paths(job)
     t0 = time.perf_counter()
     inputs = _read_inputs(job)
+    for note in inputs["warnings"]:
+        warnings.warn(note, InputWarning, stacklevel=2)
     # the files written inside the output folder, now that the shapes' names are known
     check_output_paths(files=_shape_files(job, inputs["shapes"]),
                        inputs=transfer_job_inputs(job))
@@ -357,6 +364,7 @@ def run_transfer_job(job: TransferJob) -> dict:
         t5 = time.perf_counter()
         report = _report(job, model, names, written, ambiguity,
                          (t0, t1, t2, t3, t4, t5))
+        report["warnings"] = list(inputs["warnings"])
         if job.report:
             with atomic_write(stage.file(job.report), "w") as fh:
                 json.dump(report, fh, indent=1)

@@ -33,7 +33,7 @@ import numpy as np
 from facewrap.datasets import load_shape_folder
 from facewrap.detection.for_wrap import (confident_landmarks, detected_landmark_settings,
                                          detection_report)
-from facewrap.errors import InputError
+from facewrap.errors import InputError, InputWarning
 from facewrap.io import read_mesh, write_mesh
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.atomic import atomic_write
@@ -65,10 +65,6 @@ MESH_EXTENSIONS = (".obj", ".ply")
 
 #: Frames the fitted mesh may be written in (:attr:`WrapJob.output_frame`).
 OUTPUT_FRAMES = ("scan", "template")
-
-
-class InputWarning(UserWarning):
-    """An input that is legal but odd; the message names the file and the oddity."""
 
 
 @dataclass

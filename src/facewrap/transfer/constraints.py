@@ -14,8 +14,15 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.geometry import connected_components
+from facewrap.geometry.similarity import MIRROR_RATIO, mirror_fit, similarity_transform
 
-__all__ = ["check_markers", "untethered_vertices", "TETHER_WEIGHT"]
+__all__ = ["check_markers", "marker_placement", "untethered_vertices", "TETHER_WEIGHT",
+           "SIZE_RATIO"]
+
+#: the markers put the target at more than this many times the source's size, or
+#: less than its inverse: other units, most likely (cm to mm, 10, is common and fine;
+#: Sumner's cat and lion, ICT's head and Onizuka's avatars stay within 2)
+SIZE_RATIO = 20.0
 
 #: Weight, relative to the mean diagonal of a normal matrix, of the tiny pull toward
 #: rest positions that fixes the translation of components without any constraint.
@@ -59,6 +66,54 @@ def check_markers(markers, n_source: int, n_target: int, path=None
             raise InputError(f"marker {k}: {name} vertex {int(ids[k])} out of range "
                              f"(the {name} mesh has {n} vertices)", path)
     return src, tgt
+
+
+def marker_placement(source_points, target_points) -> list[str]:
+    """Warnings about how the marker pairs place the target against the source.
+
+    Marker pairs that a mirror image fits far better than the source itself
+    (:func:`~facewrap.geometry.similarity.mirror_fit`) have left and right swapped,
+    or one mesh is mirrored: the correspondence would pair a left eye with a right
+    one.  A similarity that scales by more than :data:`SIZE_RATIO` up or down says
+    the meshes are in other units.  Fewer than three pairs place nothing: the
+    meshes are taken where they are.
+
+    Parameters
+    ----------
+    source_points, target_points : (m, 3) float
+        The markers on the source and on the target, paired.
+
+    Returns
+    -------
+    list of str
+        One line each, about the marker file (the caller names it).
+
+    Examples
+    --------
+    >>> P = np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [2, 1, 3], [-1, 2, 0.5]])
+    >>> marker_placement(P, 3 * P + 1)
+    []
+    >>> marker_placement(P, P * [-1, 1, 1])[0][:39]
+    'they match a mirror image of the source'
+    >>> marker_placement(P, P / 1000)[0][:47]
+    "they put the target at 0.001 times the source's"
+    """
+    X = np.asarray(source_points, dtype=np.float64)
+    Y = np.asarray(target_points, dtype=np.float64)
+    if len(X) < 3:
+        return [f"only {len(X)} marker pair(s): the meshes are taken as placed (three or "
+                "more align them), and little guides the correspondence"]
+    out = []
+    proper, mirrored = mirror_fit(X, Y)
+    if mirrored < MIRROR_RATIO * proper:
+        out.append(f"they match a mirror image of the source: residual {mirrored:.3g} "
+                   f"mirrored against {proper:.3g} not, in target units (left and right "
+                   "swapped in the marker file, or a mirrored mesh?)")
+    size = similarity_transform(X, Y).scale
+    if not 1.0 / SIZE_RATIO <= size <= SIZE_RATIO:
+        out.append(f"they put the target at {size:.3g} times the source's size (more than "
+                   f"{SIZE_RATIO:g} times up or down): are both meshes in the same units?")
+    return out
 
 
 def untethered_vertices(T, n: int, fixed_ids) -> np.ndarray:

@@ -37,7 +37,8 @@ from facewrap.geometry.adjacency import dangling_fins, edge_runs
 from facewrap.geometry.duplicates import unique_faces, welded
 from facewrap.geometry.normals import (SPIKE_LIMIT, coherent_orientation, disagreeing_edges,
                                        spike_vertices)
-from facewrap.geometry.similarity import Similarity, similarity_transform
+from facewrap.geometry.similarity import (MIRROR_RATIO, Similarity, mirror_fit,
+                                         similarity_transform)
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
 from facewrap.mesh import Mesh
 
@@ -48,9 +49,6 @@ __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OP
            "dangling_fins", "checked_scan", "check_scale", "UNSCALED_LIMIT",
            "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
 
-#: refuse a landmark similarity when the best mirrored fit's residual is below this
-#: fraction of the best proper fit's (nearly planar or few landmarks fit both alike)
-MIRROR_RATIO = 0.5
 #: warn when a landmark stays farther than this (fraction of the landmarks' spread)
 #: from its target after the robust similarity
 RESIDUAL_LIMIT = 1.0
@@ -134,11 +132,6 @@ def robust_similarity(sources, targets, weights=None, *, scale: bool = True,
     return similarity, residuals
 
 
-def _rms(similarity: Similarity, X, Y, w) -> float:
-    d2 = ((similarity.apply(X) - Y) ** 2).sum(axis=1)
-    return float(np.sqrt(w @ d2 / w.sum()))
-
-
 def check_reflection(sources, targets, weights=None, *, scale: bool = True,
                      allow_mirrored: bool = False) -> list[str]:
     """Refuse landmark pairs that only a mirror image matches.
@@ -165,12 +158,7 @@ def check_reflection(sources, targets, weights=None, *, scale: bool = True,
     ValueError
         For a mirrored input.
     """
-    X, Y = np.asarray(sources, np.float64), np.asarray(targets, np.float64)
-    w = np.ones(len(X)) if weights is None else np.asarray(weights, np.float64)
-    mirrored = X * np.array([-1.0, 1.0, 1.0])
-    proper = _rms(similarity_transform(X, Y, weights=w, scale=scale), X, Y, w)
-    improper = _rms(similarity_transform(mirrored, Y, weights=w, scale=scale),
-                    mirrored, Y, w)
+    proper, improper = mirror_fit(sources, targets, weights, scale=scale)
     if not improper < MIRROR_RATIO * proper:
         return []
     message = (f"scan landmarks: they match a mirror image of the template's (residual "
