@@ -697,6 +697,18 @@ def scan_non_manifold(ctx):
     return scan_with(ctx, tips, np.stack([T[:10, 0], T[:10, 1], n + np.arange(10)], 1))
 
 
+@case("geometry", "the scan cut off below the mouth (its landmarks clicked before)",
+      "warning", "lie past the edge of the scan")
+def scan_chin_cut(ctx):
+    V, T, P = ctx.base.scan_V, ctx.base.scan_T, ctx.base.points
+    keep = ~(V[T, 1] < 0.5 * (P[57, 1] + P[8, 1])).any(axis=1)
+    used = np.unique(T[keep])
+    index = np.full(len(V), -1)
+    index[used] = np.arange(len(used))
+    p = ctx.mesh("scan.obj", V[used], index[T[keep]])
+    return ctx.run(p, scan=p)
+
+
 @case("geometry", "a loose piece far from the face", "warning", "disconnected pieces",
       check=fits_like_base)
 def scan_disconnected(ctx):
