@@ -40,6 +40,8 @@ class WrapProblem:
         Its tree.
     landmarks : Landmarks
         Template landmarks on the mesh that have a scan partner, in pair order.
+    landmark_ids : (l,) int64
+        Which of the template landmarks given to :func:`prepare_wrap` those are.
     sources : (l, 3) float64
         Their positions on the template.
     targets : (l, 3) float64
@@ -63,6 +65,7 @@ class WrapProblem:
     scan: Mesh
     tree: ClosestPointTree
     landmarks: Landmarks
+    landmark_ids: np.ndarray
     sources: np.ndarray
     targets: np.ndarray
     alignment_weights: np.ndarray
@@ -135,7 +138,7 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                           "touch a border (full of holes, or a triangle soup?): the ICP "
                           "keeps scan points near borders (reject_boundary off), the "
                           "projection still leaves them")
-    return WrapProblem(template, scan, tree, template_landmarks.subset(ia),
+    return WrapProblem(template, scan, tree, template_landmarks.subset(ia), ia,
                        template_points[ia], scan_points[ib], weights, roles, excluded,
                        blendshapes, s, spec,
                        DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,

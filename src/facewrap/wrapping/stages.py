@@ -28,7 +28,7 @@ import numpy as np
 from facewrap.evaluate import surface_distances
 from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
 from facewrap.geometry.similarity import Similarity, similarity_transform
-from facewrap.landmarks import Landmarks, pair_landmarks
+from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
@@ -325,7 +325,7 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
                       warnings=list(problem.warnings) + _pull_warnings(pull, problem)
-                      + _off_scan(template_landmarks, scan_landmarks, problem, out),
+                      + _off_scan(template_landmarks, problem, out),
                       roles=problem.roles)
 
 
@@ -365,13 +365,12 @@ def _folds(problem: WrapProblem, vertices, rest) -> int:
                                                   .all(axis=1)].sum())
 
 
-def _off_scan(template_landmarks: Landmarks, scan_landmarks: Landmarks,
-              problem: WrapProblem, vertices) -> list:
+def _off_scan(template_landmarks: Landmarks, problem: WrapProblem, vertices) -> list:
     """:func:`~facewrap.wrapping.coverage.landmarks_off_scan` of all the template's
     landmarks, their scan partners where they have them (points off the template:
     the paired ones only, snapped onto it)."""
     if template_landmarks.on_mesh:
-        paired = pair_landmarks(template_landmarks, scan_landmarks)[0]
+        paired = problem.landmark_ids
     else:
         template_landmarks, paired = problem.landmarks, np.arange(len(problem.targets))
     return landmarks_off_scan(template_landmarks, vertices, problem.template.triangles,

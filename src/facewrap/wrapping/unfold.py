@@ -40,8 +40,8 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     (with ``creases``) a crease: two edge neighbours facing apart (their normals' dot
     product below 0).  Each round, the corners of the folds ``after`` still has and
     ``before`` has not move ``step`` of the way back to their ``before`` positions;
-    after ``rounds`` they are there within 0.75**30 ~ 2e-4 of the way.  Small steps move only as many
-    vertices, as little, as it takes: on ICT's head onto james, a second
+    after ``rounds`` they are there within 0.75**30 ~ 2e-4 of the way.  Small steps
+    move only as many vertices, as little, as it takes: on ICT's head onto james, a second
     projection's one fold came back by moving 15 vertices (fit p95 1.907 -> 1.918
     mm), where putting vertices back at once moved 53 (2.030 mm).  Counting creases
     keeps a biharmonic fill from adding any (ICT's face onto james: 69 creased pairs
@@ -447,16 +447,16 @@ def turn_back_within(template: Mesh, reference, vertices, angle: float, *, fixed
     """
     T = template.triangles
     X = np.array(vertices, dtype=np.float64)
-    n0 = face_normals(np.asarray(reference, dtype=np.float64), T)
-    if not (turned(n0, face_normals(X, T), angle) & ~folded_in(n0, T)).any():
-        return X, np.zeros(len(X), bool)          # (most fits: nothing to turn)
+    unmoved = np.zeros(len(X), bool)
     fixed = np.zeros(len(X), bool) if fixed is None else np.asarray(fixed, bool)
-    toward, _ = relax_flips(template, reference, vertices, fixed=fixed, order=order,
-                            angle=angle, rounds=12, most_relaxed=None, each_region=True)
-    out, moved = step_back_new_folds(T, reference, toward, vertices, fixed, angle=angle,
+    toward, relaxed = relax_flips(template, reference, X, fixed=fixed, order=order,
+                                  angle=angle, rounds=12, most_relaxed=None,
+                                  each_region=True)
+    if not relaxed.any():          # (most fits: nothing to turn, or nothing turns it)
+        return X, unmoved
+    out, moved = step_back_new_folds(T, reference, toward, X, fixed, angle=angle,
                                      step=0.1, rounds=60, creases=False)
     # (a corner stepped part of the way can turn a neighbour over: then nothing moves)
-    if turned_triangles(out, reference, T).sum() > turned_triangles(vertices, reference,
-                                                                    T).sum():
-        return np.array(vertices, dtype=np.float64), np.zeros(len(vertices), bool)
+    if turned_triangles(out, reference, T).sum() > turned_triangles(X, reference, T).sum():
+        return X, unmoved
     return out, moved
