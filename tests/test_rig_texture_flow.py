@@ -258,3 +258,33 @@ def test_a_job_file_turns_it_off_in_outputs(tmp_path):
     path.write_text(text.format('"no"'))
     with pytest.raises(InputError, match="texture_flow"):
         load_job(path)
+
+
+@pytest.mark.slow
+def test_refinements_beside_the_wraps_give_the_rig_they_give_one_after_another(
+        person, monkeypatch):
+    """Two textured expressions: the bake and the refinements run on a thread beside
+    the wraps, or here with one usable thread; the rig is the same either way."""
+    import facewrap.rig.build as build
+    tpl, neutral, smile = person
+    kw = dict(expression_scans=[smile.mesh, smile.mesh],
+              expression_landmarks=[smile.landmarks, smile.landmarks],
+              expression_textures=[smile.texture, smile.texture], texture=neutral.texture)
+    args = (tpl.mesh, neutral.mesh, tpl.landmarks, neutral.landmarks, tpl.blendshapes)
+    beside = build_rig(*args, **kw)
+    monkeypatch.setattr(build, "usable_threads", lambda: 1)
+    alone = build_rig(*args, **kw)
+    assert all(r is not None for r in beside.texture_refinements)
+    for a, b in zip(beside.expression_wraps, alone.expression_wraps):
+        np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(beside.neutral.vertices, alone.neutral.vertices, atol=1e-9)
+    for name in beside.shapes:
+        np.testing.assert_allclose(beside.shapes[name], alone.shapes[name], atol=1e-9)
+    assert {"texture", "texture_flow"} <= set(beside.timings)
+
+    def broken(*a, **k):
+        raise ValueError("no bake")
+    monkeypatch.setattr(build, "usable_threads", lambda: 2)
+    monkeypatch.setattr(build, "bake_tiles", broken)
+    with pytest.raises(ValueError, match="no bake"):
+        build_rig(*args, **kw)

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
-__all__ = ["usable_cores", "usable_threads", "thread_map"]
+__all__ = ["usable_cores", "usable_threads", "thread_map", "run_on", "in_background"]
 
 _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
@@ -102,3 +102,39 @@ def thread_map(func, items, threads: int | None = None) -> list:
         return [func(x) for x in items]
     return list(_executor(min(threads, len(items))).map(func, items))
 
+
+
+def run_on(executor, func, *args) -> Future:
+    """``func(*args)`` submitted to ``executor``; without one (None), run here and
+    now, its answer (or its exception) kept for ``.result()`` as a thread's is.
+
+    Examples
+    --------
+    >>> run_on(None, max, 2, 5).result()
+    5
+    """
+    if executor is not None:
+        return executor.submit(func, *args)
+    done: Future = Future()
+    try:
+        done.set_result(func(*args))
+    except Exception as exc:
+        done.set_exception(exc)
+    return done
+
+
+def in_background(func, *args) -> Future:
+    """``func(*args)`` started on a thread of the pool, its answer (or its
+    exception) at ``.result()``; with one usable thread, run here and now.
+
+    Worth it for work that releases the GIL (an image's decoding) beside work that
+    holds it (reading and checking a mesh).  Never for work that calls
+    :func:`thread_map` itself: it would wait for the pool it holds a thread of.
+
+    Examples
+    --------
+    >>> in_background(sum, [1, 2, 3]).result()
+    6
+    """
+    threads = usable_threads()
+    return run_on(_executor(threads) if threads > 1 else None, func, *args)

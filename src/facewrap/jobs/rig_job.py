@@ -377,11 +377,13 @@ def _write_rig_outputs(job: RigJob, rig, inputs: dict, report: dict,
                        units=report["units"], textures=textures,
                        warnings=report["warnings"], filename=PAGE)
         timings = report["timings"]
-        # the neutral's bake: the rig's (for its refinement), else the writing's
-        bake = neutral["timings"].get("bake", 0.0)
+        # the neutral's bake: the rig's (for its refinement; writing it is writing),
+        # else the writing's
+        bake = 0.0 if reuse else neutral["timings"].get("bake", 0.0)
         timings["texture"] = timings.get("texture", 0.0) + bake
         timings["writing"] = time.perf_counter() - t0 - bake
-        timings["total"] = sum(v for k, v in timings.items() if k != "total")
+        # not a sum of them all: the rig's bake and refinements ran beside its wraps
+        timings["total"] = timings["read"] + rig.timings["total"] + bake + timings["writing"]
         with atomic_write(staged / REPORT, "w") as fh:
             json.dump(report, fh, indent=1)
 
@@ -439,7 +441,9 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     dict
         What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
         ``shapes``, ``texture``, ``writing``, ``total`` and, with expression scans,
-        ``expressions``, ``stabilise``, ``examples``, ``texture_flow``; seconds),
+        ``expressions``, ``stabilise``, ``examples``, ``texture_flow``; seconds;
+        with textured expression scans, ``texture`` and ``texture_flow`` ran beside
+        the wraps and are part of ``expressions``, see :class:`~facewrap.rig.Rig`),
         ``metrics`` (the neutral's fit, in ``units``), ``method``, ``shapes``
         (names), ``outputs``,
         ``warnings`` (each also issued as an :class:`InputWarning`) and, with

@@ -47,6 +47,7 @@ from facewrap.jobs.input_checks import (check_distinct_landmarks, check_landmark
                                         check_scan, nothing_to_fit, oversized_shapes,
                                         survey_mesh, unpaired_landmarks)
 from facewrap.mesh import Mesh
+from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
 from facewrap.texture.udim import FIRST_TILE
@@ -296,6 +297,8 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         scan, indices out of range.
     """
     notes: list[str] = []
+    # the texture decodes beside the meshes' reading and checks (Pillow frees the GIL)
+    decoding = in_background(load_image, job.texture) if job.texture else None
     template = read_mesh(job.template)
     scan = read_mesh(job.scan)
     if len(scan.triangles) == 0:
@@ -362,7 +365,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
             raise InputError("the scan has no texture coordinates to bake from", job.scan)
         if template.uvs is None:
             raise InputError("the template has no UV layout to bake into", job.template)
-        image = load_image(job.texture)
+        image = decoding.result()
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
             "pinned": pinned, "profile": profile, "blendshapes": shapes,

@@ -114,10 +114,13 @@ def trusted_rasterize(x, y, z, T, W, H) -> Raster:
         e1x, e1y = X[:, 1] - X[:, 0], Y[:, 1] - Y[:, 0]
         e2x, e2y = X[:, 2] - X[:, 0], Y[:, 2] - Y[:, 0]
         det = e1x * e2y - e1y * e2x
-        c0 = np.clip(np.ceil(X.min(axis=1) - 1e-6), 0, W).astype(np.int64)
-        c1 = np.clip(np.floor(X.max(axis=1) + 1e-6), -1, W - 1).astype(np.int64)
-        r0 = np.clip(np.ceil(Y.min(axis=1) - 1e-6), 0, H).astype(np.int64)
-        r1 = np.clip(np.floor(Y.max(axis=1) + 1e-6), -1, H - 1).astype(np.int64)
+        # corner by corner: a reduction along rows of three is four times slower
+        lo_x, hi_x = _corner_range(X)
+        lo_y, hi_y = _corner_range(Y)
+        c0 = np.clip(np.ceil(lo_x - 1e-6), 0, W).astype(np.int64)
+        c1 = np.clip(np.floor(hi_x + 1e-6), -1, W - 1).astype(np.int64)
+        r0 = np.clip(np.ceil(lo_y - 1e-6), 0, H).astype(np.int64)
+        r1 = np.clip(np.floor(hi_y + 1e-6), -1, H - 1).astype(np.int64)
         width = np.maximum(c1 - c0 + 1, 0)
         counts = width * np.maximum(r1 - r0 + 1, 0)
         counts[det == 0] = 0
@@ -143,6 +146,12 @@ def trusted_rasterize(x, y, z, T, W, H) -> Raster:
     bary = np.clip(np.stack([1.0 - b1 - b2, b1, b2], axis=1), 0.0, 1.0)
     bary /= bary.sum(axis=1, keepdims=True)
     return Raster(triangle.reshape(H, W), pixels, bary)
+
+
+def _corner_range(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest of each row of a (t, 3) array."""
+    return (np.minimum(np.minimum(C[:, 0], C[:, 1]), C[:, 2]),
+            np.maximum(np.maximum(C[:, 0], C[:, 1]), C[:, 2]))
 
 
 def _scan_chunk(sel, cnt, X, Y, Zq, e1x, e1y, e2x, e2y, det, c0, r0, width, W, buf):
