@@ -385,14 +385,15 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         timings["texture"] = time.perf_counter() - t
         return baked
 
-    # the neutral's bake, then each expression's refinement, run on a thread beside
-    # the expressions' wraps: the pictures, flows and texel work release the GIL
-    # where the fit holds it (ICT face onto six 200k-triangle scans: 24.3 s instead
-    # of 27.1 for the whole rig).  BLAS runs one thread throughout (the views use
-    # the cores; the ICP does the same), so no result depends on the overlap
+    # the neutral's bake and each expression's refinement run on threads beside the
+    # expressions' wraps: the pictures, flows and texel work release the GIL where
+    # the fit holds it, and once the wraps are done the refinements share the cores
+    # (ICT face onto six 200k-triangle scans, bench_rig_speed: 22.8 s instead of
+    # 27.1 for the whole rig).  BLAS runs one thread throughout (the views use the
+    # cores; the ICP does the same), so no result depends on the overlap
     with ExitStack() as stack:
         stack.enter_context(threadpool_limits(limits=1, user_api="blas"))
-        beside = (ThreadPoolExecutor(1, "facewrap-beside")
+        beside = (ThreadPoolExecutor(usable_threads(), "facewrap-beside")
                   if wanted and usable_threads() > 1 else None)
         if beside is not None:   # a wrap that fails drops the refinements not begun
             stack.callback(beside.shutdown, wait=True, cancel_futures=True)
