@@ -264,11 +264,13 @@ def markdown(result: dict) -> str:
         if t:
             lines += ["", f"`build_rig` with the refinement on ({len(case['rows'])} "
                       f"expressions, s): neutral wrap {t['wrap']:.2f}, shapes "
-                      f"{t['shapes']:.2f}, the neutral's texture {t.get('texture', 0):.2f}, "
-                      f"expression wraps {t['expressions']:.2f}, refinements "
-                      f"{t.get('texture_flow', 0):.2f}, stabilisation {t['stabilise']:.2f}, "
+                      f"{t['shapes']:.2f}, the neutral's texture {t.get('texture', 0):.2f} "
+                      f"and the refinements {t.get('texture_flow', 0):.2f} (both on threads "
+                      f"beside the wraps), expression wraps with them {t['expressions']:.2f}, "
+                      f"stabilisation {t['stabilise']:.2f}, "
                       f"example fit {t['examples']:.2f}: **{t['per_expression']:.2f} s per "
-                      "expression** beyond the neutral."]
+                      "expression** beyond the neutral (the whole less its wrap, shapes "
+                      "and bake)."]
         lines.append("")
     if result.get("methods"):
         lines += ["The flow: DIS against Farnebäck (sample, brow raise, true-skin "
