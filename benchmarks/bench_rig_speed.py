@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _nicp_cases as cases  # noqa: E402
 from bench_peers import run_process  # noqa: E402
 
-RUNS = 3
+RUNS = 5    # the per-expression figure is a difference of two medians: five runs each
 N_TRIANGLES = 200_000
 #: the issue's capture: 6 expression scans (a few seconds of the example fit are paid
 #: once, whatever their number: (t6 - t0) / 6 is each scan's share)
