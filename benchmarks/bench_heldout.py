@@ -353,6 +353,9 @@ def markdown(result: dict) -> str:
     failed = [r for r in rows if "error" in r]
     for r in failed:
         L.append(f"- {r['case']} {r['model']} failed: {r['error']}")
+    L += ["Each case's error by region, before and after the projection, along and "
+          "across the normal: `cd benchmarks && ../.venv/bin/python "
+          "studies/heldout_diagnosis.py 018.0 011.1`.", ""]
     return "\n".join(L) + "\n"
 
 
