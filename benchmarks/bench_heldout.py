@@ -25,7 +25,7 @@ child with ``bench_nicp``'s time limit.  Measures per wrap:
   after the projection and (in brackets) before it (``result.warped``);
 * flipped triangles: normal turned past 90° from the similarity-aligned template,
   among triangles of ICT's fitting vertices (:func:`facewrap.geometry.flipped_triangles`);
-* new creases: :func:`new_creases`, over the whole face region;
+* new creases: :func:`facewrap.geometry.new_creases`, over the whole face region;
 * both also as those the truth itself has not: ICT's shapes roll the inner lips
   past 90° and fold the eyelids, and a fit that follows them is right to;
 * landmark error (mm, the wrap's own: fitted landmarks against the noisy scan
@@ -52,9 +52,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _nicp_cases as cases  # noqa: E402
 import bench_nicp as nicp  # noqa: E402
-from facewrap.geometry import flipped_triangles, triangle_normals, turned  # noqa: E402
+from facewrap.geometry import flipped_triangles, new_creases  # noqa: E402
 from facewrap.geometry.similarity import similarity_transform  # noqa: E402
-from facewrap.transfer import adjacent_triangle_pairs  # noqa: E402
 from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
 
 MODELS = ("hybrid", "graph")
@@ -107,40 +106,6 @@ def held_out_cases(quick: bool = False) -> list[tuple[str, str, str, dict]]:
 
 
 # -- measures ----------------------------------------------------------------------
-def new_creases(vertices, reference, triangles) -> np.ndarray:
-    """Edge-adjacent triangle pairs whose normals are more than 90° apart in
-    ``vertices`` but not in ``reference``: a crease or fold a fit made (pairs
-    already that sharp in the template are its own).  Invariant to a similarity
-    of either mesh, so the template need not be aligned first.
-
-    Parameters
-    ----------
-    vertices, reference : (n, 3) float64
-        The result and the template, in one topology.
-    triangles : (t, 3) int64
-
-    Returns
-    -------
-    (c, 2) int64
-        The new creases as pairs ``i < j`` of triangle indices.
-
-    Examples
-    --------
-    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.]])
-    >>> T = np.array([[0, 1, 2], [1, 3, 2]])
-    >>> folded = V.copy(); folded[3] = [0.2, 0.2, 0.1]     # 3 folded back over
-    >>> new_creases(folded, V, T).tolist(), new_creases(V, folded, T).tolist()
-    ([[0, 1]], [])
-    """
-    T = np.asarray(triangles, dtype=np.int64)
-    pairs = adjacent_triangle_pairs(T)
-
-    def apart(P):
-        n = triangle_normals(np.asarray(P, dtype=np.float64), T)
-        return turned(n[pairs[:, 0]], n[pairs[:, 1]], 90.0)
-    return pairs[apart(vertices) & ~apart(reference)]
-
-
 def face_regions(vertices, landmark_vertices) -> np.ndarray:
     """(n,) int8 index into :data:`REGIONS` for each vertex of ICT's face (cm, y up).
 

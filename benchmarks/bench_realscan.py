@@ -27,10 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_nicp as nicp  # noqa: E402
 from _nicp_cases import Case  # noqa: E402
 from facewrap.evaluate import surface_distances  # noqa: E402
-from facewrap.geometry import triangle_quality  # noqa: E402
-from facewrap.geometry import face_normals  # noqa: E402
+from facewrap.geometry import new_creases, triangle_quality  # noqa: E402
 from facewrap.landmarks import pair_landmarks, snap_to_surface  # noqa: E402
-from facewrap.transfer import adjacent_triangle_pairs  # noqa: E402
 from facewrap.wrapping import WrapSettings, wrap  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -66,14 +64,10 @@ def _cases() -> list[tuple[Case, tuple]]:
 
 
 def _folds(V, ref, T) -> int:
-    """Edge-adjacent triangle pairs that face apart (dot < 0) in ``V`` but not in
-    the template: a crease or fold the fit made, whatever the global pose."""
-    pairs = adjacent_triangle_pairs(T)
-
-    def apart(P):
-        n = face_normals(P, T)
-        return np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) < 0
-    return int(np.sum(apart(V) & ~apart(ref)))
+    """Edge-adjacent triangle pairs that face apart in ``V`` but not in the
+    template: a crease or fold the fit made, whatever the global pose
+    (:func:`facewrap.geometry.new_creases`)."""
+    return len(new_creases(V, ref, T))
 
 
 def measures(V, case: Case, aligned=None) -> dict:

@@ -24,7 +24,8 @@ Similarity transforms (:mod:`.similarity`)
 Triangle quality (:mod:`.quality`)
     :func:`turned`, :func:`turned_triangles`, :func:`flipped_triangles`, :func:`turned_from`,
     :func:`folded_in`
-    (the one flip test), :func:`triangle_normals`, :func:`triangle_quality`,
+    (the one flip test), :func:`adjacent_triangle_pairs`, :func:`facing_apart`,
+    :func:`new_creases` (the one crease test), :func:`triangle_normals`, :func:`triangle_quality`,
     :class:`TriangleQuality`, :func:`triangle_to_vertex`
 What an outside camera sees (:mod:`.visibility`)
     :func:`outside_views`, :func:`sphere_directions`
@@ -66,6 +67,9 @@ _PUBLIC = {
     "closest_compatible_points": "facewrap.geometry.matching",
     "compatible": "facewrap.geometry.matching",
     "TriangleQuality": "facewrap.geometry.quality",
+    "adjacent_triangle_pairs": "facewrap.geometry.quality",
+    "facing_apart": "facewrap.geometry.quality",
+    "new_creases": "facewrap.geometry.quality",
     "flipped_triangles": "facewrap.geometry.quality",
     "folded_in": "facewrap.geometry.quality",
     "triangle_normals": "facewrap.geometry.quality",
@@ -100,7 +104,7 @@ __all__ = [
     "Similarity", "similarity_transform",
     # triangle quality
     "turned", "turned_triangles", "turned_from", "triangle_normals", "flipped_triangles",
-    "folded_in",
+    "folded_in", "adjacent_triangle_pairs", "facing_apart", "new_creases",
     "TriangleQuality", "triangle_quality",
     "triangle_to_vertex",
     # what an outside camera sees

@@ -6,7 +6,9 @@ backwards).  Degenerate triangles (a zero normal on either side) have no
 direction and never count as turned.  Every caller — the projection's fold guard,
 the transfer's flip repair, the evaluation's flipped-triangle count — asks this
 module, each with its own angle.  :func:`folded_in` finds triangles a mesh itself
-has inside out (facing away from every neighbour), which no fit should be blamed for.
+has inside out (facing away from every neighbour), which no fit should be blamed for;
+:func:`new_creases` the edge neighbours a deformation turned to face apart (the
+unfolding's crease test and the benchmarks' fold count).
 
 :func:`triangle_quality` measures each triangle (minimum angle, area) and, against
 a reference mesh in the same topology (similarity-aligned first), its flip, area
@@ -27,7 +29,7 @@ from facewrap.geometry.checks import as_triangles, as_vertices
 from facewrap.geometry.similarity import similarity_transform
 
 __all__ = ["turned", "turned_triangles", "flipped_triangles", "turned_from", "folded_in",
-           "triangle_normals", "TriangleQuality", "triangle_quality", "triangle_to_vertex"]
+           "adjacent_triangle_pairs", "facing_apart", "new_creases", "triangle_normals", "TriangleQuality", "triangle_quality", "triangle_to_vertex"]
 
 
 def turned(normals_before, normals_after, angle: float = 90.0) -> np.ndarray:
@@ -131,6 +133,57 @@ def folded_in(normals, T) -> np.ndarray:
     has = nb >= 0
     dots = np.where(has, np.einsum("ij,ikj->ik", normals, normals[np.maximum(nb, 0)]), 1.0)
     return (has.sum(axis=1) >= 2) & ((dots < 0) | ~has).all(axis=1)
+
+
+def adjacent_triangle_pairs(T) -> np.ndarray:
+    """(p, 2) int64 pairs ``i < j`` of triangles sharing an edge.
+
+    >>> adjacent_triangle_pairs(np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2]])).tolist()
+    [[0, 1], [1, 2]]
+    """
+    TT = triangle_adjacency(T)
+    i = np.repeat(np.arange(len(TT), dtype=np.int64), 3)
+    j = TT.reshape(-1)
+    keep = j > i
+    return np.stack([i[keep], j[keep]], axis=1)
+
+
+def facing_apart(V, T, pairs) -> np.ndarray:
+    """(p,) bool: which ``pairs`` (p, 2) of triangles of ``T`` over ``V`` have normals
+    more than 90 degrees apart (a crease or a fold between them; degenerate
+    triangles have no direction and face nothing)."""
+    n = triangle_normals(np.asarray(V, dtype=np.float64), np.asarray(T, dtype=np.int64))
+    return turned(n[pairs[:, 0]], n[pairs[:, 1]], 90.0)
+
+
+def new_creases(vertices, reference, triangles) -> np.ndarray:
+    """Edge-adjacent triangle pairs facing apart (:func:`facing_apart`) in
+    ``vertices`` but not in ``reference``: a crease or fold a deformation made
+    (pairs already that sharp in the reference are its own).  Invariant to a
+    similarity of either mesh, so a template need not be aligned first.
+
+    Parameters
+    ----------
+    vertices, reference : (n, 3) float
+        The result and the template, in one topology.
+    triangles : (t, 3) int
+
+    Returns
+    -------
+    (c, 2) int64
+        The new creases as pairs ``i < j`` of triangle indices.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.]])
+    >>> T = np.array([[0, 1, 2], [1, 3, 2]])
+    >>> folded = V.copy(); folded[3] = [0.2, 0.2, 0.1]     # 3 folded back over
+    >>> new_creases(folded, V, T).tolist(), new_creases(V, folded, T).tolist()
+    ([[0, 1]], [])
+    """
+    T = np.asarray(triangles, dtype=np.int64)
+    pairs = adjacent_triangle_pairs(T)
+    return pairs[facing_apart(vertices, T, pairs) & ~facing_apart(reference, T, pairs)]
 
 
 def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:

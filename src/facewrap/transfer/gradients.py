@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.geometry import triangle_adjacency
+# one home for the pairs (the crease test counts them too); exported here as before
+from facewrap.geometry.quality import adjacent_triangle_pairs
 from facewrap.geometry.checks import as_triangles, as_vertices
 
 __all__ = ["GradientOperator", "gradient_operator", "fourth_vertices",
@@ -321,11 +322,3 @@ def triangle_smoothness_operator(op: GradientOperator, pairs) -> sp.csr_matrix:
     D = sp.csr_matrix((vals, (rows, cols)), shape=(p, t))
     return (sp.kron(D, sp.identity(3), format="csr") @ op.matrix).tocsr()
 
-
-def adjacent_triangle_pairs(T) -> np.ndarray:
-    """(p, 2) int64 pairs ``i < j`` of triangles sharing an edge."""
-    TT = triangle_adjacency(T)
-    i = np.repeat(np.arange(len(TT), dtype=np.int64), 3)
-    j = TT.reshape(-1)
-    keep = j > i
-    return np.stack([i[keep], j[keep]], axis=1)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from facewrap.geometry import (face_normals, folded_in, triangle_adjacency,
-                               triangle_normals, turned, turned_triangles,
+from facewrap.geometry import (adjacent_triangle_pairs, face_normals, facing_apart,
+                               folded_in, triangle_normals, turned, turned_triangles,
                                vertex_adjacency)
 from facewrap.geometry.similarity import similarity_transform
 from facewrap.mesh import Mesh
@@ -22,12 +22,6 @@ from facewrap.wrapping.blend import extension_operator, smooth_extension
 
 __all__ = ["relax_flips", "unfold_among", "settle_turned_corners", "step_back_new_folds",
            "turn_back_within"]
-
-
-def _apart(V, T, pairs) -> np.ndarray:
-    """(p,) bool: edge-adjacent triangle pairs whose normals face apart (dot < 0)."""
-    n = face_normals(V, T)
-    return np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) < 0
 
 
 def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.25,
@@ -80,12 +74,10 @@ def step_back_new_folds(T, reference, before, after, fixed, *, step: float = 0.2
     """
     was = turned_triangles(before, reference, T, angle)     # (checks the arrays too)
     T = np.asarray(T, dtype=np.int64)
-    nb = triangle_adjacency(T)
-    i, j = np.nonzero(nb > np.arange(len(T))[:, None])     # each shared edge once
-    pairs = np.stack([i, nb[i, j]], axis=1)
+    pairs = adjacent_triangle_pairs(T)                      # each shared edge once
     out = np.array(after, dtype=np.float64)
     before = np.asarray(before, dtype=np.float64)
-    was_apart = _apart(before, T, pairs)
+    was_apart = facing_apart(before, T, pairs)
     # what folds in ``out``, kept per triangle and per shared edge and tested again
     # each round only where a corner moved: a round moves a few corners of a mesh
     reference_normals = triangle_normals(np.asarray(reference, dtype=np.float64), T)
