@@ -46,6 +46,7 @@ from facewrap.detection.for_wrap import detected_landmark_settings, detection_re
 from facewrap.errors import InputError
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
@@ -181,8 +182,7 @@ def _rig_files(job: RigJob) -> list[str]:
     """The GLB, the report and a shape file per OBJ of the blendshapes folder (the
     shapes are named after their files), known before anything is read."""
     folder = Path(job.blendshapes)
-    names = sorted(p.stem for p in folder.iterdir()
-                   if p.suffix.lower() == ".obj") if folder.is_dir() else []
+    names = [p.stem for p in folder_files(folder, [".obj"])] if folder.is_dir() else []
     return ([os.path.join(job.output, name) for name in (GLB, REPORT, PAGE)]
             + [os.path.join(job.output, SHAPES, f"{name}.obj") for name in names])
 

@@ -44,8 +44,8 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.jobs.input_checks import (check_distinct_landmarks, check_landmark_spread,
-                                        check_scan, nothing_to_fit, oversized_shapes,
-                                        survey_mesh, unpaired_landmarks)
+                                        check_scan, check_uv_layouts, nothing_to_fit,
+                                        oversized_shapes, survey_mesh, unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
@@ -361,10 +361,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
                              job.blendshapes)
     image = None
     if job.texture:
-        if scan.uvs is None:
-            raise InputError("the scan has no texture coordinates to bake from", job.scan)
-        if template.uvs is None:
-            raise InputError("the template has no UV layout to bake into", job.template)
+        notes += check_uv_layouts(template, scan, job.template, job.scan)
         image = decoding.result()
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
