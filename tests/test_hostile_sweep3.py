@@ -254,3 +254,13 @@ def test_a_scan_laid_out_in_its_image_says_nothing(sample, tmp_path, capsys):
                              sample["scan_texture"], "--texture-size", "16"))
     err = capsys.readouterr().err
     assert rc == 0 and "texture coordinates" not in err, err
+
+
+# -- a setting's error named as the output's ----------------------------------------------
+def test_a_texture_size_out_of_range_names_the_option_not_the_output(sample, tmp_path,
+                                                                     capsys):
+    """``--texture-size 0`` was reported as 'OUT.obj: texture_size must be...', as
+    if the output file were at fault."""
+    rc = facewrap(*wrap_argv(sample, tmp_path / "o.obj", "--texture-size", "0"))
+    line = error_line(capsys, rc, "(--texture-size) must be an integer in [1, 16384]")
+    assert "o.obj" not in line

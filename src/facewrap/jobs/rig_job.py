@@ -213,7 +213,7 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
     """
     if job.method not in PERSONALISE_METHODS:
         raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
-                         f"{job.method!r}", source or job.output)
+                         f"{job.method!r}", source)
     for files, what, flag, none in (
             (job.expression_landmarks, "expression landmark file(s)",
              "--expression-landmarks", "none to detect them"),
@@ -225,7 +225,7 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
                              f"per scan, or {none}", source or files[0])
     if not isinstance(job.texture_flow, bool):
         raise InputError(f"texture_flow must be true or false, got {job.texture_flow!r}",
-                         source or job.output)
+                         source)
     check_job_paths(neutral_wrap_job(job), source)
     check_output_paths(files=_rig_files(job),
                        folders=[job.output, os.path.join(job.output, SHAPES)],

@@ -237,22 +237,23 @@ def check_job_paths(job: WrapJob, source=None) -> None:
                          f"{ext or '(no extension)'!r}; use .obj or .ply",
                          source or job.output)
     check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
+    # a setting's problem: named with the job file, or alone (not as the output's)
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
-        raise InputError(f"texture_size must be an integer in [1, 16384], got "
-                         f"{job.texture_size!r}", source or job.output)
+        raise InputError(f"texture_size (--texture-size) must be an integer in [1, 16384],"
+                         f" got {job.texture_size!r}", source)
     need = job.texture_size ** 2 * BAKE_BYTES_PER_TEXEL
     if job.texture and need > memory_budget():
         raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "
                          f"about {need / 2 ** 30:.1f} GiB of memory, more than the "
                          f"{memory_budget() / 2 ** 30:.1f} GiB budget (half the memory, "
-                         "or of ulimit -v)", source or job.output)
+                         "or of ulimit -v)", source)
     if job.output_frame not in OUTPUT_FRAMES:
         raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
-                         f" got {job.output_frame!r}", source or job.output)
+                         f" got {job.output_frame!r}", source)
     try:
         check_units_choice(job.units)
     except ValueError as exc:
-        raise InputError(str(exc), source or job.output) from None
+        raise InputError(str(exc), source) from None
 
 
 def read_mesh_landmarks(path, mesh, kind: str = "auto"):
