@@ -29,7 +29,7 @@ from facewrap.errors import InputError
 from facewrap.io.cache import cache_dir as shared_cache_dir
 from facewrap.io.cache import content_key, load_arrays, save_arrays
 from facewrap.io.dispatch import read_mesh
-from facewrap.io.files import read_file_bytes
+from facewrap.io.files import folder_files, read_file_bytes
 from facewrap.io.landmarks import read_markers
 from facewrap.io.obj import read_obj, read_obj_vertices
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
@@ -325,11 +325,15 @@ def load_shape_folder(folder, reference: Mesh | None = None,
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError("not a folder", folder)
-    files = [p for p in sorted(folder.iterdir())
-             if p.suffix.lower() == ".obj"
-             and not any(e.lower() in p.stem.lower() for e in exclude)]
+    files = [p for p in folder_files(folder, [".obj"])
+             if not any(e.lower() in p.stem.lower() for e in exclude)]
     n = None if reference is None else reference.n_vertices
     shapes = {}
+    stems = {}
+    for p in files:   # smile.obj and smile.OBJ: one name, one shape would be lost
+        if stems.setdefault(p.stem, p) != p:
+            raise InputError(f"two files hold the shape {p.stem!r}: {stems[p.stem].name} "
+                             f"and {p.name}; remove one", folder)
     for p, v in zip(files, _folder_vertices(files, n)):
         if reference is not None and np.array_equal(v, reference.vertices):
             continue

@@ -18,6 +18,7 @@ import atexit
 import gc
 import logging
 import os
+import signal
 import sys
 import warnings
 from importlib import import_module
@@ -105,6 +106,32 @@ def _spare_the_collector() -> None:
     atexit.register(gc.freeze)      # what the command made is not walked at exit
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (``kill``, ``timeout``, a scheduler, a closed terminal) as
+    an interrupt: what a Ctrl-C undoes (staged outputs, a batch's workers) is
+    undone for it too, instead of the process ending where it stands."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _end_like_an_interrupt() -> None:
+    """SIGTERM and SIGHUP raise :class:`Terminated` in the main thread.
+
+    Left at their default, they end the process at once: a run's staged outputs
+    (hidden ``.facewrap-staged-*`` files) stay behind in the output folder.  A
+    signal the process was started ignoring (``nohup``) stays ignored.
+    """
+    def terminated(signum, frame):
+        raise Terminated(signum)
+
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None and signal.getsignal(sig) is signal.SIG_DFL:
+            signal.signal(sig, terminated)
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Python warnings on the command line, never a two-line ``file:line: Warning``.
 
@@ -130,12 +157,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if entry:
         _spare_the_collector()
+        _end_like_an_interrupt()
     # progress bars draw only on a terminal; logs go to standard error
     configure_logging(args.log_verbose - args.log_quiet
                       - (1 if getattr(args, "quiet", False) else 0))
     with warnings.catch_warnings():   # restores the caller's warning display after
         warnings.showwarning = _one_line_warning
-        return _run(args)
+        status = _run(args)
+    if entry and status:
+        # a failure can leave a cycle (a future's exception, its traceback's frames)
+        # holding a library's objects: freed now, or nanobind lists them as leaked
+        # on standard error at exit (gc.freeze would keep them from any collection)
+        gc.collect()
+    return status
 
 
 def _run(args) -> int:
@@ -157,6 +191,9 @@ def _run(args) -> int:
         where = f"{shown_path(exc.filename)}: " if exc.filename else ""
         print(f"facewrap: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Terminated as exc:   # kill, timeout: one line, the shell's status for it
+        print(f"facewrap: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
         print("facewrap: interrupted", file=sys.stderr)
         return 130

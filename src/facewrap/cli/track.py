@@ -27,6 +27,7 @@ from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError
 from facewrap.detection.for_wrap import detected_landmark_settings
 from facewrap.io import read_mesh
+from facewrap.io.files import folder_files
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
@@ -44,12 +45,14 @@ _MESH_SUFFIXES = (".obj", ".ply")
 
 
 def _scan_paths(items) -> list[Path]:
-    """Scans from files and/or folders (a folder gives its meshes in name order)."""
+    """Scans from files and/or folders (a folder gives its meshes in name order,
+    numbers by value, hidden files left out)."""
     paths = []
     for item in items:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in _MESH_SUFFIXES)
+            # frames numbered without leading zeros (f_2, f_10) in their numbers' order
+            found = folder_files(p, _MESH_SUFFIXES, natural=True)
             if not found:
                 raise InputError("holds no OBJ or PLY scans", p)
             paths += found

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import json
 import os
+import re
+from pathlib import Path
 
 from facewrap.errors import InputError
 from facewrap.io.paths import special_kind
 
 __all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
            "read_format_items", "memory_budget", "not_a_file", "COORDINATE_LIMIT",
-           "first_too_large", "check_coordinates"]
+           "first_too_large", "check_coordinates", "folder_files", "natural_key"]
 
 #: Largest coordinate magnitude a mesh or landmark file may hold. Far beyond any
 #: head in any unit (10^15 mm is a light-hour), yet small enough that the squares
@@ -241,3 +243,50 @@ def read_format_items(path, format_name: str, key: str, what: str) -> list:
     if not isinstance(items, list) or not items:
         raise InputError(f"'{key}' must be a non-empty list", path)
     return items
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key of a file name with its runs of digits read as numbers, so that
+    ``frame_2`` comes before ``frame_10`` (plain string order puts it after).
+
+    >>> sorted(["f_10.obj", "f_2.obj", "f_1.obj"], key=natural_key)
+    ['f_1.obj', 'f_2.obj', 'f_10.obj']
+    """
+    parts = re.split(r"(\d+)", name)
+    return tuple((0, int(t), t) if t.isdigit() else (1, 0, t) for t in parts if t), name
+
+
+def folder_files(folder, suffixes, natural: bool = False) -> list[Path]:
+    """The files of ``folder`` whose extension is one of ``suffixes`` (any case),
+    hidden ones left out, in name order.
+
+    Hidden files are never a user's data: ``._name.obj`` is the resource fork macOS
+    writes beside every file it copies onto a foreign disk (binary, not a mesh),
+    ``.name.obj`` an editor's or a sync tool's copy.
+
+    Parameters
+    ----------
+    folder : path
+    suffixes : iterable of str
+        Lower-case extensions with their dot (``".obj"``).
+    natural : bool
+        Numbers in names by value (:func:`natural_key`): for files that are frames of
+        a sequence, often numbered without leading zeros.
+
+    Returns
+    -------
+    list of Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> for name in ("f_10.obj", "f_2.OBJ", "._f_2.obj", "notes.txt"):
+    ...     _ = (d / name).write_text("")
+    >>> [p.name for p in folder_files(d, [".obj"], natural=True)]
+    ['f_2.OBJ', 'f_10.obj']
+    """
+    suffixes = tuple(suffixes)
+    found = [p for p in Path(folder).iterdir()
+             if p.suffix.lower() in suffixes and not p.name.startswith(".")]
+    return sorted(found, key=(lambda p: natural_key(p.name)) if natural else None)

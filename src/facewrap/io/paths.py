@@ -25,7 +25,9 @@ import os
 import re
 import secrets
 import shutil
+import signal
 import stat
+import threading
 from pathlib import Path
 
 from facewrap.errors import InputError
@@ -316,6 +318,35 @@ def _move_into(staged: Path, final: Path) -> None:
     staged.rmdir()
 
 
+@contextlib.contextmanager
+def _signals_held():
+    """Ctrl-C, SIGTERM or SIGHUP arriving in the block takes effect when it ends.
+
+    For the moves of a commit: interrupted between two of them, a run would leave
+    some of its outputs in place and none of the others.  Only signals with a Python
+    handler can wait (an interrupt's, or the command's for SIGTERM); only the main
+    thread may set handlers.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held, previous = [], {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        handler = None if sig is None else signal.getsignal(sig)
+        if callable(handler):
+            previous[sig] = handler
+            signal.signal(sig, lambda signum, frame: held.append((signum, frame)))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if held:
+            signum, frame = held[0]
+            previous[signum](signum, frame)
+
+
 class StagedOutputs:
     """Outputs of one run written under hidden names, moved into place together.
 
@@ -364,13 +395,14 @@ class StagedOutputs:
         return staged
 
     def commit(self) -> None:
-        """Move every staged output into place."""
-        for staged, final in self._folders:
-            _move_into(staged, final)
-        for staged, final in self._files:
-            if staged.exists():
-                os.replace(staged, final)
-        self._files, self._folders, self._made = [], [], []
+        """Move every staged output into place (an interrupt waits for the last move)."""
+        with _signals_held():
+            for staged, final in self._folders:
+                _move_into(staged, final)
+            for staged, final in self._files:
+                if staged.exists():
+                    os.replace(staged, final)
+            self._files, self._folders, self._made = [], [], []
 
     def discard(self) -> None:
         """Remove what was staged and the folders made for it."""

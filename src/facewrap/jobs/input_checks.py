@@ -8,7 +8,8 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 :func:`check_distinct_landmarks` (two template landmarks at one place),
 :func:`unpaired_landmarks` (named landmarks left out of the pairing),
 :func:`nothing_to_fit` (every vertex excluded or pinned), :func:`oversized_shapes`
-(blendshapes larger than the head),
+(blendshapes larger than the head), :func:`check_uv_layouts` (texture coordinates
+that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
 (and of each frame of a track) in one call.
 """
@@ -26,11 +27,12 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
+from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, resolve_units
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "unpaired_landmarks", "nothing_to_fit",
-           "oversized_shapes", "check_landmarks_on_scan", "check_scan"]
+           "oversized_shapes", "check_landmarks_on_scan", "check_scan", "check_uv_layouts"]
 
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
@@ -274,3 +276,47 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
                                      landmarks_path or path,
                                      resolve_units(units, scan.vertices)[0])
     return scan, landmarks, tree, notes
+
+
+def check_uv_layouts(template: Mesh, scan: Mesh, template_path, scan_path) -> list[str]:
+    """The texture coordinates of a bake: the template's lie in UDIM tiles, the
+    scan's in its image.
+
+    A template triangle whose UVs lie outside every tile (``u < 0`` or ``u >= 10``,
+    ``v < 0`` or ``v >= 100``: a layout moved or scaled by mistake) is baked into no
+    image; a scan's UVs beyond ``[0, 1]`` (a UDIM tile other than 1001, a layout
+    meant to repeat) read the image's border texels, one smeared colour.
+
+    Returns
+    -------
+    list of str
+        A line per layout partly outside.
+
+    Raises
+    ------
+    InputError
+        When either mesh has no texture coordinates, or no template triangle lies in
+        a tile (the baked images would be empty).
+    """
+    if scan.triangle_uvs is None:
+        raise InputError("the scan has no texture coordinates to bake from", scan_path)
+    if template.triangle_uvs is None:
+        raise InputError("the template has no UV layout to bake into", template_path)
+    outside = int(np.count_nonzero(triangle_tiles(template) < 0))
+    total = len(template.triangles)
+    if outside == total:
+        raise InputError("no triangle's texture coordinates lie in a UDIM tile (u in "
+                         "[0, 10), v in [0, 100)): nothing would be baked", template_path)
+    notes = []
+    if outside:
+        notes.append(f"{template_path}: {outside} of {total} template triangles have "
+                     "texture coordinates outside the UDIM tiles (u in [0, 10), v in "
+                     "[0, 100)): they are left out of the baked texture")
+    centroids = scan.uvs[scan.triangle_uvs].mean(axis=1)
+    with np.errstate(invalid="ignore"):
+        off = int(np.count_nonzero(np.any((centroids < 0) | (centroids > 1), axis=1)))
+    if off:
+        notes.append(f"{scan_path}: {off} of {len(centroids)} scan triangles have texture "
+                     "coordinates outside [0, 1] (beyond the image): they take the "
+                     "colour of its border")
+    return notes

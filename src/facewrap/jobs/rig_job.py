@@ -46,6 +46,7 @@ from facewrap.detection.for_wrap import detected_landmark_settings, detection_re
 from facewrap.errors import InputError
 from facewrap.io import write_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
@@ -181,8 +182,7 @@ def _rig_files(job: RigJob) -> list[str]:
     """The GLB, the report and a shape file per OBJ of the blendshapes folder (the
     shapes are named after their files), known before anything is read."""
     folder = Path(job.blendshapes)
-    names = sorted(p.stem for p in folder.iterdir()
-                   if p.suffix.lower() == ".obj") if folder.is_dir() else []
+    names = [p.stem for p in folder_files(folder, [".obj"])] if folder.is_dir() else []
     return ([os.path.join(job.output, name) for name in (GLB, REPORT, PAGE)]
             + [os.path.join(job.output, SHAPES, f"{name}.obj") for name in names])
 
@@ -213,7 +213,7 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
     """
     if job.method not in PERSONALISE_METHODS:
         raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
-                         f"{job.method!r}", source or job.output)
+                         f"{job.method!r}", source)
     for files, what, flag, none in (
             (job.expression_landmarks, "expression landmark file(s)",
              "--expression-landmarks", "none to detect them"),
@@ -225,7 +225,7 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
                              f"per scan, or {none}", source or files[0])
     if not isinstance(job.texture_flow, bool):
         raise InputError(f"texture_flow must be true or false, got {job.texture_flow!r}",
-                         source or job.output)
+                         source)
     check_job_paths(neutral_wrap_job(job), source)
     check_output_paths(files=_rig_files(job),
                        folders=[job.output, os.path.join(job.output, SHAPES)],

@@ -29,6 +29,7 @@ settings are the ``[transfer]`` table.
 from __future__ import annotations
 
 import json
+import os
 import time
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -41,6 +42,7 @@ from facewrap.datasets import load_shape_folder
 from facewrap.errors import InputError, InputWarning
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
+from facewrap.io.files import folder_files
 from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.landmarks import read_markers
 from facewrap.io.mtl import library_beside, write_mtl
@@ -200,15 +202,25 @@ def read_source_shapes(items, reference) -> dict[str, np.ndarray]:
     InputError
         Naming a missing or malformed file, or when no shape is found.
     """
-    shapes = {}
+    shapes, origin = {}, {}
     for item in items:
         p = Path(item)
         if p.is_dir():
-            shapes.update(load_shape_folder(p, reference))
+            files = {q.stem: q for q in folder_files(p, [".obj"])}
+            found = {name: (v, files.get(name, p))
+                     for name, v in load_shape_folder(p, reference).items()}
         elif p.is_file():
-            shapes[p.stem] = read_obj_vertices(p, reference.n_vertices)
+            found = {p.stem: (read_obj_vertices(p, reference.n_vertices), p)}
         else:
             raise InputError("no such file or folder", p)
+        for name, (v, path) in found.items():
+            # each shape is written to NAME.obj: a second one of a name would
+            # silently take the first one's place (one file given twice is one shape)
+            if name in origin and not os.path.samefile(origin[name], path):
+                raise InputError(f"two source shapes are named {name!r} ({origin[name]} "
+                                 f"and {path}); each is written as {name}.obj: rename "
+                                 "one", path)
+            shapes[name], origin[name] = v, path
     if not shapes:
         raise InputError("no source shapes given", items[0] if items else None)
     return shapes

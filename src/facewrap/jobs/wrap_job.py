@@ -44,8 +44,8 @@ from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
 from facewrap.jobs.input_checks import (check_distinct_landmarks, check_landmark_spread,
-                                        check_scan, nothing_to_fit, oversized_shapes,
-                                        survey_mesh, unpaired_landmarks)
+                                        check_scan, check_uv_layouts, nothing_to_fit,
+                                        oversized_shapes, survey_mesh, unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
@@ -237,22 +237,23 @@ def check_job_paths(job: WrapJob, source=None) -> None:
                          f"{ext or '(no extension)'!r}; use .obj or .ply",
                          source or job.output)
     check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
+    # a setting's problem: named with the job file, or alone (not as the output's)
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
-        raise InputError(f"texture_size must be an integer in [1, 16384], got "
-                         f"{job.texture_size!r}", source or job.output)
+        raise InputError(f"texture_size (--texture-size) must be an integer in [1, 16384],"
+                         f" got {job.texture_size!r}", source)
     need = job.texture_size ** 2 * BAKE_BYTES_PER_TEXEL
     if job.texture and need > memory_budget():
         raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "
                          f"about {need / 2 ** 30:.1f} GiB of memory, more than the "
                          f"{memory_budget() / 2 ** 30:.1f} GiB budget (half the memory, "
-                         "or of ulimit -v)", source or job.output)
+                         "or of ulimit -v)", source)
     if job.output_frame not in OUTPUT_FRAMES:
         raise InputError(f"output_frame must be one of {', '.join(map(repr, OUTPUT_FRAMES))},"
-                         f" got {job.output_frame!r}", source or job.output)
+                         f" got {job.output_frame!r}", source)
     try:
         check_units_choice(job.units)
     except ValueError as exc:
-        raise InputError(str(exc), source or job.output) from None
+        raise InputError(str(exc), source) from None
 
 
 def read_mesh_landmarks(path, mesh, kind: str = "auto"):
@@ -361,10 +362,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
                              job.blendshapes)
     image = None
     if job.texture:
-        if scan.uvs is None:
-            raise InputError("the scan has no texture coordinates to bake from", job.scan)
-        if template.uvs is None:
-            raise InputError("the template has no UV layout to bake into", job.template)
+        notes += check_uv_layouts(template, scan, job.template, job.scan)
         image = decoding.result()
     return {"template": template, "scan": scan, "template_landmarks": tl,
             "scan_landmarks": sl, "exclude": exclude, "fit_mask": fit_mask,
