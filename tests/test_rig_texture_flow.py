@@ -288,3 +288,31 @@ def test_refinements_beside_the_wraps_give_the_rig_they_give_one_after_another(
     monkeypatch.setattr(build, "bake_tiles", broken)
     with pytest.raises(ValueError, match="no bake"):
         build_rig(*args, **kw)
+
+
+def test_an_interrupt_during_the_expression_wraps_leaves_no_thread_running(
+        person, monkeypatch):
+    """Ctrl-C while an expression wraps and a refinement runs beside it: the
+    interrupt reaches the caller and no thread of the rig is left running (the
+    refinements not begun are dropped)."""
+    import threading
+
+    import facewrap.rig.build as build
+    tpl, neutral, smile = person
+    monkeypatch.setattr(build, "usable_threads", lambda: 2)
+    real_wrap = build.wrap_following
+    calls = []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:        # the first expression's refinement is under way
+            raise KeyboardInterrupt
+        return real_wrap(*args, **kwargs)
+    monkeypatch.setattr(build, "wrap_following", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        build_rig(tpl.mesh, neutral.mesh, tpl.landmarks, neutral.landmarks,
+                  tpl.blendshapes, expression_scans=[smile.mesh] * 3,
+                  expression_landmarks=[smile.landmarks] * 3,
+                  expression_textures=[smile.texture] * 3, texture=neutral.texture)
+    assert len(calls) == 2
+    assert not [t for t in threading.enumerate() if t.name.startswith("facewrap-beside")]
