@@ -71,9 +71,7 @@ class Rig:
         ``expressions`` (their wraps and refinements), ``stabilise``, ``examples``
         and, when textures refined them, ``texture`` (the neutral's bake) and
         ``texture_flow`` (the refinements' own seconds): both run beside the
-        wraps, so they are part of ``expressions``, not added to it.  Each wrap
-        is stabilised as soon as its refinement is done (``stabilise``: those
-        seconds, not in ``expressions``).
+        wraps, so they are part of ``expressions``, not added to it.
     examples : ExampleFit or None
         With expression scans: their weights, reconstruction errors and rigid
         poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
@@ -135,20 +133,17 @@ def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
 
 
 def _expression_fits(template, result, template_landmarks, scans, landmarks, trees,
-                     rigid, blendshapes, settings, wrap_options, refine, beside,
-                     stabilised, meant):
+                     rigid, blendshapes, settings, wrap_options, refine, beside):
     """Each expression scan wrapped from the neutral's result, moved by the head's
     rough motion first (so the warm start begins where the head now is), then
     passed through ``refine(wrap, scan, k, tree)`` (the texture refinement; it
     returns the wrap and its :class:`TextureRefinement` or None) on the executor
-    ``beside`` (None: here, one after the other), then
-    ``stabilised(wrap, tree, meant[k])`` (:func:`_stabiliser`) here, each as soon
-    as its refinement is done (while the next ones run beside).
+    ``beside`` (None: here, one after the other).
 
-    Returns the wraps, their refinements, their :class:`Stabilised` and the
-    seconds those took here.
+    Returns the wraps, their refinements and the scans' closest-point trees
+    (``trees``' own where given, else built here once: the stabilisation uses them).
     """
-    pending = []
+    built, pending = [], []
     for k, (scan, lm, tree) in enumerate(zip(scans, landmarks, trees)):
         tree = tree or ClosestPointTree(scan.vertices, scan.triangles)
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
@@ -156,16 +151,10 @@ def _expression_fits(template, result, template_landmarks, scans, landmarks, tre
                         mesh=result.mesh.with_vertices(motion.apply(result.vertices)))
         w = wrap_following(template, scan, template_landmarks, lm, start, settings,
                            blendshapes=blendshapes, scan_tree=tree, **wrap_options)
-        pending.append((run_on(beside, refine, w, scan, k, tree), tree))
-    wraps, refinements, stable, seconds = [], [], [], 0.0
-    for k, (done, tree) in enumerate(pending):
-        w, r = done.result()
-        t = time.perf_counter()
-        stable.append(stabilised(w, tree, meant[k]))
-        seconds += time.perf_counter() - t
-        wraps.append(w)
-        refinements.append(r)
-    return wraps, refinements, stable, seconds
+        pending.append(run_on(beside, refine, w, scan, k, tree))
+        built.append(tree)
+    done = [p.result() for p in pending]
+    return [d[0] for d in done], [d[1] for d in done], built
 
 
 def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
@@ -212,27 +201,25 @@ def _texture_refiner(template: Mesh, baking, textures, settings: TextureFlowSett
     return refine
 
 
-#: rounds of (prior-rig weights, surface registration) in :func:`_stabiliser`
+#: rounds of (prior-rig weights, surface registration) in :func:`_stabilised`
 POSE_ROUNDS = 3
 
 
-def _stabiliser(result: WrapResult, rigid, prior: dict, gamma: float):
-    """``stabilise(wrap, tree, meant)``: an expression wrap moved onto the neutral's
-    head pose: a robust rigid fit on the skull-rigid vertices, then
-    :data:`POSE_ROUNDS` rounds of the prior rig's weights for it (``meant``: the
-    weights the capture meant, or None) and :func:`~facewrap.rig.stabilise.refine_pose`
-    of that prediction onto the scan (``tree``; its vertices trusted less the more
-    the prediction moves them from the neutral).  ``weights`` and ``residual`` of
-    the :class:`Stabilised` are the rigid fit's (which rigid vertices the expression
-    moved)."""
+def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, weights,
+                gamma: float) -> list[Stabilised]:
+    """Each expression wrap moved onto the neutral's head pose: a robust rigid fit on
+    the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds of the prior rig's
+    weights for it and :func:`~facewrap.rig.stabilise.refine_pose` of that
+    prediction onto the scan (its vertices trusted less the more the prediction
+    moves them from the neutral).  ``weights`` and ``residual`` of each are the rigid
+    fit's (which rigid vertices the expression moved)."""
     V = result.vertices
     names = list(prior)
     D = np.stack([np.asarray(prior[k]) - V for k in names], axis=2)      # (n, 3, s)
     seen = (np.ones(len(V), dtype=bool) if result.projection is None
             else result.projection.projected)
-
-    def stabilised(w: WrapResult, tree: ClosestPointTree, meant) -> Stabilised:
-        mask = None if w.projection is None else w.projection.projected
+    out = []
+    for w, tree, mask, meant in zip(wraps, trees, masks, weights):
         both = seen if mask is None else seen & mask
         first = stabilise(w.vertices, V, _seen_rigid(rigid, result, mask))
         pose = first.pose
@@ -244,8 +231,8 @@ def _stabiliser(result: WrapResult, rigid, prior: dict, gamma: float):
             moved = D @ alpha                                           # (n, 3)
             pose = refine_pose(V + moved, result.mesh.triangles, tree, pose,
                                np.flatnonzero(both), np.linalg.norm(moved, axis=1))
-        return Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual)
-    return stabilised
+        out.append(Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual))
+    return out
 
 
 def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
@@ -411,29 +398,28 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         if beside is not None:   # a wrap that fails drops the refinements not begun
             stack.callback(beside.shutdown, wait=True, cancel_futures=True)
         baking = run_on(beside, bake) if wanted else None
-        example_settings = example_settings or ExampleSettings()
-        wraps, refinements, stable, t_stable = _expression_fits(
+        wraps, refinements, trees = _expression_fits(
             template, result, template_landmarks, scans, exp_landmarks, exp_trees, rigid,
             blendshapes, settings, wrap_options,
-            _texture_refiner(template, baking, exp_textures, texture_flow), beside,
-            _stabiliser(result, rigid, shapes.shapes, example_settings.weight_prior),
-            exp_weights)
+            _texture_refiner(template, baking, exp_textures, texture_flow), beside)
     baked = None if baking is None else baking.result()
     if baked is not None:   # the refinements' own seconds, beside the wraps
         timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
     t3 = time.perf_counter()
     masks = [None if w.projection is None else w.projection.projected for w in wraps]
+    example_settings = example_settings or ExampleSettings()
     # small dense products (s x s normal matrices, a few examples): BLAS threads only
     # contend on a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
     with threadpool_limits(limits=1, user_api="blas"):
+        stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
+                             exp_weights, example_settings.weight_prior)
+        t4 = time.perf_counter()
         fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
                            masks=masks, weights=exp_weights, rigid=rigid,
                            settings=example_settings)
     fit = replace(fit, poses=[x.pose for x in stable])
-    t4 = time.perf_counter()
-    # each wrap was stabilised as soon as its refinement was done, the later ones
-    # running beside
-    timings.update(expressions=t3 - t2 - t_stable, stabilise=t_stable, examples=t4 - t3,
-                   total=t4 - t0)
+    t5 = time.perf_counter()
+    timings.update(expressions=t3 - t2, stabilise=t4 - t3, examples=t5 - t4,
+                   total=t5 - t0)
     return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes,
                refinements, baked)
