@@ -103,7 +103,6 @@ def thread_map(func, items, threads: int | None = None) -> list:
     return list(_executor(min(threads, len(items))).map(func, items))
 
 
-
 def run_on(executor, func, *args) -> Future:
     """``func(*args)`` submitted to ``executor``; without one (None), run here and
     now, its answer (or its exception) kept for ``.result()`` as a thread's is.

@@ -26,7 +26,6 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -388,29 +387,30 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     # the neutral's bake and each expression's refinement run on threads beside the
     # expressions' wraps: the pictures, flows and texel work release the GIL where
     # the fit holds it, and once the wraps are done the refinements share the cores
-    # (ICT face onto six 200k-triangle scans, bench_rig_speed: 22.8 s instead of
-    # 27.1 for the whole rig).  BLAS runs one thread throughout (the views use the
-    # cores; the ICP does the same), so no result depends on the overlap
-    with ExitStack() as stack:
-        stack.enter_context(threadpool_limits(limits=1, user_api="blas"))
-        beside = (ThreadPoolExecutor(usable_threads(), "facewrap-beside")
-                  if wanted and usable_threads() > 1 else None)
-        if beside is not None:   # a wrap that fails drops the refinements not begun
-            stack.callback(beside.shutdown, wait=True, cancel_futures=True)
-        baking = run_on(beside, bake) if wanted else None
-        wraps, refinements, trees = _expression_fits(
-            template, result, template_landmarks, scans, exp_landmarks, exp_trees, rigid,
-            blendshapes, settings, wrap_options,
-            _texture_refiner(template, baking, exp_textures, texture_flow), beside)
-    baked = None if baking is None else baking.result()
-    if baked is not None:   # the refinements' own seconds, beside the wraps
-        timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
-    t3 = time.perf_counter()
-    masks = [None if w.projection is None else w.projection.projected for w in wraps]
-    example_settings = example_settings or ExampleSettings()
-    # small dense products (s x s normal matrices, a few examples): BLAS threads only
-    # contend on a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
+    # (ICT face onto six 200k-triangle scans, bench_rig_speed: 22.4 s instead of
+    # 27.1 for the whole rig)
+    beside = (ThreadPoolExecutor(usable_threads(), "facewrap-beside")
+              if wanted and usable_threads() > 1 else None)
+    # BLAS one thread from here on: the views use the cores and the ICP does the
+    # same, so no result depends on the overlap; the stabilisation's and the example
+    # fit's small dense products (s x s normal matrices) only contend on a loaded
+    # machine, as in the ICP (a 3 ms product took up to 0.8 s)
     with threadpool_limits(limits=1, user_api="blas"):
+        try:
+            baking = run_on(beside, bake) if wanted else None
+            wraps, refinements, trees = _expression_fits(
+                template, result, template_landmarks, scans, exp_landmarks, exp_trees,
+                rigid, blendshapes, settings, wrap_options,
+                _texture_refiner(template, baking, exp_textures, texture_flow), beside)
+        finally:
+            if beside is not None:   # a wrap that fails drops the refinements not begun
+                beside.shutdown(wait=True, cancel_futures=True)
+        baked = None if baking is None else baking.result()
+        if baked is not None:   # the refinements' own seconds, beside the wraps
+            timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
+        t3 = time.perf_counter()
+        masks = [None if w.projection is None else w.projection.projected for w in wraps]
+        example_settings = example_settings or ExampleSettings()
         stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
                              exp_weights, example_settings.weight_prior)
         t4 = time.perf_counter()
