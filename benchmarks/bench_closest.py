@@ -5,26 +5,29 @@ near its surface, and times, best of 3 runs:
 
 (a) raw libigl: ``igl.AABB().init`` + ``squared_distance``;
 (b) facewrap: ``ClosestPointTree(V, T)`` + ``query`` (which adds vertex normals,
-    barycentric coordinates and interpolated normals);
-(c) the ratio (b) / (a), target <= 1.2.
+    barycentric coordinates and interpolated normals), on each of its search-tree
+    engines (:mod:`facewrap.geometry.search_trees`: FCPW, the default, and libigl);
+(c) the ratios (b) / (a).
 
-It then checks :func:`facewrap.geometry.closest_points` against an exact reference
-that does not use libigl: on 2k of the points, against every triangle whose centroid
-is close enough to possibly beat the answer (a complete candidate set), and on 20
-points, against all 500k triangles.
+It then checks :func:`facewrap.geometry.closest_points` on each engine against an
+exact reference that uses neither: on 2k of the points, against every triangle whose
+centroid is close enough to possibly beat the answer (a complete candidate set), and
+on 20 points, against all 500k triangles.
 
 Run ``python benchmarks/bench_closest.py``; ``run()`` returns the numbers as a dict.
 """
 
 from __future__ import annotations
 
+import os
 import time
 
 import igl
 import numpy as np
 from scipy.spatial import cKDTree
 
-from facewrap.geometry import ClosestPointTree, closest_points
+from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.search_trees import ENGINES, load_fcpw, search_tree
 
 REPEATS = 3
 
@@ -107,87 +110,106 @@ def brute_force_distances(V, T, P, chunk=250_000):
     return out
 
 
+def _tree(V, T, engine: str) -> ClosestPointTree:
+    """``ClosestPointTree(V, T)`` on ``engine``'s search tree (built once)."""
+    tree = ClosestPointTree.__new__(ClosestPointTree)
+    previous = os.environ.get("FACEWRAP_SEARCH_TREE")
+    os.environ["FACEWRAP_SEARCH_TREE"] = engine
+    try:
+        tree.__init__(V, T)
+    finally:
+        if previous is None:
+            os.environ.pop("FACEWRAP_SEARCH_TREE")
+        else:
+            os.environ["FACEWRAP_SEARCH_TREE"] = previous
+    assert tree.engine == engine
+    return tree
+
+
 def run(n_queries: int = 20_000, n_check: int = 2_000, n_brute: int = 20,
         seed: int = 1) -> dict:
-    """Time raw libigl and ClosestPointTree; check accuracy. Returns a flat dict."""
+    """Time raw libigl and ClosestPointTree on each engine; check accuracy.
+    Returns a dict."""
     V, T = torus()
     rng = np.random.default_rng(seed)
     P = V[rng.integers(0, len(V), n_queries)] + 0.02 * rng.standard_normal((n_queries, 3))
+    engines = [e for e in ENGINES if e != "fcpw" or load_fcpw() is not None]
 
-    def raw_init():
+    def raw():
         tree = igl.AABB()
         tree.init(V, T)
         return tree
 
-    def ours_init():
-        return ClosestPointTree(V, T)
-
-    raw_tree, ours_tree = raw_init(), ours_init()     # warm-up
-    results = {}
-    # interleave the two so that machine noise hits both alike
-    raw_i, raw_q, our_i, our_q, raw_t, our_t = [], [], [], [], [], []
+    times = {name: ([], []) for name in ["raw", *engines]}
+    for name in times:                                  # warm-up
+        (raw() if name == "raw" else _tree(V, T, name))
+    # interleave them so that machine noise hits all alike
     for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        raw_tree = raw_init()
-        t1 = time.perf_counter()
-        raw_tree.squared_distance(V, T, P)
-        t2 = time.perf_counter()
-        ours_tree = ours_init()
-        t3 = time.perf_counter()
-        ours_tree.query(P)
-        t4 = time.perf_counter()
-        raw_i.append(t1 - t0), raw_q.append(t2 - t1), raw_t.append(t2 - t0)
-        our_i.append(t3 - t2), our_q.append(t4 - t3), our_t.append(t4 - t2)
-    results.update(
-        triangles=len(T), vertices=len(V), queries=n_queries,
-        raw_init_s=min(raw_i), raw_query_s=min(raw_q), raw_total_s=min(raw_t),
-        ours_init_s=min(our_i), ours_query_s=min(our_q), ours_total_s=min(our_t),
-    )
-    results["ratio_total"] = results["ours_total_s"] / results["raw_total_s"]
-    results["ratio_query_only"] = results["ours_query_s"] / results["raw_query_s"]
-
-    # accuracy: one-shot closest_points on a subset against exact references
+        for name, (build, query) in times.items():
+            t0 = time.perf_counter()
+            tree = raw() if name == "raw" else _tree(V, T, name)
+            t1 = time.perf_counter()
+            tree.squared_distance(V, T, P) if name == "raw" else tree.query(P)
+            build.append(t1 - t0), query.append(time.perf_counter() - t1)
+    results = {"triangles": len(T), "vertices": len(V), "queries": n_queries,
+               "check_points": n_check, "brute_force_points": n_brute, "rows": {}}
     sub = P[:n_check]
-    cp = closest_points(V, T, sub)
-    ref, candidates = reference_distances(V, T, sub, cp.distances)
-    recon = np.einsum("kc,kcd->kd", cp.barycentric, V[T[cp.triangles]])
-    brute = brute_force_distances(V, T, sub[:n_brute])
-    results.update(
-        check_points=n_check,
-        max_abs_distance_error=float(np.abs(cp.distances - ref).max()),
-        mean_candidates_per_point=candidates,
-        max_barycentric_reconstruction_error=float(np.abs(recon - cp.points).max()),
-        brute_force_points=n_brute,
-        max_abs_error_vs_all_triangles=float(np.abs(cp.distances[:n_brute] - brute).max()),
-    )
+    brute = None
+    for name, (build, query) in times.items():
+        row = {"build_s": min(build), "query_s": min(query),
+               "total_s": min(b + q for b, q in zip(build, query))}
+        if name != "raw":           # accuracy against exact references
+            cp = _tree(V, T, name).query(sub)
+            ref, candidates = reference_distances(V, T, sub, cp.distances)
+            if brute is None:
+                brute = brute_force_distances(V, T, sub[:n_brute])
+            recon = np.einsum("kc,kcd->kd", cp.barycentric, V[T[cp.triangles]])
+            row.update(
+                max_abs_distance_error=float(np.abs(cp.distances - ref).max()),
+                mean_candidates_per_point=candidates,
+                max_barycentric_reconstruction_error=float(np.abs(recon - cp.points).max()),
+                max_abs_error_vs_all_triangles=float(
+                    np.abs(cp.distances[:n_brute] - brute).max()))
+        results["rows"][name] = row
     return results
 
 
 def markdown(results: dict) -> str:
     r = results
+    raw = r["rows"]["raw"]
     lines = [
         f"### Closest points: {r['queries']} queries on a {r['triangles']}-triangle mesh "
         f"(best of {REPEATS})",
         "",
-        "| | build (s) | query (s) | total (s) |",
-        "|---|---:|---:|---:|",
-        f"| raw `igl.AABB` | {r['raw_init_s']:.3f} | {r['raw_query_s']:.3f} | "
-        f"{r['raw_total_s']:.3f} |",
-        f"| `ClosestPointTree` | {r['ours_init_s']:.3f} | {r['ours_query_s']:.3f} | "
-        f"{r['ours_total_s']:.3f} |",
-        f"| ratio | {r['ours_init_s'] / r['raw_init_s']:.2f} | "
-        f"{r['ratio_query_only']:.2f} | **{r['ratio_total']:.2f}** |",
+        "`ClosestPointTree` adds vertex normals, barycentric coordinates and (FCPW, "
+        "float32) the point measured again in float64; ratios are to raw libigl.",
         "",
-        "| accuracy check | value |",
-        "|---|---:|",
-        f"| max distance error, {r['check_points']} points vs exact reference "
-        f"(~{r['mean_candidates_per_point']:.0f} candidate triangles each) | "
-        f"{r['max_abs_distance_error']:.1e} |",
-        f"| max distance error, {r['brute_force_points']} points vs all triangles | "
-        f"{r['max_abs_error_vs_all_triangles']:.1e} |",
-        f"| max \\|barycentric @ corners - point\\| | "
-        f"{r['max_barycentric_reconstruction_error']:.1e} |",
+        "| | build (s) | query (s) | total (s) | build ÷ raw | query ÷ raw | total ÷ raw |",
+        "|---|---:|---:|---:|---:|---:|---:|",
     ]
+    names = {"raw": "raw `igl.AABB`", "fcpw": "`ClosestPointTree`, FCPW (default)",
+             "libigl": "`ClosestPointTree`, libigl"}
+    for name, row in r["rows"].items():
+        lines.append(f"| {names[name]} | {row['build_s']:.3f} | {row['query_s']:.3f} | "
+                     f"{row['total_s']:.3f} | {row['build_s'] / raw['build_s']:.2f} | "
+                     f"{row['query_s'] / raw['query_s']:.2f} | "
+                     f"**{row['total_s'] / raw['total_s']:.2f}** |")
+    lines += ["", "| accuracy check | " + " | ".join(
+        names[n].split(", ")[-1] for n in r["rows"] if n != "raw") + " |",
+        "|---|" + "---:|" * (len(r["rows"]) - 1)]
+    checked = [row for n, row in r["rows"].items() if n != "raw"]
+    if checked:
+        first = checked[0]
+        for key, label in (
+                ("max_abs_distance_error",
+                 f"max distance error, {r['check_points']} points vs exact reference "
+                 f"(~{first['mean_candidates_per_point']:.0f} candidate triangles each)"),
+                ("max_abs_error_vs_all_triangles",
+                 f"max distance error, {r['brute_force_points']} points vs all triangles"),
+                ("max_barycentric_reconstruction_error",
+                 "max \\|barycentric @ corners - point\\|")):
+            lines.append(f"| {label} | " + " | ".join(f"{row[key]:.1e}" for row in checked)
+                         + " |")
     return "\n".join(lines)
 
 

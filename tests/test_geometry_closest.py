@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import igl
 import numpy as np
 import pytest
@@ -9,8 +11,24 @@ from hypothesis import given, settings, strategies as st
 
 import facewrap.geometry as geo
 
+from facewrap.geometry.search_trees import ENGINES
 from geometry_meshes import (MESHES, brute_force_rays, brute_force_sq_dist, check_barycentric,
                              grid, icosphere, near_points, reconstruct, soup)
+
+
+@pytest.fixture(scope="module", params=ENGINES, autouse=True)
+def engine(request):
+    """Every test here runs on each search-tree engine (module scope: hypothesis
+    allows no function-scoped fixture)."""
+    if request.param == "fcpw":
+        pytest.importorskip("fcpw")
+    before = os.environ.get("FACEWRAP_SEARCH_TREE")
+    os.environ["FACEWRAP_SEARCH_TREE"] = request.param
+    yield request.param
+    if before is None:
+        os.environ.pop("FACEWRAP_SEARCH_TREE", None)
+    else:
+        os.environ["FACEWRAP_SEARCH_TREE"] = before
 
 
 @pytest.mark.parametrize("name", sorted(MESHES))

@@ -1,8 +1,10 @@
-"""Closest points and ray hits on a triangle mesh, through one AABB tree.
+"""Closest points and ray hits on a triangle mesh, through one search tree.
 
 This module owns point-to-surface queries, the hot path of registration: a
-:class:`ClosestPointTree` builds libigl's AABB tree once per mesh and answers any
-number of :meth:`~ClosestPointTree.query` (closest points) and
+:class:`ClosestPointTree` builds a search tree once per mesh (FCPW's bounding volume
+hierarchy, or libigl's AABB tree where FCPW is missing:
+:mod:`~facewrap.geometry.search_trees`) and answers any number of
+:meth:`~ClosestPointTree.query` (closest points) and
 :meth:`~ClosestPointTree.ray_hits` (line intersections) calls;
 :func:`closest_points` is the one-shot form.
 
@@ -11,12 +13,10 @@ so callers can move the point with the mesh.  Barycentric coordinates are
 ``(b0, b1, b2)`` with ``point = b0 * V[T[i, 0]] + b1 * V[T[i, 1]] + b2 * V[T[i, 2]]``,
 non-negative and summing to 1, and are never NaN, even for degenerate triangles.
 
-libigl notes (``igl`` 2.6 nanobind bindings): ``AABB.squared_distance`` answers in
-float64, but ``AABB.intersect_ray_first`` computes ``t`` and its ``(u, v)`` (with
-``point = (1 - u - v) V0 + u V1 + v V2``) in float32 and leaves ``uv`` uninitialised
-for rays that miss; its ``min_t`` argument is really an upper bound on ``t``.  Ray
-hits here therefore use libigl only to find the triangle and recompute ``t`` and the
-barycentric coordinates in float64.
+Both engines find ray hits in float32 (libigl's ``intersect_ray_first`` also leaves
+``uv`` uninitialised for rays that miss), and FCPW closest points too.  The
+trees are therefore asked only which triangle; points, ``t`` and barycentric
+coordinates are computed again here in float64.
 """
 
 from __future__ import annotations
@@ -29,9 +29,11 @@ import igl
 import numpy as np
 
 from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs, triangle_adjacency
+from facewrap.geometry.adjacency import (EdgeRuns, counting_sort_order, edge_runs,
+                                         triangle_adjacency)
 from facewrap.geometry.arrays import cross_rows, normalize_rows, spatial_order
 from facewrap.geometry.normals import trusted_normals_and_measures
+from facewrap.geometry.search_trees import closest_on_triangles, search_tree
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -41,9 +43,14 @@ _FLAT = 1e-12
 # Barycentric coordinates below this are rounding noise of a point on an edge or a
 # vertex and are set to exactly 0 (moving the point by at most ~1e-12 edge lengths).
 _SNAP = 1e-12
-# From this many query points on, libigl is asked in spatial order (each answer is
-# the same in any order; the tree walks stay in cache).
+# From this many query points on, the tree is asked in spatial order (each answer
+# is the same in any order; the tree walks stay in cache).
 _ORDERED_FROM = 512
+# Steps at most of the walk from a tree's answer across the edges it lands on
+# (each step strictly better; a vertex's fan is met whole in one step)
+_WALK_STEPS = 16
+# Relative difference of squared distances below which two triangles are tied
+_TIE = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,9 +246,8 @@ class ClosestPointTree:
                                  f"got {normals.shape}")
         self.vertex_normals = _readonly(normals)
         self.own_normals = vertex_normals is None
-        # (libigl's build holds the GIL: a background thread would gain nothing)
-        self._tree = igl.AABB()
-        self._tree.init(self.vertices, self.triangles)
+        # (both engines' builds hold the GIL: a background thread would gain nothing)
+        self._search = search_tree(self.vertices, self.triangles)
 
     def _triangle_measures(self) -> tuple[np.ndarray, np.ndarray]:
         """(t,) doubled areas and (t,) longest squared edges of the triangles."""
@@ -265,11 +271,17 @@ class ClosestPointTree:
         double_area, longest_sq = self._triangle_measures()
         return _readonly(double_area <= _FLAT * longest_sq)
 
+    @property
+    def engine(self) -> str:
+        """The search tree's engine: "fcpw" or "libigl"
+        (:func:`~facewrap.geometry.search_trees.search_tree`)."""
+        return self._search.engine
+
     @cached_property
     def _flat_segments(self):
         """The segment-like triangles as their longest edges, in a tree of their own:
-        ``(rows, edges, tree)``, or None when there are none.  libigl's triangle tree
-        can miss the nearest of them (it measured a collinear triangle 0.21 away
+        ``(rows, edges, tree)``, or None when there are none.  A triangle tree can
+        miss the nearest of them (libigl's measured a collinear triangle 0.21 away
         where its edge was 0.15), so :meth:`query` asks this tree as well."""
         rows = np.flatnonzero(self.flat_triangles)
         if not len(rows):
@@ -284,7 +296,7 @@ class ClosestPointTree:
 
     def _nearer_flat(self, P, sq_dist, tri, closest) -> None:
         """Answers moved (in place) to a segment-like triangle where one is nearer
-        than libigl's answer."""
+        than the tree's answer."""
         if self._flat_segments is None:
             return
         rows, edges, tree = self._flat_segments
@@ -296,8 +308,8 @@ class ClosestPointTree:
 
     def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
-        place): libigl's closest point on a triangle of zero area can be off by
-        1e-3 of its size (seen on a collinear triangle).  ``corners`` (k, 3, 3) are
+        place): a closest point on a triangle of zero area can be off by 1e-3 of
+        its size (seen from libigl on a collinear triangle).  ``corners`` (k, 3, 3) are
         the triangles met and ``flat`` (k,) which of them are segments."""
         rows = np.flatnonzero(flat)
         if not len(rows):
@@ -350,15 +362,16 @@ class ClosestPointTree:
         -------
         ClosestPoints
             Points, triangles, barycentric coordinates, normals and distances, one
-            row per query point (ties between triangles are broken by libigl).
+            row per query point (ties between triangles are broken by the tree).
         """
         P = as_points(points, "points")
         if len(P) == 0:
             return ClosestPoints(np.zeros((0, 3)), np.zeros(0, np.int64),
                                  np.zeros((0, 3)), np.zeros(0), self.normals_at)
-        # (libigl spreads the tree walks over the cores itself: 0.62 s of CPU in
-        # 0.33 s for 200k points; splitting the rows over threads measured slower)
-        sq_dist, tri, closest = self._libigl_closest(P)
+        # (both engines spread the tree walks over the cores themselves: libigl's
+        # 0.62 s of CPU in 0.33 s for 200k points; splitting the rows over threads
+        # measured slower)
+        sq_dist, tri, closest = self._closest(P)
         self._nearer_flat(P, sq_dist, tri, closest)
         ids = self.triangles[tri]
         corners = self.vertices[ids]
@@ -369,21 +382,110 @@ class ClosestPointTree:
                              distances=np.sqrt(np.maximum(sq_dist, 0.0)),
                              surface_normals=self.normals_at)
 
-    def _libigl_closest(self, P: np.ndarray):
-        """libigl's answer for points ``P`` (k, 3): squared distances (k,),
+    def _closest(self, P: np.ndarray):
+        """The tree's answer for points ``P`` (k, 3): squared distances (k,),
         triangles (k,) int64 and closest points (k, 3), in the order of ``P``
         (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many)."""
         order = spatial_order(P) if len(P) >= _ORDERED_FROM else None
         asked = P if order is None else np.ascontiguousarray(P[order])
-        sq_dist, tri, closest = self._tree.squared_distance(self.vertices,
-                                                            self.triangles, asked)
-        sq_dist, tri = np.array(sq_dist, dtype=np.float64), np.array(tri, dtype=np.int64)
-        closest = np.array(closest)
+        if self._search.engine == "fcpw":    # it names the triangle: measure here
+            tri = self._search.nearest_triangles(asked)
+        else:
+            tri = self._search.closest(asked)[1]
+        closest, sq_dist, bary = closest_on_triangles(asked,
+                                                      self.vertices[self.triangles[tri]])
+        self._walk_across_edges(asked, sq_dist, tri, closest, bary)
         if order is not None:                  # back to the order of P
             back = np.empty_like(order)
             back[order] = np.arange(len(order))
             sq_dist, tri, closest = sq_dist[back], tri[back], closest[back]
         return sq_dist, tri, closest
+
+    def _walk_across_edges(self, P, sq_dist, tri, closest, bary) -> None:
+        """Answers moved (in place) to the nearest triangle around where they land,
+        and ties broken the same whatever the tree.
+
+        A float32 tree can name a neighbour of the nearest triangle when the point
+        is all but equidistant from both.  The float64 point then lands on their
+        shared edge, or on a corner they share, and the nearer triangle is across
+        that edge or in that corner's fan: each step looks there.  Where several
+        triangles are nearest (a point over a corner or an edge), the one whose
+        plane faces the point most squarely is kept, then the lowest index: the
+        triangle an answer names decides which neighbours a projection tries and
+        whether it counts as on the border, so it must not depend on the engine's
+        traversal order.  Each step moves to a strictly better triangle by
+        (distance, facing, index), so the walk ends.
+        """
+        V, T = self.vertices, self.triangles
+        rows = np.flatnonzero((bary == 0).any(axis=1))
+        for _ in range(_WALK_STEPS):
+            if not len(rows):
+                return
+            asker, other = self._around(rows, tri[rows], bary[rows])
+            asker, other = np.r_[rows, asker], np.r_[tri[rows], other]   # stay: a choice
+            points, sq, b = closest_on_triangles(P[asker], V[T[other]])
+            pick = self._best_of(P[asker], asker, other, points, sq)
+            moved = pick[other[pick] != tri[asker[pick]]]
+            if not len(moved):
+                return
+            rows = asker[moved]
+            sq_dist[rows], tri[rows] = sq[moved], other[moved]
+            closest[rows], bary[rows] = points[moved], b[moved]
+            rows = rows[(b[moved] == 0).any(axis=1)]
+
+    def _best_of(self, P, asker, other, points, sq) -> np.ndarray:
+        """Index of each asker's best candidate: the nearest (to rounding), then the
+        one facing the point most squarely, then the lowest triangle index."""
+        corners = self.vertices[self.triangles[other]]
+        normal = normalize_rows(cross_rows(corners[:, 1] - corners[:, 0],
+                                           corners[:, 2] - corners[:, 0]))[0]
+        away = normalize_rows(P - points)[0]        # zero on the surface: no facing
+        facing = np.abs(np.einsum("ij,ij->i", normal, away))
+        by_asker = np.argsort(asker, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(asker[by_asker]) != 0])
+        nearest = np.minimum.reduceat(sq[by_asker], starts)
+        nearest = np.repeat(nearest, np.diff(np.r_[starts, len(asker)]))
+        # equal distances to rounding: one point measured from two triangles
+        tied = np.empty(len(asker), dtype=bool)
+        tied[by_asker] = sq[by_asker] <= nearest * (1 + _TIE) + _TIE * self._scale_sq
+        order = np.lexsort((other, -facing, ~tied, asker))
+        first = np.r_[True, asker[order][1:] != asker[order][:-1]]
+        return order[first]
+
+    @cached_property
+    def _scale_sq(self) -> float:
+        """The mesh's squared bounding-box diagonal (the floor of a tie)."""
+        return float(np.sum(np.ptp(self.vertices, axis=0) ** 2))
+
+    def _around(self, rows, tri, bary) -> tuple[np.ndarray, np.ndarray]:
+        """``(asker, other)``: for points ``rows`` on an edge of their triangle
+        ``tri`` (one zero in ``bary``), the triangles around that edge; on a corner
+        (two zeros), every triangle of the corner's fan.  (From the corners' fans
+        alone: no edge adjacency, which a one-off query of a million-triangle
+        scan would pay 0.15 s for.)"""
+        on = bary > 0
+        T = self.triangles
+        first = np.argmax(on, axis=1)                      # a corner the point is on
+        last = 2 - np.argmax(on[:, ::-1], axis=1)          # the other end of its edge
+        v, w = T[tri, first], T[tri, last]
+        offsets, fans = self._vertex_fans
+        counts = offsets[v + 1] - offsets[v]
+        # the fans' triangles, one run per point
+        at = np.repeat(offsets[v] - np.r_[0, np.cumsum(counts)[:-1]], counts) \
+            + np.arange(counts.sum())
+        asker, other = np.repeat(rows, counts), fans[at].astype(np.int64)
+        # on an edge: only the fan's triangles that hold its other end too
+        keep = (T[other] == np.repeat(w, counts)[:, None]).any(axis=1)
+        return asker[keep], other[keep]
+
+    @cached_property
+    def _vertex_fans(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(offsets, triangles)``: the triangles around vertex ``v`` are
+        ``triangles[offsets[v]:offsets[v + 1]]``."""
+        corners = self.triangles.ravel()
+        order = counting_sort_order(corners, len(self.vertices))
+        counts = np.bincount(corners, minlength=len(self.vertices))
+        return np.r_[0, np.cumsum(counts)], order // 3
 
     def normals_at(self, triangles, barycentric) -> np.ndarray:
         """(k, 3) unit surface normals at the points with these ``barycentric``
@@ -436,16 +538,17 @@ class ClosestPointTree:
         best_t = np.full(k, np.nan)
         if k == 0:
             return self._ray_result(O, D, best_tri, best_t)
-        # libigl's bound is float32-accurate: widen it, filter exactly afterwards
+        # the trees' bound is float32-accurate: widen it, filter exactly afterwards
         bound = max_distance * (1 + 1e-5) + 1e-30 if np.isfinite(max_distance) \
             else np.inf
+        aim = np.where(valid[:, None], D, (0.0, 0.0, 1.0))   # (zero rows never hit)
         for sign in ((1.0, -1.0) if both_directions else (1.0,)):
-            tri, t_igl, _ = self._tree.intersect_ray_first(
-                self.vertices, self.triangles, O, np.ascontiguousarray(sign * D), bound)
+            tri, t_tree = self._search.first_hits(O, np.ascontiguousarray(sign * aim),
+                                                  bound)
             found = (tri >= 0) & valid
             t = np.full(k, np.nan)
             t[found] = self._line_plane_t(O[found], D[found], tri[found],
-                                          sign * t_igl[found])
+                                          sign * t_tree[found])
             found &= np.abs(t) <= max_distance
             better = found & ~(np.abs(t) >= np.abs(best_t))   # NaN best_t: better
             best_tri[better] = tri[better]
@@ -458,7 +561,7 @@ class ClosestPointTree:
         n = cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         n, _ = normalize_rows(n)
         cos = np.einsum("ij,ij->i", n, D)
-        grazing = np.abs(cos) < 1e-9   # line (nearly) in the plane: keep libigl's t
+        grazing = np.abs(cos) < 1e-9   # line (nearly) in the plane: keep the tree's t
         num = np.einsum("ij,ij->i", n, corners[:, 0] - O)
         return np.where(grazing, t_fallback,
                         num / np.where(grazing, 1.0, cos))

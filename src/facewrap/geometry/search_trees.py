@@ -1,0 +1,228 @@
+"""The search trees behind :class:`~facewrap.geometry.closest.ClosestPointTree`.
+
+A search tree answers two questions about a triangle mesh: which triangle is
+nearest to each query point, and which triangle each ray hits first.  Two engines
+answer them:
+
+- :class:`FcpwSearch`, the default: the bounding volume hierarchy of FCPW (Sawhney,
+  *Fast Closest Points, Normals and Distances*), built about 3.5x faster than
+  libigl's AABB tree and queried about 2x faster on both cores (``bench_closest``:
+  a 951k-triangle scan builds in 0.23 s against 0.79 s).  FCPW works in float32,
+  so it only *names* the triangle (:meth:`FcpwSearch.nearest_triangles`); the
+  point is found again in float64 on that triangle (:func:`closest_on_triangles`)
+  and, where it lands on an edge, on the triangles across it
+  (:meth:`~facewrap.geometry.closest.ClosestPointTree.query` walks there), so
+  answers are exact to float64 rounding as libigl's are.
+- :class:`LibiglSearch`: libigl's AABB tree, where FCPW has no wheel (Linux on
+  ARM) or ``FACEWRAP_SEARCH_TREE=libigl`` asks for it.
+
+Both take float64 ``V`` (n, 3) and int64 ``T`` (t, 3) that the caller has checked.
+"""
+
+from __future__ import annotations
+
+import os
+
+import igl
+import numpy as np
+
+__all__ = ["FcpwSearch", "LibiglSearch", "search_tree", "closest_on_triangles",
+           "load_fcpw", "ENGINES"]
+
+#: the engines :func:`search_tree` knows, default first
+ENGINES = ("fcpw", "libigl")
+# FCPW stores float32 coordinates about the mesh's centre: meshes (or query
+# points) beyond this from it are searched by libigl (or clipped) instead
+_FLOAT32_SAFE = 1e30
+
+
+def load_fcpw():
+    """The fcpw module, or None where it is not installed."""
+    try:
+        import fcpw        # a compiled extension: loaded on first use
+    except ImportError:
+        return None
+    return fcpw
+
+
+def search_tree(V: np.ndarray, T: np.ndarray, engine: str | None = None):
+    """A search tree over the mesh ``(V, T)``.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+    engine : {"fcpw", "libigl"}, optional
+        By default the environment's ``FACEWRAP_SEARCH_TREE``, else "fcpw" where it
+        is installed and the mesh fits float32, else "libigl".
+
+    Returns
+    -------
+    FcpwSearch or LibiglSearch
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
+    >>> search_tree(V, np.array([[0, 1, 2]]), "libigl").engine
+    'libigl'
+    """
+    engine = engine or os.environ.get("FACEWRAP_SEARCH_TREE") or ENGINES[0]
+    if engine not in ENGINES:
+        raise ValueError(f"FACEWRAP_SEARCH_TREE must be one of {', '.join(ENGINES)}, "
+                         f"got {engine!r}")
+    if engine == "fcpw" and load_fcpw() is not None and len(V) \
+            and np.ptp(V, axis=0).max() < _FLOAT32_SAFE:
+        return FcpwSearch(V, T)
+    return LibiglSearch(V, T)
+
+
+class LibiglSearch:
+    """libigl's AABB tree: closest points in float64, ray hits in float32.
+
+    libigl notes (``igl`` 2.6 nanobind bindings): ``AABB.intersect_ray_first``
+    computes ``t`` in float32 and its ``min_t`` argument is really an upper bound
+    on ``t``; its build and queries hold the GIL (the queries spread over the
+    cores themselves).
+    """
+
+    engine = "libigl"
+
+    def __init__(self, V, T):
+        self._V, self._T = V, T
+        self._tree = igl.AABB()
+        self._tree.init(V, T)
+
+    def closest(self, P: np.ndarray):
+        """Squared distances (k,), triangles (k,) int64 and closest points (k, 3)
+        of points ``P`` (k, 3) float64."""
+        sq, tri, points = self._tree.squared_distance(self._V, self._T, P)
+        return (np.array(sq, dtype=np.float64), np.array(tri, dtype=np.int64),
+                np.array(points))
+
+    def first_hits(self, O: np.ndarray, D: np.ndarray, bound: float):
+        """Triangle (k,) int64, -1 for a miss, and float32-accurate ``t`` (k,) of
+        each ray ``O + t D`` (``0 <= t <= bound``; ``D`` unit rows)."""
+        tri, t, _ = self._tree.intersect_ray_first(self._V, self._T, O, D, bound)
+        return np.asarray(tri, dtype=np.int64), np.asarray(t, dtype=np.float64)
+
+
+class FcpwSearch:
+    """FCPW's bounding volume hierarchy (float32, about the mesh's centre).
+
+    Its queries run on all cores in one call (they hold the GIL meanwhile).
+    """
+
+    engine = "fcpw"
+
+    def __init__(self, V, T):
+        fcpw = load_fcpw()
+        self._V, self._T = V, T
+        self.centre = (V.min(axis=0) + V.max(axis=0)) / 2
+        self._interactions = fcpw.interaction_3D_list
+        scene = fcpw.scene_3D()
+        scene.set_object_count(1)
+        scene.set_object_vertices(np.asfortranarray(V - self.centre, dtype=np.float32), 0)
+        scene.set_object_triangles(np.asfortranarray(T, dtype=np.int32), 0)
+        # centre splits along the longest axis: built 2.5x faster than the
+        # surface-area heuristic's tree, queried as fast on scans (measured)
+        scene.build(fcpw.aggregate_type.bvh_longest_axis_center, True)
+        self._scene = scene
+
+    def _local(self, P: np.ndarray) -> np.ndarray:
+        """Points as FCPW's float32 coordinates (far ones clipped: they still find
+        the triangles nearest their direction, measured again in float64)."""
+        return np.asfortranarray(np.clip(P - self.centre, -_FLOAT32_SAFE, _FLOAT32_SAFE),
+                                 dtype=np.float32)
+
+    def nearest_triangles(self, P: np.ndarray) -> np.ndarray:
+        """(k,) int64: the triangle nearest each point of ``P`` (k, 3), to float32
+        accuracy (a near tie may name a neighbour of the nearest)."""
+        found = self._interactions()
+        self._scene.find_closest_points(self._local(P),
+                                        np.full(len(P), np.inf, dtype=np.float32), found)
+        return np.fromiter((i.primitive_index for i in found), np.int64, len(P))
+
+    def first_hits(self, O: np.ndarray, D: np.ndarray, bound: float):
+        """As :meth:`LibiglSearch.first_hits`."""
+        found = self._interactions()
+        bound = np.float32(min(bound, np.finfo(np.float32).max))
+        self._scene.intersect(self._local(O), np.asfortranarray(D, dtype=np.float32),
+                              np.full(len(O), bound, dtype=np.float32), found, False)
+        tri = np.fromiter((i.primitive_index for i in found), np.int64, len(O))
+        t = np.fromiter((i.d for i in found), np.float64, len(O))
+        return tri, t
+
+
+def closest_on_triangles(P: np.ndarray, corners: np.ndarray):
+    """Closest point of triangle ``i`` to point ``i``, in float64.
+
+    The region test of Ericson (*Real-Time Collision Detection*, 5.1.5): the
+    closest point is a corner, on an edge or inside, decided from dot products of
+    the edges with the point, so corners and edges get exact zero weights.
+
+    Parameters
+    ----------
+    P : (k, 3) float64
+    corners : (k, 3, 3) float64
+        Triangle, corner, coordinate.
+
+    Returns
+    -------
+    points : (k, 3) float64
+    sq_dist : (k,) float64
+        Squared distances; ``inf`` where the triangle has no area to decide by (a
+        segment or a point: the caller measures those to their longest edge).
+    barycentric : (k, 3) float64
+        Weights of the corners (exact zeros on edges and corners).
+
+    Examples
+    --------
+    >>> tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0.]]] * 3)
+    >>> pts, sq, bary = closest_on_triangles(
+    ...     np.array([[0.25, 0.25, 1.0], [2.0, -1.0, 0.0], [1.0, 1.0, 0.0]]), tri)
+    >>> pts.tolist(), sq.tolist()
+    ([[0.25, 0.25, 0.0], [1.0, 0.0, 0.0], [0.5, 0.5, 0.0]], [1.0, 2.0, 0.5])
+    >>> bary.tolist()
+    [[0.5, 0.25, 0.25], [0.0, 1.0, 0.0], [0.0, 0.5, 0.5]]
+    """
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    ab, ac = b - a, c - a
+
+    def dot(x, y):
+        return np.einsum("ij,ij->i", x, y)
+
+    ap, bp, cp = P - a, P - b, P - c
+    d1, d2 = dot(ab, ap), dot(ac, ap)
+    d3, d4 = dot(ab, bp), dot(ac, bp)
+    d5, d6 = dot(ab, cp), dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    k = len(P)
+    bary = np.zeros((k, 3))
+    left = np.ones(k, dtype=bool)
+
+    def take(where, weights):
+        rows = np.flatnonzero(where & left)
+        bary[rows] = np.stack([w[rows] if isinstance(w, np.ndarray) else np.full(
+            len(rows), w) for w in weights], axis=1)
+        left[rows] = False
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        take((d1 <= 0) & (d2 <= 0), (1.0, 0.0, 0.0))                       # corner a
+        take((d3 >= 0) & (d4 <= d3), (0.0, 1.0, 0.0))                      # corner b
+        take((d6 >= 0) & (d5 <= d6), (0.0, 0.0, 1.0))                      # corner c
+        v = d1 / (d1 - d3)
+        take((vc <= 0) & (d1 >= 0) & (d3 <= 0), (1 - v, v, 0.0))           # edge ab
+        w = d2 / (d2 - d6)
+        take((vb <= 0) & (d2 >= 0) & (d6 <= 0), (1 - w, 0.0, w))           # edge ac
+        u = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        take((va <= 0) & (d4 >= d3) & (d5 >= d6), (0.0, 1 - u, u))         # edge bc
+        total = va + vb + vc
+        take(np.ones(k, dtype=bool), (va / total, vb / total, vc / total))  # inside
+    points = np.einsum("kc,kcd->kd", bary, corners)
+    sq = dot(points - P, points - P)
+    bad = ~np.isfinite(sq)
+    if np.any(bad):               # no area (0/0 above): left to the caller
+        sq[bad] = np.inf
+        points[bad] = a[bad]
+        bary[bad] = (1.0, 0.0, 0.0)
+    return points, sq, bary
