@@ -8,7 +8,7 @@ import pytest
 
 import facewrap.geometry as geo
 from facewrap.geometry import search_trees
-from facewrap.geometry.search_trees import closest_on_triangles, search_tree
+from facewrap.geometry.search_trees import VertexFans, closest_on_triangles, search_tree
 
 from geometry_meshes import brute_force_sq_dist, grid, icosphere, near_points, soup
 
@@ -79,7 +79,7 @@ def test_the_walk_across_edges_reaches_the_nearest_triangle():
     angles = np.linspace(0, 2 * np.pi, 9)[:-1]
     V = np.vstack([[0, 0, 1.0], np.c_[np.cos(angles), np.sin(angles), np.zeros(8)]])
     T = np.array([[0, 1 + i, 1 + (i + 1) % 8] for i in range(8)])
-    tree = geo.ClosestPointTree(V, T)
+    fans = VertexFans(V, T)
     n = np.cross(V[T[0, 1]] - V[T[0, 0]], V[T[0, 2]] - V[T[0, 0]])
     P = (0.8 * V[0] + 0.1 * V[1] + 0.1 * V[2] + 0.01 * n / np.linalg.norm(n))[None]
     ref = brute_force_sq_dist(V, T, P)[0]
@@ -91,7 +91,7 @@ def test_the_walk_across_edges_reaches_the_nearest_triangle():
         if not (bary == 0).any():
             continue                          # met inside: not a near tie
         walked.append(start)
-        tree._walk_across_edges(P, sq, tri, points, bary)
+        fans.walk_to_nearest(P, sq, tri, points, bary)
         assert tri[0] == 0, start
         np.testing.assert_allclose(sq, ref.min(), rtol=1e-12)
     assert {1, 7} <= set(walked) and len(walked) >= 4

@@ -29,11 +29,10 @@ import igl
 import numpy as np
 
 from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
-from facewrap.geometry.adjacency import (EdgeRuns, counting_sort_order, edge_runs,
-                                         triangle_adjacency)
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs, triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows, spatial_order
 from facewrap.geometry.normals import trusted_normals_and_measures
-from facewrap.geometry.search_trees import closest_on_triangles, search_tree
+from facewrap.geometry.search_trees import VertexFans, closest_on_triangles, search_tree
 
 __all__ = ["ClosestPoints", "RayHits", "ClosestPointTree", "closest_points"]
 
@@ -46,11 +45,6 @@ _SNAP = 1e-12
 # From this many query points on, the tree is asked in spatial order (each answer
 # is the same in any order; the tree walks stay in cache).
 _ORDERED_FROM = 512
-# Steps at most of the walk from a tree's answer across the edges it lands on
-# (each step strictly better; a vertex's fan is met whole in one step)
-_WALK_STEPS = 16
-# Relative difference of squared distances below which two triangles are tied
-_TIE = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -394,98 +388,17 @@ class ClosestPointTree:
             tri = self._search.closest(asked)[1]
         closest, sq_dist, bary = closest_on_triangles(asked,
                                                       self.vertices[self.triangles[tri]])
-        self._walk_across_edges(asked, sq_dist, tri, closest, bary)
+        self._fans.walk_to_nearest(asked, sq_dist, tri, closest, bary)
         if order is not None:                  # back to the order of P
             back = np.empty_like(order)
             back[order] = np.arange(len(order))
             sq_dist, tri, closest = sq_dist[back], tri[back], closest[back]
         return sq_dist, tri, closest
 
-    def _walk_across_edges(self, P, sq_dist, tri, closest, bary) -> None:
-        """Answers moved (in place) to the nearest triangle around where they land,
-        and ties broken the same whatever the tree.
-
-        A float32 tree can name a neighbour of the nearest triangle when the point
-        is all but equidistant from both.  The float64 point then lands on their
-        shared edge, or on a corner they share, and the nearer triangle is across
-        that edge or in that corner's fan: each step looks there.  Where several
-        triangles are nearest (a point over a corner or an edge), the one whose
-        plane faces the point most squarely is kept, then the lowest index: the
-        triangle an answer names decides which neighbours a projection tries and
-        whether it counts as on the border, so it must not depend on the engine's
-        traversal order.  Each step moves to a strictly better triangle by
-        (distance, facing, index), so the walk ends.
-        """
-        V, T = self.vertices, self.triangles
-        rows = np.flatnonzero((bary == 0).any(axis=1))
-        for _ in range(_WALK_STEPS):
-            if not len(rows):
-                return
-            asker, other = self._around(rows, tri[rows], bary[rows])
-            asker, other = np.r_[rows, asker], np.r_[tri[rows], other]   # stay: a choice
-            points, sq, b = closest_on_triangles(P[asker], V[T[other]])
-            pick = self._best_of(P[asker], asker, other, points, sq)
-            moved = pick[other[pick] != tri[asker[pick]]]
-            if not len(moved):
-                return
-            rows = asker[moved]
-            sq_dist[rows], tri[rows] = sq[moved], other[moved]
-            closest[rows], bary[rows] = points[moved], b[moved]
-            rows = rows[(b[moved] == 0).any(axis=1)]
-
-    def _best_of(self, P, asker, other, points, sq) -> np.ndarray:
-        """Index of each asker's best candidate: the nearest (to rounding), then the
-        one facing the point most squarely, then the lowest triangle index."""
-        corners = self.vertices[self.triangles[other]]
-        normal = normalize_rows(cross_rows(corners[:, 1] - corners[:, 0],
-                                           corners[:, 2] - corners[:, 0]))[0]
-        away = normalize_rows(P - points)[0]        # zero on the surface: no facing
-        facing = np.abs(np.einsum("ij,ij->i", normal, away))
-        by_asker = np.argsort(asker, kind="stable")
-        starts = np.flatnonzero(np.r_[True, np.diff(asker[by_asker]) != 0])
-        nearest = np.minimum.reduceat(sq[by_asker], starts)
-        nearest = np.repeat(nearest, np.diff(np.r_[starts, len(asker)]))
-        # equal distances to rounding: one point measured from two triangles
-        tied = np.empty(len(asker), dtype=bool)
-        tied[by_asker] = sq[by_asker] <= nearest * (1 + _TIE) + _TIE * self._scale_sq
-        order = np.lexsort((other, -facing, ~tied, asker))
-        first = np.r_[True, asker[order][1:] != asker[order][:-1]]
-        return order[first]
-
     @cached_property
-    def _scale_sq(self) -> float:
-        """The mesh's squared bounding-box diagonal (the floor of a tie)."""
-        return float(np.sum(np.ptp(self.vertices, axis=0) ** 2))
-
-    def _around(self, rows, tri, bary) -> tuple[np.ndarray, np.ndarray]:
-        """``(asker, other)``: for points ``rows`` on an edge of their triangle
-        ``tri`` (one zero in ``bary``), the triangles around that edge; on a corner
-        (two zeros), every triangle of the corner's fan.  (From the corners' fans
-        alone: no edge adjacency, which a one-off query of a million-triangle
-        scan would pay 0.15 s for.)"""
-        on = bary > 0
-        T = self.triangles
-        first = np.argmax(on, axis=1)                      # a corner the point is on
-        last = 2 - np.argmax(on[:, ::-1], axis=1)          # the other end of its edge
-        v, w = T[tri, first], T[tri, last]
-        offsets, fans = self._vertex_fans
-        counts = offsets[v + 1] - offsets[v]
-        # the fans' triangles, one run per point
-        at = np.repeat(offsets[v] - np.r_[0, np.cumsum(counts)[:-1]], counts) \
-            + np.arange(counts.sum())
-        asker, other = np.repeat(rows, counts), fans[at].astype(np.int64)
-        # on an edge: only the fan's triangles that hold its other end too
-        keep = (T[other] == np.repeat(w, counts)[:, None]).any(axis=1)
-        return asker[keep], other[keep]
-
-    @cached_property
-    def _vertex_fans(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(offsets, triangles)``: the triangles around vertex ``v`` are
-        ``triangles[offsets[v]:offsets[v + 1]]``."""
-        corners = self.triangles.ravel()
-        order = counting_sort_order(corners, len(self.vertices))
-        counts = np.bincount(corners, minlength=len(self.vertices))
-        return np.r_[0, np.cumsum(counts)], order // 3
+    def _fans(self) -> VertexFans:
+        """The triangles around each vertex (for the walk of :meth:`_closest`)."""
+        return VertexFans(self.vertices, self.triangles)
 
     def normals_at(self, triangles, barycentric) -> np.ndarray:
         """(k, 3) unit surface normals at the points with these ``barycentric``

@@ -10,9 +10,9 @@ answer them:
   a 951k-triangle scan builds in 0.23 s against 0.79 s).  FCPW works in float32,
   so it only *names* the triangle (:meth:`FcpwSearch.nearest_triangles`); the
   point is found again in float64 on that triangle (:func:`closest_on_triangles`)
-  and, where it lands on an edge, on the triangles across it
-  (:meth:`~facewrap.geometry.closest.ClosestPointTree.query` walks there), so
-  answers are exact to float64 rounding as libigl's are.
+  and, where it lands on an edge or a corner, on the triangles around it
+  (:meth:`VertexFans.walk_to_nearest`), so answers are exact to float64 rounding
+  as libigl's are, and ties are broken alike whichever engine answered.
 - :class:`LibiglSearch`: libigl's AABB tree, where FCPW has no wheel (Linux on
   ARM) or ``FACEWRAP_SEARCH_TREE=libigl`` asks for it.
 
@@ -26,11 +26,19 @@ import os
 import igl
 import numpy as np
 
+from facewrap.geometry.adjacency import counting_sort_order
+from facewrap.geometry.arrays import cross_rows, normalize_rows
+
 __all__ = ["FcpwSearch", "LibiglSearch", "search_tree", "closest_on_triangles",
-           "load_fcpw", "ENGINES"]
+           "VertexFans", "load_fcpw", "ENGINES"]
 
 #: the engines :func:`search_tree` knows, default first
 ENGINES = ("fcpw", "libigl")
+# Steps at most of the walk from a tree's answer across the edges it lands on
+# (each step strictly better; a vertex's fan is met whole in one step)
+_WALK_STEPS = 16
+# Relative difference of squared distances below which two triangles are tied
+_TIE = 1e-12
 # FCPW stores float32 coordinates about the mesh's centre: meshes (or query
 # points) beyond this from it are searched by libigl (or clipped) instead
 _FLOAT32_SAFE = 1e30
@@ -226,3 +234,108 @@ def closest_on_triangles(P: np.ndarray, corners: np.ndarray):
         points[bad] = a[bad]
         bary[bad] = (1.0, 0.0, 0.0)
     return points, sq, bary
+
+
+class VertexFans:
+    """The triangles around each vertex of a mesh, and the walk that settles a
+    tree's answers among them.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    T : (t, 3) int64
+
+    Attributes
+    ----------
+    offsets : (n + 1,) int64
+    triangles : (3t,) int
+        The triangles around vertex ``v`` are ``triangles[offsets[v]:offsets[v + 1]]``.
+    """
+
+    def __init__(self, V: np.ndarray, T: np.ndarray):
+        self._V, self._T = V, T
+        corners = T.ravel()
+        self.triangles = counting_sort_order(corners, len(V)) // 3
+        self.offsets = np.r_[0, np.cumsum(np.bincount(corners, minlength=len(V)))]
+        # below this, two squared distances are one (the mesh's squared diagonal)
+        self._tie_floor = _TIE * float(np.sum(np.ptp(V, axis=0) ** 2)) if len(V) else 0.0
+
+    def walk_to_nearest(self, P, sq_dist, tri, closest, bary) -> None:
+        """Answers moved (in place) to the nearest triangle around where they land,
+        and ties broken the same whatever the tree.
+
+        A float32 tree can name a neighbour of the nearest triangle when the point
+        is all but equidistant from both.  The float64 point then lands on their
+        shared edge, or on a corner they share, and the nearer triangle is across
+        that edge or in that corner's fan: each step looks there.  Where several
+        triangles are nearest (a point over a corner or an edge), the one whose
+        plane faces the point most squarely is kept, then the lowest index: the
+        triangle an answer names decides which neighbours a projection tries and
+        whether it counts as on the border, so it must not depend on the engine's
+        traversal order.  Each step moves to a strictly better triangle by
+        (distance, facing, index), so the walk ends.
+
+        Parameters
+        ----------
+        P : (k, 3) float64
+            The query points.
+        sq_dist, tri, closest, bary : (k,), (k,) int64, (k, 3), (k, 3) float64
+            Their answers on a triangle each (:func:`closest_on_triangles`),
+            updated in place.
+        """
+        V, T = self._V, self._T
+        rows = np.flatnonzero((bary == 0).any(axis=1))
+        for _ in range(_WALK_STEPS):
+            if not len(rows):
+                return
+            asker, other = self._around(rows, tri[rows], bary[rows])
+            asker, other = np.r_[rows, asker], np.r_[tri[rows], other]   # stay: a choice
+            points, sq, b = closest_on_triangles(P[asker], V[T[other]])
+            pick = self._best_of(P[asker], asker, other, points, sq)
+            moved = pick[other[pick] != tri[asker[pick]]]
+            if not len(moved):
+                return
+            rows = asker[moved]
+            sq_dist[rows], tri[rows] = sq[moved], other[moved]
+            closest[rows], bary[rows] = points[moved], b[moved]
+            rows = rows[(b[moved] == 0).any(axis=1)]
+
+    def _best_of(self, P, asker, other, points, sq) -> np.ndarray:
+        """Index of each asker's best candidate: the nearest (to rounding), then the
+        one facing the point most squarely, then the lowest triangle index."""
+        corners = self._V[self._T[other]]
+        normal = normalize_rows(cross_rows(corners[:, 1] - corners[:, 0],
+                                           corners[:, 2] - corners[:, 0]))[0]
+        away = normalize_rows(P - points)[0]        # zero on the surface: no facing
+        facing = np.abs(np.einsum("ij,ij->i", normal, away))
+        by_asker = np.argsort(asker, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(asker[by_asker]) != 0])
+        nearest = np.minimum.reduceat(sq[by_asker], starts)
+        nearest = np.repeat(nearest, np.diff(np.r_[starts, len(asker)]))
+        # equal distances to rounding: one point measured from two triangles
+        tied = np.empty(len(asker), dtype=bool)
+        tied[by_asker] = sq[by_asker] <= nearest * (1 + _TIE) + self._tie_floor
+        order = np.lexsort((other, -facing, ~tied, asker))
+        first = np.r_[True, asker[order][1:] != asker[order][:-1]]
+        return order[first]
+
+    def _around(self, rows, tri, bary) -> tuple[np.ndarray, np.ndarray]:
+        """``(asker, other)``: for points ``rows`` on an edge of their triangle
+        ``tri`` (one zero in ``bary``), the triangles around that edge; on a corner
+        (two zeros), every triangle of the corner's fan.  (From the corners' fans
+        alone: no edge adjacency, which a one-off query of a million-triangle
+        scan would pay 0.15 s for.)"""
+        on = bary > 0
+        T = self._T
+        first = np.argmax(on, axis=1)                      # a corner the point is on
+        last = 2 - np.argmax(on[:, ::-1], axis=1)          # the other end of its edge
+        v, w = T[tri, first], T[tri, last]
+        offsets, fans = self.offsets, self.triangles
+        counts = offsets[v + 1] - offsets[v]
+        # the fans' triangles, one run per point
+        at = np.repeat(offsets[v] - np.r_[0, np.cumsum(counts)[:-1]], counts) \
+            + np.arange(counts.sum())
+        asker, other = np.repeat(rows, counts), fans[at].astype(np.int64)
+        # on an edge: only the fan's triangles that hold its other end too
+        keep = (T[other] == np.repeat(w, counts)[:, None]).any(axis=1)
+        return asker[keep], other[keep]
