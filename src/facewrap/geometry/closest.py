@@ -356,7 +356,9 @@ class ClosestPointTree:
         -------
         ClosestPoints
             Points, triangles, barycentric coordinates, normals and distances, one
-            row per query point (ties between triangles are broken by the tree).
+            row per query point (where several triangles are nearest, the one
+            facing the point most squarely, then the lowest index:
+            :meth:`~facewrap.geometry.search_trees.VertexFans.walk_to_nearest`).
         """
         P = as_points(points, "points")
         if len(P) == 0:
@@ -377,15 +379,13 @@ class ClosestPointTree:
                              surface_normals=self.normals_at)
 
     def _closest(self, P: np.ndarray):
-        """The tree's answer for points ``P`` (k, 3): squared distances (k,),
-        triangles (k,) int64 and closest points (k, 3), in the order of ``P``
-        (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many)."""
+        """Squared distances (k,), triangles (k,) int64 and closest points (k, 3)
+        of points ``P`` (k, 3), in the order of ``P``: the triangle the tree names
+        (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many), the
+        point measured on it in float64 and walked to the nearest triangle around."""
         order = spatial_order(P) if len(P) >= _ORDERED_FROM else None
         asked = P if order is None else np.ascontiguousarray(P[order])
-        if self._search.engine == "fcpw":    # it names the triangle: measure here
-            tri = self._search.nearest_triangles(asked)
-        else:
-            tri = self._search.closest(asked)[1]
+        tri = self._search.nearest_triangles(asked)
         closest, sq_dist, bary = closest_on_triangles(asked,
                                                       self.vertices[self.triangles[tri]])
         self._fans.walk_to_nearest(asked, sq_dist, tri, closest, bary)

@@ -100,12 +100,10 @@ class LibiglSearch:
         self._tree = igl.AABB()
         self._tree.init(V, T)
 
-    def closest(self, P: np.ndarray):
-        """Squared distances (k,), triangles (k,) int64 and closest points (k, 3)
-        of points ``P`` (k, 3) float64."""
-        sq, tri, points = self._tree.squared_distance(self._V, self._T, P)
-        return (np.array(sq, dtype=np.float64), np.array(tri, dtype=np.int64),
-                np.array(points))
+    def nearest_triangles(self, P: np.ndarray) -> np.ndarray:
+        """(k,) int64: the triangle nearest each point of ``P`` (k, 3) float64."""
+        return np.array(self._tree.squared_distance(self._V, self._T, P)[1],
+                        dtype=np.int64)
 
     def first_hits(self, O: np.ndarray, D: np.ndarray, bound: float):
         """Triangle (k,) int64, -1 for a miss, and float32-accurate ``t`` (k,) of
