@@ -147,3 +147,21 @@ def test_the_engine_is_chosen_by_the_environment_and_falls_back(monkeypatch):
         assert geo.ClosestPointTree(V, T).engine == "fcpw"
         # a mesh float32 cannot hold is searched by libigl
         assert geo.ClosestPointTree(V * 1e31, T).engine == "libigl"
+
+
+@pytest.mark.parametrize("mesh", [lambda: grid(12, 9), lambda: icosphere(2),
+                                  lambda: soup(120, seed=7)])
+def test_border_and_neighbours_without_the_whole_adjacency(mesh):
+    from facewrap.geometry.adjacency import triangle_adjacency
+    V, T = mesh()
+    if len(T) > 40:                       # holes: a border inside too
+        T = np.delete(T, [5, 17, 18, 30], axis=0)
+    tree = geo.ClosestPointTree(V, T)
+    TT = triangle_adjacency(T)
+    a, b = T, T[:, [1, 2, 0]]
+    border = (TT < 0) & (a != b)
+    on = np.zeros(len(V), dtype=bool)
+    on[a[border]] = on[b[border]] = True
+    np.testing.assert_array_equal(tree.boundary_triangles, on[T].any(axis=1))
+    some = np.arange(0, len(T), 3)
+    np.testing.assert_array_equal(tree.neighbours_of(some), TT[some])

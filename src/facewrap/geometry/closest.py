@@ -29,7 +29,7 @@ import igl
 import numpy as np
 
 from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs, triangle_adjacency
+from facewrap.geometry.adjacency import EdgeRuns, edge_runs, run_sizes, triangle_adjacency
 from facewrap.geometry.arrays import cross_rows, normalize_rows, spatial_order
 from facewrap.geometry.normals import trusted_normals_and_measures
 from facewrap.geometry.search_trees import VertexFans, closest_on_triangles, search_tree
@@ -330,15 +330,23 @@ class ClosestPointTree:
     @cached_property
     def boundary_triangles(self) -> np.ndarray:
         """(t,) bool: triangles with a vertex on the mesh boundary (holes, borders)."""
-        # border edges are the ones without a neighbour (the adjacency is needed
-        # for projection anyway, so this costs no second sort of the edges)
-        T = self.triangles
-        a, b = T, T[:, [1, 2, 0]]
-        border = (self.triangle_neighbours < 0) & (a != b)
+        # border edges are those of one half-edge: runs of one in the edge runs the
+        # scan's checks sorted already (no triangle adjacency: 0.18 s on a
+        # million-triangle scan)
+        order, starts = self.edge_runs
+        h = order[run_sizes(starts) == 1]
+        corners = self.triangles.reshape(-1)
+        a, b = corners[h], corners[h + 1 - 3 * (h % 3 == 2)]    # half-edge h: corner j to j + 1
         on = np.zeros(len(self.vertices), dtype=bool)
-        on[a[border]] = True
-        on[b[border]] = True
-        return _readonly(on[T].any(axis=1))
+        on[a[a != b]] = True
+        on[b[a != b]] = True
+        return _readonly(on[self.triangles].any(axis=1))
+
+    def neighbours_of(self, triangles) -> np.ndarray:
+        """(k, 3) int64: :attr:`triangle_neighbours` rows of some ``triangles``
+        (k,), found from the vertex fans (no adjacency of the whole mesh).  On a
+        non-manifold edge it names one of the others, maybe not the same one."""
+        return self._fans.across(np.asarray(triangles, dtype=np.int64))
 
     def __repr__(self) -> str:
         return (f"<ClosestPointTree {len(self.vertices)} vertices, "

@@ -258,6 +258,36 @@ class VertexFans:
         # below this, two squared distances are one (the mesh's squared diagonal)
         self._tie_floor = _TIE * float(np.sum(np.ptp(V, axis=0) ** 2)) if len(V) else 0.0
 
+    def _fan_runs(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(counts, triangles)``: the fans of vertices ``v`` (k,), one run each."""
+        offsets = self.offsets
+        counts = offsets[v + 1] - offsets[v]
+        at = np.repeat(offsets[v] - np.r_[0, np.cumsum(counts)[:-1]], counts) \
+            + np.arange(counts.sum())
+        return counts, self.triangles[at].astype(np.int64)
+
+    def across(self, tri: np.ndarray) -> np.ndarray:
+        """(k, 3) int64: the triangle across edge ``j`` (corners ``j``, ``j + 1``)
+        of each of ``tri`` (k,), -1 on a border or a self-loop edge; on a
+        non-manifold edge one of the others.
+
+        Examples
+        --------
+        >>> V = np.zeros((4, 3))
+        >>> VertexFans(V, np.array([[0, 1, 2], [0, 2, 3]])).across(np.array([0, 1])).tolist()
+        [[-1, -1, 1], [0, -1, -1]]
+        """
+        T = self._T
+        ends = T[tri]
+        start, end = ends.reshape(-1), ends[:, [1, 2, 0]].reshape(-1)
+        counts, other = self._fan_runs(start)
+        slot = np.repeat(np.arange(len(start)), counts)
+        holds = (T[other] == end[slot][:, None]).any(axis=1) \
+            & (other != np.repeat(tri, 3)[slot]) & (start != end)[slot]
+        out = np.full(len(start), -1, dtype=np.int64)
+        out[slot[holds]] = other[holds]
+        return out.reshape(-1, 3)
+
     def walk_to_nearest(self, P, sq_dist, tri, closest, bary) -> None:
         """Answers moved (in place) to the nearest triangle around where they land,
         and ties broken the same whatever the tree.
@@ -328,12 +358,8 @@ class VertexFans:
         first = np.argmax(on, axis=1)                      # a corner the point is on
         last = 2 - np.argmax(on[:, ::-1], axis=1)          # the other end of its edge
         v, w = T[tri, first], T[tri, last]
-        offsets, fans = self.offsets, self.triangles
-        counts = offsets[v + 1] - offsets[v]
-        # the fans' triangles, one run per point
-        at = np.repeat(offsets[v] - np.r_[0, np.cumsum(counts)[:-1]], counts) \
-            + np.arange(counts.sum())
-        asker, other = np.repeat(rows, counts), fans[at].astype(np.int64)
+        counts, other = self._fan_runs(v)
+        asker = np.repeat(rows, counts)
         # on an edge: only the fan's triangles that hold its other end too
         keep = (T[other] == np.repeat(w, counts)[:, None]).any(axis=1)
         return asker[keep], other[keep]

@@ -177,7 +177,7 @@ def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distan
     if "prism" in methods and todo.any():
         idx = np.flatnonzero(todo)
         cand = np.concatenate([cp.triangles[idx, None],
-                               tree.triangle_neighbours[cp.triangles[idx]]], axis=1)
+                               tree.neighbours_of(cp.triangles[idx])], axis=1)
         found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
         hit = idx[found]
         method[hit], tri[hit], bary[hit] = METHOD_PRISM, t_[found], b_[found]
