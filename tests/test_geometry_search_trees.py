@@ -104,12 +104,15 @@ def test_fcpw_keeps_float64_answers_far_from_the_origin():
     P = near_points(V, 500, spread=0.5, seed=4)
     ref = geo.ClosestPointTree(V, T).query(P)
     far = geo.ClosestPointTree(V + offset, T)
+    far._search = search_tree(far.vertices, far.triangles, "fcpw")
     assert far.engine == "fcpw"
     cp = far.query(P + offset)
     np.testing.assert_allclose(cp.distances, ref.distances, atol=1e-8)
     # and points very far from the mesh still get their closest point
     P_far = np.array([[1e35, 0, 0], [0, -1e33, 1e33]])
-    cp = geo.ClosestPointTree(V, T).query(P_far)
+    tree = geo.ClosestPointTree(V, T)
+    tree._search = search_tree(tree.vertices, tree.triangles, "fcpw")
+    cp = tree.query(P_far)
     ref = np.sqrt(brute_force_sq_dist(V, T, P_far).min(axis=1))
     np.testing.assert_allclose(cp.distances, ref, rtol=1e-12)
 
@@ -140,13 +143,15 @@ def test_the_engine_is_chosen_by_the_environment_and_falls_back(monkeypatch):
                                          "libigl, got 'embree'"):
         geo.ClosestPointTree(V, T)
     monkeypatch.delenv("FACEWRAP_SEARCH_TREE")
-    monkeypatch.setattr(search_trees, "load_fcpw", lambda: None)      # no wheel here
+    # by size: libigl below FCPW_FROM triangles, FCPW from there on
     assert geo.ClosestPointTree(V, T).engine == "libigl"
-    monkeypatch.undo()
+    monkeypatch.setattr(search_trees, "FCPW_FROM", len(T))
     if search_trees.load_fcpw() is not None:
         assert geo.ClosestPointTree(V, T).engine == "fcpw"
         # a mesh float32 cannot hold is searched by libigl
         assert geo.ClosestPointTree(V * 1e31, T).engine == "libigl"
+    monkeypatch.setattr(search_trees, "load_fcpw", lambda: None)      # no wheel here
+    assert geo.ClosestPointTree(V, T).engine == "libigl"
 
 
 @pytest.mark.parametrize("mesh", [lambda: grid(12, 9), lambda: icosphere(2),

@@ -1,8 +1,8 @@
 """Closest points and ray hits on a triangle mesh, through one search tree.
 
 This module owns point-to-surface queries, the hot path of registration: a
-:class:`ClosestPointTree` builds a search tree once per mesh (FCPW's bounding volume
-hierarchy, or libigl's AABB tree where FCPW is missing:
+:class:`ClosestPointTree` builds a search tree once per mesh (libigl's AABB tree, or
+FCPW's bounding volume hierarchy for a large mesh:
 :mod:`~facewrap.geometry.search_trees`) and answers any number of
 :meth:`~ClosestPointTree.query` (closest points) and
 :meth:`~ClosestPointTree.ray_hits` (line intersections) calls;
@@ -288,17 +288,20 @@ class ClosestPointTree:
         tree.init(self.vertices, edges)
         return rows, edges, tree
 
-    def _nearer_flat(self, P, sq_dist, tri, closest) -> None:
+    def _nearer_flat(self, P, sq_dist, tri, closest) -> np.ndarray:
         """Answers moved (in place) to a segment-like triangle where one is nearer
-        than the tree's answer."""
+        than the tree's answer; (k,) bool: which moved."""
+        moved = np.zeros(len(P), dtype=bool)
         if self._flat_segments is None:
-            return
+            return moved
         rows, edges, tree = self._flat_segments
         d, k, c = tree.squared_distance(self.vertices, edges, P)
         better = np.flatnonzero(np.asarray(d) < sq_dist)
         sq_dist[better] = np.asarray(d)[better]
         tri[better] = rows[np.asarray(k)[better]]
         closest[better] = np.asarray(c)[better]
+        moved[better] = True
+        return moved
 
     def _onto_flat(self, P, sq_dist, closest, corners, flat) -> None:
         """Answers on segment-like triangles measured to their longest edge (in
@@ -375,33 +378,42 @@ class ClosestPointTree:
         # (both engines spread the tree walks over the cores themselves: libigl's
         # 0.62 s of CPU in 0.33 s for 200k points; splitting the rows over threads
         # measured slower)
-        sq_dist, tri, closest = self._closest(P)
-        self._nearer_flat(P, sq_dist, tri, closest)
-        ids = self.triangles[tri]
-        corners = self.vertices[ids]
+        sq_dist, tri, closest, bary = self._closest(P)
+        moved = self._nearer_flat(P, sq_dist, tri, closest)
         flat = self.flat_triangles[tri]
-        self._onto_flat(P, sq_dist, closest, corners, flat)
-        bary = _barycentric(closest, corners, flat)
+        again = np.flatnonzero(flat | moved)   # their coordinates are found again
+        if len(again):
+            corners = self.vertices[self.triangles[tri[again]]]
+            pts, d = closest[again], sq_dist[again]
+            self._onto_flat(P[again], d, pts, corners, flat[again])
+            closest[again], sq_dist[again] = pts, d
+            bary[again] = _barycentric(pts, corners, flat[again])
         return ClosestPoints(points=closest, triangles=tri, barycentric=bary,
                              distances=np.sqrt(np.maximum(sq_dist, 0.0)),
                              surface_normals=self.normals_at)
 
     def _closest(self, P: np.ndarray):
-        """Squared distances (k,), triangles (k,) int64 and closest points (k, 3)
-        of points ``P`` (k, 3), in the order of ``P``: the triangle the tree names
+        """Squared distances (k,), triangles (k,) int64, closest points (k, 3) and
+        their barycentric coordinates (k, 3) of points ``P`` (k, 3), in the order
+        of ``P``: the triangle the tree names
         (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many), the
         point measured on it in float64 and walked to the nearest triangle around."""
         order = spatial_order(P) if len(P) >= _ORDERED_FROM else None
         asked = P if order is None else np.ascontiguousarray(P[order])
-        tri = self._search.nearest_triangles(asked)
-        closest, sq_dist, bary = closest_on_triangles(asked,
-                                                      self.vertices[self.triangles[tri]])
+        if self._search.engine == "libigl":    # exact points: their coordinates here
+            sq_dist, tri, closest = self._search.closest(asked)
+            bary = _barycentric(closest, self.vertices[self.triangles[tri]],
+                                self.flat_triangles[tri])
+        else:                                  # float32: measured again here
+            tri = self._search.nearest_triangles(asked)
+            closest, sq_dist, bary = closest_on_triangles(
+                asked, self.vertices[self.triangles[tri]])
         self._fans.walk_to_nearest(asked, sq_dist, tri, closest, bary)
         if order is not None:                  # back to the order of P
             back = np.empty_like(order)
             back[order] = np.arange(len(order))
-            sq_dist, tri, closest = sq_dist[back], tri[back], closest[back]
-        return sq_dist, tri, closest
+            sq_dist, tri, closest, bary = sq_dist[back], tri[back], closest[back], bary[back]
+        return sq_dist, tri, closest, bary
 
     @cached_property
     def _fans(self) -> VertexFans:
