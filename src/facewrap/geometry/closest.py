@@ -203,8 +203,8 @@ class ClosestPointTree:
 
     Notes
     -----
-    Building costs about as much as 100k queries (most of a second for 500k
-    triangles), so build once per mesh shape and reuse.  The tree
+    Building costs about as much as 100k queries (with its normals, 0.5 s for a
+    951k-triangle scan), so build once per mesh shape and reuse.  The tree
     belongs to the vertex positions given: after the mesh moves, build a new one.
 
     Examples
