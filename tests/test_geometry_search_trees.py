@@ -62,12 +62,11 @@ def test_the_engines_agree_with_brute_force(mesh):
         cp = found[engine] = tree.query(P)
         assert tree.engine == engine
         np.testing.assert_allclose(cp.distances, ref, rtol=0, atol=1e-9, err_msg=engine)
-    # ties are broken alike: the same triangles (but for a float32 near tie between
-    # triangles far apart, which neither engine owes the other)
-    same = found["fcpw"].triangles == found["libigl"].triangles
+    # the same points (where several triangles are nearest, the engines may name
+    # different ones: one point on their shared edge or corner; but for a float32
+    # near tie between triangles far apart, which neither engine owes the other)
+    same = np.linalg.norm(found["fcpw"].points - found["libigl"].points, axis=1) < 1e-9
     assert same.mean() > 0.995, np.flatnonzero(~same)
-    np.testing.assert_allclose(found["fcpw"].points[same], found["libigl"].points[same],
-                               atol=1e-12)
 
 
 @needs_fcpw

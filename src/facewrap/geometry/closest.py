@@ -367,8 +367,8 @@ class ClosestPointTree:
         -------
         ClosestPoints
             Points, triangles, barycentric coordinates, normals and distances, one
-            row per query point (where several triangles are nearest, the one
-            facing the point most squarely, then the lowest index:
+            row per query point (where several triangles are nearest, libigl's
+            pick, or on FCPW's tree the one facing the point most squarely:
             :meth:`~facewrap.geometry.search_trees.VertexFans.walk_to_nearest`).
         """
         P = as_points(points, "points")
@@ -397,18 +397,19 @@ class ClosestPointTree:
         their barycentric coordinates (k, 3) of points ``P`` (k, 3), in the order
         of ``P``: the triangle the tree names
         (asked in :func:`~facewrap.geometry.arrays.spatial_order` when many), the
-        point measured on it in float64 and walked to the nearest triangle around."""
+        point measured on it in float64 (FCPW's: and walked to the nearest triangle
+        around)."""
         order = spatial_order(P) if len(P) >= _ORDERED_FROM else None
         asked = P if order is None else np.ascontiguousarray(P[order])
         if self._search.engine == "libigl":    # exact points: their coordinates here
             sq_dist, tri, closest = self._search.closest(asked)
             bary = _barycentric(closest, self.vertices[self.triangles[tri]],
                                 self.flat_triangles[tri])
-        else:                                  # float32: measured again here
+        else:           # float32: measured again here, and settled among neighbours
             tri = self._search.nearest_triangles(asked)
             closest, sq_dist, bary = closest_on_triangles(
                 asked, self.vertices[self.triangles[tri]])
-        self._fans.walk_to_nearest(asked, sq_dist, tri, closest, bary)
+            self._fans.walk_to_nearest(asked, sq_dist, tri, closest, bary)
         if order is not None:                  # back to the order of P
             back = np.empty_like(order)
             back[order] = np.arange(len(order))
