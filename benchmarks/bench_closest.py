@@ -181,12 +181,12 @@ def markdown(results: dict) -> str:
         f"### Closest points: {r['queries']} queries on a {r['triangles']}-triangle mesh "
         f"(best of {REPEATS})",
         "",
-        "`ClosestPointTree` adds vertex normals, barycentric coordinates, the point "
-        "measured again in float64 on the triangle the tree names, and the walk that "
-        "settles points on an edge or a corner on the same triangle whatever the "
-        "engine (its vertex fans are built by the first query, timed here; on this "
-        "noisy torus most points land on an edge or a corner, in a wrap about one in "
-        "nine); ratios are to raw libigl.",
+        "`ClosestPointTree` adds vertex normals and barycentric coordinates; on "
+        "FCPW's float32 tree also the point measured again in float64 on the "
+        "triangle it names, and the walk that settles points on an edge or a corner "
+        "on the nearest triangle around (its vertex fans are built by the first "
+        "query, timed here; on this noisy torus most points land on an edge or a "
+        "corner, in a wrap about one in nine); ratios are to raw libigl.",
         "",
         "| | build (s) | query (s) | total (s) | build ÷ raw | query ÷ raw | total ÷ raw |",
         "|---|---:|---:|---:|---:|---:|---:|",
