@@ -284,6 +284,12 @@ class VertexFans:
     offsets : (n + 1,) int64
     triangles : (3t,) int
         The triangles around vertex ``v`` are ``triangles[offsets[v]:offsets[v + 1]]``.
+
+    Examples
+    --------
+    >>> fans = VertexFans(np.zeros((4, 3)), np.array([[0, 1, 2], [0, 2, 3]]))
+    >>> fans.offsets.tolist(), fans.triangles.tolist()
+    ([0, 2, 3, 5, 6], [0, 1, 0, 0, 1, 1])
     """
 
     def __init__(self, V: np.ndarray, T: np.ndarray):
@@ -291,7 +297,8 @@ class VertexFans:
         corners = T.ravel()
         self.triangles = counting_sort_order(corners, len(V)) // 3
         self.offsets = np.r_[0, np.cumsum(np.bincount(corners, minlength=len(V)))]
-        # below this, two squared distances are one (the mesh's squared diagonal)
+        # squared distances nearer each other than this (a trillionth of the mesh's
+        # squared diagonal, beyond the relative _TIE) are one
         self._tie_floor = _TIE * float(np.sum(np.ptp(V, axis=0) ** 2)) if len(V) else 0.0
 
     def _fan_runs(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
