@@ -14,9 +14,10 @@ so callers can move the point with the mesh.  Barycentric coordinates are
 non-negative and summing to 1, and are never NaN, even for degenerate triangles.
 
 Both engines find ray hits in float32 (libigl's ``intersect_ray_first`` also leaves
-``uv`` uninitialised for rays that miss), and FCPW closest points too.  The
-trees are therefore asked only which triangle; points, ``t`` and barycentric
-coordinates are computed again here in float64.
+``uv`` uninitialised for rays that miss), and FCPW closest points too.  Of those
+the trees are asked only which triangle; points, ``t`` and barycentric
+coordinates are computed again here in float64 (libigl's closest points, exact in
+float64, are kept).
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ Which engine (:func:`search_tree`): FCPW from :data:`FCPW_FROM` triangles on,
 libigl below.  Per triangle, FCPW's build saves about 0.6 µs; per query point
 its answers cost about 0.25 µs more (the objects, the float64 measure): a wrap
 asks some 200k points and a rig's texture bake two million, so FCPW pays off on
-scans of a million triangles (whole wrap 4.40 -> 3.65 s) and not on the rig's
+scans of a million triangles (a whole wrap of 951k triangles: 4.36 -> 3.19 s) and not on the rig's
 200k-triangle scans (their bake 0.3-0.5 s slower).  ``FACEWRAP_SEARCH_TREE``
 (``fcpw`` or ``libigl``) forces one; libigl is used wherever FCPW has no wheel
 (Linux on ARM).
