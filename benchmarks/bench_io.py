@@ -213,7 +213,7 @@ def _wrap_case(folder: Path) -> dict | None:
 _WRAP = """
 import sys
 from facewrap.cli import main
-rc = main(sys.argv[1:])
+rc = main()   # the command line of this process: as the `facewrap` script runs
 peak = next(int(line.split()[1]) for line in open("/proc/self/status")
             if line.startswith("VmHWM:")) / 1024
 print(0.0, peak)

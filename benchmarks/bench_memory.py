@@ -26,7 +26,7 @@ LIMIT_GB = 4.0
 #: high-water mark of its address space after exec; ``ru_maxrss`` would also count
 #: the parent's pages copied at fork).
 _WRAPPER = ("import sys\nfrom facewrap.cli import main\ntry:\n"
-            "    rc = main(sys.argv[1:])\nexcept SystemExit as exc:\n    rc = exc.code\n"
+            "    rc = main()\nexcept SystemExit as exc:\n    rc = exc.code\n"
             "hwm = next(l for l in open('/proc/self/status') if l.startswith('VmHWM'))\n"
             "print('PEAK_KB', hwm.split()[1], file=sys.stderr)\nsys.exit(rc)\n")
 

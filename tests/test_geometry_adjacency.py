@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 import facewrap.geometry as geo
-from facewrap.geometry.adjacency import counting_sort_order, edge_runs
+from facewrap.geometry.edge_runs import counting_sort_order, edge_runs
 from facewrap.geometry.arrays import stable_sort_order
 from facewrap.mesh import Mesh
 
@@ -173,6 +173,35 @@ def test_edge_runs_counted_match_one_sort(seed):
     np.testing.assert_array_equal(runs.order, order)
     np.testing.assert_array_equal(runs.starts, starts)
     assert runs.order.dtype == np.int64
+
+
+def _check_run_edges(T, runs):
+    """Every run's ``ends`` are its half-edges' two vertices, smaller first, and
+    ``sizes``/``crowded`` count its half-edges, as read from the triangles."""
+    tail, head = T.reshape(-1), T[:, [1, 2, 0]].reshape(-1)
+    run = np.cumsum(runs.starts) - 1
+    lo, hi = np.minimum(tail, head)[runs.order], np.maximum(tail, head)[runs.order]
+    np.testing.assert_array_equal(runs.ends[run, 0], lo)
+    np.testing.assert_array_equal(runs.ends[run, 1], hi)
+    np.testing.assert_array_equal(runs.sizes(), np.bincount(run))
+    assert runs.crowded() == bool((np.bincount(run) > 2).any())
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_edge_runs_name_each_edge_and_count_it(seed):
+    rng = np.random.default_rng(100 + seed)
+    T = rng.integers(0, int(rng.integers(2, 30)), (int(rng.integers(1, 80)), 3))
+    _check_run_edges(T, edge_runs(T))
+
+
+def test_edge_runs_name_the_edges_of_sparse_vertex_ids_and_self_loops():
+    T = np.array([[0, 10**7, 5], [5, 10**7, 0], [3, 3, 10**7], [7, 7, 7]])
+    _check_run_edges(T, edge_runs(T))
+    T = np.array([[0, 1, 2], [2, 2, 1], [1, 0, 3]])     # the counting passes
+    _check_run_edges(T, edge_runs(T))
+    assert edge_runs(T).crowded()          # edge 1-2: triangle 0, and twice in 1
+    assert not edge_runs([[0, 1, 2], [1, 0, 3]]).crowded()
+    assert edge_runs([[0, 1, 2], [1, 0, 3], [0, 1, 4]]).crowded()
 
 
 def test_edge_runs_with_sparse_vertex_ids_sort_the_keys():

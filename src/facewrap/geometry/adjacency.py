@@ -12,26 +12,19 @@ degenerate triangles such as ``(0, 0, 1)``) are dropped.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.geometry.arrays import stable_sort_order, unique_integers
 from facewrap.geometry.checks import as_count, as_index_vector, as_triangles, as_triangles_or_edges
+from facewrap.geometry.edge_runs import EdgeRuns, edge_runs, half_edges
 
 __all__ = [
     "adjacency_matrix", "unique_edges", "edges", "edges_of_polygons", "vertex_adjacency",
-    "triangle_adjacency", "EdgeRuns", "edge_runs", "non_manifold_edge_count",
-    "boundary_edges", "boundary_vertices", "boundary_loops", "connected_components",
-    "counting_sort_order", "run_sizes", "dangling_fins",
+    "triangle_adjacency", "boundary_edges", "boundary_vertices", "boundary_loops",
+    "connected_components",
 ]
-
-
-def _half_edges(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Directed edges ``(T[i, j], T[i, (j + 1) % 3])``, flattened in row order."""
-    return T.reshape(-1), T[:, [1, 2, 0]].reshape(-1)
 
 
 def _unique_undirected(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -47,7 +40,7 @@ def _unique_undirected(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _edges(T: np.ndarray) -> np.ndarray:
-    return _unique_undirected(*_half_edges(T))
+    return _unique_undirected(*half_edges(T))
 
 
 def adjacency_matrix(E: np.ndarray, n: int) -> sp.csr_matrix:
@@ -93,7 +86,7 @@ def unique_edges(T_or_edges: np.ndarray, columns: int) -> np.ndarray:
 
 def _boundary_mask(T: np.ndarray) -> np.ndarray:
     """(3 t,) bool: half-edges whose undirected edge belongs to one triangle only."""
-    a, b = _half_edges(T)
+    a, b = half_edges(T)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     n = int(T.max()) + 1
     _, inverse, counts = unique_integers(lo * n + hi, return_inverse=True,
@@ -186,141 +179,6 @@ def vertex_adjacency(T_or_edges, n) -> sp.csr_matrix:
     return adjacency_matrix(unique_edges(arr, columns), n)
 
 
-class EdgeRuns(NamedTuple):
-    """The half-edges of triangles in the order of their undirected edges.
-
-    One stable sort of the edge keys that everything grouping triangles by edge
-    shares (:func:`triangle_adjacency`, :func:`non_manifold_edge_count`): on a
-    million-triangle scan the sort is the cost, so a scan's tree and its input
-    checks make it once (:attr:`facewrap.geometry.ClosestPointTree.edge_runs`).
-
-    Attributes
-    ----------
-    order : (3 t,) int64
-        Half-edge ids (``3 * triangle + j`` for edge ``j``, from corner ``j`` to
-        ``j + 1``) sorted by undirected edge; the half-edges of one edge are a run,
-        in triangle order.  A self-loop (an edge of a degenerate triangle from a
-        vertex to itself) is a run of its own.
-    starts : (3 t,) bool
-        True where a run begins, in that order.
-    """
-
-    order: np.ndarray
-    starts: np.ndarray
-
-
-def edge_runs(T) -> EdgeRuns:
-    """The runs of half-edges sharing an undirected edge (see :class:`EdgeRuns`).
-
-    Parameters
-    ----------
-    T : (t, 3) int64
-
-    Returns
-    -------
-    EdgeRuns
-
-    Examples
-    --------
-    >>> runs = edge_runs([[0, 1, 2], [0, 2, 3]])
-    >>> runs.order.tolist(), runs.starts.astype(int).tolist()
-    ([0, 2, 3, 5, 1, 4], [1, 1, 0, 1, 1, 1])
-    """
-    T = as_triangles(T)
-    if len(T) == 0:
-        return EdgeRuns(np.zeros(0, np.int64), np.zeros(0, bool))
-    n = int(T.max()) + 1
-    if n > _COUNTING_SPAN * T.size:
-        # vertex ids far beyond the edge count: a counting sort's buckets would
-        # outweigh the edges, so sort packed keys instead
-        return _edge_runs_by_sort(T, n)
-    return _edge_runs_by_counting(T, n)
-
-
-#: vertex ids up to this many times the half-edge count are counted, not sorted
-_COUNTING_SPAN = 8
-
-
-def _edge_runs_by_sort(T: np.ndarray, n: int) -> EdgeRuns:
-    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``: one stable sort
-    of packed ``min * n + max`` keys; self-loops get unique negative keys, so they
-    come first, the last one first."""
-    a, b = _half_edges(T)
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    key[a == b] = -1 - np.arange(np.count_nonzero(a == b))
-    order, sorted_key = stable_sort_order(key)
-    return EdgeRuns(order, np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-
-
-def _edge_runs_by_counting(T: np.ndarray, n: int) -> EdgeRuns:
-    """:func:`edge_runs` of ``T`` (t, 3) int64 with ids below ``n``, in the order
-    :func:`_edge_runs_by_sort` gives, by two stable counting passes (a radix sort:
-    by the larger end of each edge, then by the smaller).
-
-    The temporaries are int32 when the ids allow: on a million-triangle scan they
-    are what sets the peak memory of its checks, and the passes read half the bytes.
-    """
-    k = T.size
-    dtype = np.int32 if max(n + 1, k) < 2 ** 31 else np.int64
-    tail = T.reshape(-1).astype(dtype)
-    head = np.empty_like(tail)
-    head.reshape(-1, 3)[:, :2] = tail.reshape(-1, 3)[:, 1:]
-    head.reshape(-1, 3)[:, 2] = tail.reshape(-1, 3)[:, 0]
-    loop = tail == head
-    loops = int(np.count_nonzero(loop))
-    lo = np.minimum(tail, head)
-    hi = np.maximum(tail, head, out=head)
-    del tail
-    if loops:   # self-loops: bucket 0 of both passes, so they keep their order
-        lo += 1
-        lo[loop] = 0
-        hi += 1
-        hi[loop] = 0
-    by_hi = counting_sort_order(hi, n + 1)
-    order = by_hi[counting_sort_order(lo[by_hi], n + 1)].astype(np.int64)
-    del by_hi
-    order[:loops] = order[:loops][::-1]
-    lo, hi = lo[order], hi[order]
-    starts = np.empty(k, dtype=bool)
-    np.not_equal(lo[1:], lo[:-1], out=starts[1:])
-    starts[1:] |= hi[1:] != hi[:-1]
-    starts[:loops + 1] = True   # each self-loop a run, and the first edge after them
-    return EdgeRuns(order, starts)
-
-
-def counting_sort_order(keys: np.ndarray, m: int) -> np.ndarray:
-    """``np.argsort(keys, kind="stable")`` of integers in ``[0, m)``, by counting.
-
-    scipy's COO-to-CSR conversion is a counting sort in C, O(k + m), stable within
-    a row: with the keys as rows and each entry's place as its column, the CSR
-    column indices are the stable order.  Two such passes order a million-triangle
-    scan's 2.85M half-edges in half the time of one ``np.sort`` of packed keys.
-
-    Parameters
-    ----------
-    keys : (k,) int array
-        Values in ``[0, m)`` (not checked).
-    m : int
-        One more than the largest possible key.
-
-    Returns
-    -------
-    (k,) int array
-        The stable sorting permutation, in scipy's index dtype (int32 while the
-        entries allow: half the memory on a million-triangle scan).
-
-    Examples
-    --------
-    >>> counting_sort_order(np.array([2, 0, 2, 1]), 3).tolist()
-    [1, 3, 0, 2]
-    """
-    k = len(keys)
-    if k == 0:
-        return np.zeros(0, np.int64)
-    place = np.arange(k, dtype=np.int32 if k < 2 ** 31 else np.int64)
-    return sp.csr_matrix((np.ones(k, np.int8), (keys, place)), shape=(m, k)).indices
-
-
 def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
     """Neighbouring triangle across each edge.
 
@@ -349,7 +207,8 @@ def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
     t = len(T)
     if t == 0:
         return np.zeros((0, 3), dtype=np.int64)
-    order, start = runs if runs is not None else edge_runs(T)
+    runs = edge_runs(T) if runs is None else runs
+    order, start = runs.order, runs.starts
     group_start = np.maximum.accumulate(np.where(start, np.arange(3 * t), 0))
     last = np.r_[start[1:], True]
     # next half-edge in the same group, cyclically
@@ -359,32 +218,6 @@ def triangle_adjacency(T, runs: EdgeRuns | None = None) -> np.ndarray:
     neighbour = partner // 3
     neighbour[partner == np.arange(3 * t)] = -1
     return neighbour.reshape(t, 3)
-
-
-def non_manifold_edge_count(runs: EdgeRuns, counted=None) -> int:
-    """Edges shared by more than two triangles.
-
-    Parameters
-    ----------
-    runs : EdgeRuns
-        :func:`edge_runs` of the triangles.
-    counted : (t,) bool, optional
-        The triangles that count (for example, not those with a repeated vertex).
-
-    Returns
-    -------
-    int
-
-    Examples
-    --------
-    >>> non_manifold_edge_count(edge_runs([[0, 1, 2], [0, 2, 1], [1, 0, 3]]))
-    1
-    """
-    if not len(runs.order):
-        return 0
-    weight = (np.ones(len(runs.order), np.int64) if counted is None
-              else np.asarray(counted, bool)[runs.order // 3].astype(np.int64))
-    return int((np.add.reduceat(weight, np.flatnonzero(runs.starts)) > 2).sum())
 
 
 def boundary_edges(T) -> np.ndarray:
@@ -439,7 +272,7 @@ def boundary_vertices(T, n) -> np.ndarray:
 
 
 def _boundary_edges(T: np.ndarray) -> np.ndarray:
-    a, b = _half_edges(T)
+    a, b = half_edges(T)
     mask = _boundary_mask(T)
     return np.stack([a[mask], b[mask]], axis=1)
 
@@ -562,39 +395,9 @@ def connected_components(T, n) -> np.ndarray:
     T = as_triangles(T, n)
     # the half edges as they come: repeats only add up in the matrix, and skipping
     # the unique-edge sort makes this ~10x faster (0.3 s -> 0.03 s on 200k triangles)
-    a, b = _half_edges(T)
+    a, b = half_edges(T)
     A = sp.csr_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(n, n))
     _, labels = csgraph.connected_components(A, directed=False)
     return labels.astype(np.int64)
 
 
-def run_sizes(starts) -> np.ndarray:
-    """(k,) for each half-edge in :func:`edge_runs` order (``starts`` (k,) bool), how
-    many half-edges its edge has: 1 on a border, 2 on a manifold edge, or more.
-
-    >>> run_sizes(edge_runs([[0, 1, 2], [0, 2, 3]]).starts).tolist()
-    [1, 2, 2, 1, 1, 1]
-    """
-    run = np.cumsum(starts) - 1
-    return np.bincount(run)[run]
-
-
-def dangling_fins(T, runs: EdgeRuns | None = None) -> np.ndarray:
-    """(t,) bool: triangles hanging on a non-manifold edge by that edge alone
-    (their two other edges on a border): fins a scanner or a bad merge left
-    standing off the surface.
-
-    >>> dangling_fins([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 3, 2]]).tolist()
-    [False, False, True, False]
-    """
-    T = np.asarray(T, dtype=np.int64)
-    order, starts = edge_runs(T) if runs is None else runs
-    if not len(order):
-        return np.zeros(len(T), bool)
-    size = run_sizes(starts)
-    shared = np.zeros(3 * len(T), bool)
-    shared[order[size > 2]] = True
-    border = np.zeros(3 * len(T), bool)
-    border[order[size == 1]] = True
-    shared, border = shared.reshape(-1, 3), border.reshape(-1, 3)
-    return (shared.sum(axis=1) == 1) & (border.sum(axis=1) == 2)

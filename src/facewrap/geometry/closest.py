@@ -30,7 +30,8 @@ import igl
 import numpy as np
 
 from facewrap.geometry.checks import as_mesh_arrays, as_points, as_vertices
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs, run_sizes, triangle_adjacency
+from facewrap.geometry.adjacency import triangle_adjacency
+from facewrap.geometry.edge_runs import EdgeRuns, edge_runs
 from facewrap.geometry.arrays import cross_rows, normalize_rows, spatial_order
 from facewrap.geometry.normals import trusted_normals_and_measures
 from facewrap.geometry.search_trees import VertexFans, closest_on_triangles, search_tree
@@ -322,7 +323,7 @@ class ClosestPointTree:
 
     @cached_property
     def edge_runs(self) -> EdgeRuns:
-        """The triangles' half-edges grouped by edge (:func:`~facewrap.geometry.adjacency.edge_runs`):
+        """The triangles' half-edges grouped by edge (:func:`~facewrap.geometry.edge_runs.edge_runs`):
         one sort for the neighbours here and the scan's non-manifold check."""
         return edge_runs(self.triangles)
 
@@ -337,13 +338,11 @@ class ClosestPointTree:
         # border edges are those of one half-edge: runs of one in the edge runs the
         # scan's checks sorted already (no triangle adjacency: 0.18 s on a
         # million-triangle scan)
-        order, starts = self.edge_runs
-        h = order[run_sizes(starts) == 1]
-        corners = self.triangles.reshape(-1)
-        a, b = corners[h], corners[h + 1 - 3 * (h % 3 == 2)]    # half-edge h: corner j to j + 1
+        runs = self.edge_runs
+        border = runs.ends[runs.sizes() == 1]
+        border = border[border[:, 0] != border[:, 1]]
         on = np.zeros(len(self.vertices), dtype=bool)
-        on[a[a != b]] = True
-        on[b[a != b]] = True
+        on[border.ravel()] = True
         return _readonly(on[self.triangles].any(axis=1))
 
     def neighbours_of(self, triangles) -> np.ndarray:

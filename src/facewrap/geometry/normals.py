@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from facewrap.geometry.adjacency import EdgeRuns, edge_runs, run_sizes
+from facewrap.geometry.edge_runs import EdgeRuns, edge_runs
 from facewrap.geometry.arrays import (column_norms, cross_columns, edge_vectors, normalize_rows,
                                       safe_inverse)
 from facewrap.geometry.checks import as_mesh_arrays
@@ -229,11 +229,12 @@ def _manifold_pairs(T: np.ndarray, runs: EdgeRuns | None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The two triangles (p,), (p,) of each manifold edge (two half-edges, two
     triangles), and (p,) bool whether they run along it the same way."""
-    order, starts = edge_runs(T) if runs is None else runs
+    runs = edge_runs(T) if runs is None else runs
+    order, starts = runs.order, runs.starts
     if not len(order):
         empty = np.zeros(0, np.int64)
         return empty, empty, np.zeros(0, bool)
-    first = np.flatnonzero(starts & (run_sizes(starts) == 2))
+    first = np.flatnonzero(starts)[runs.sizes() == 2]
     h1, h2 = order[first], order[first + 1]
     f1, f2 = h1 // 3, h2 // 3
     tail = T.reshape(-1)                               # half-edge h starts at tail[h]
@@ -268,7 +269,7 @@ def coherent_orientation(T, runs: EdgeRuns | None = None
     ----------
     T : (t, 3) int64
     runs : EdgeRuns, optional
-        :func:`~facewrap.geometry.adjacency.edge_runs` of ``T``, when the caller
+        :func:`~facewrap.geometry.edge_runs.edge_runs` of ``T``, when the caller
         has them.
 
     Returns
@@ -351,7 +352,7 @@ def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = 
     limit : float
         The ratio above which a vertex is a spike.
     runs : EdgeRuns, optional
-        :func:`~facewrap.geometry.adjacency.edge_runs` of ``T``, when the caller
+        :func:`~facewrap.geometry.edge_runs.edge_runs` of ``T``, when the caller
         has them (the edges and borders come from them, no sort).
     normals : (n, 3) float64, optional
         The angle-weighted :func:`vertex_normals` of ``V``, ``T``, when the caller
@@ -376,23 +377,15 @@ def spike_vertices(V, T, limit: float = SPIKE_LIMIT, *, runs: EdgeRuns | None = 
     """
     V, T = as_mesh_arrays(V, T)
     n = len(V)
-    order, starts = edge_runs(T) if runs is None else runs
-    if not len(order):
+    runs = edge_runs(T) if runs is None else runs
+    if not len(runs.order):
         return np.zeros(n, bool)
     # the normals first: their pass over the triangles is the peak memory of the
     # scan's checks, lower while none of the ring sums below are held
     N = trusted_vertex_normals(V, T) if normals is None else np.asarray(normals, np.float64)
-    # one half-edge of each undirected edge; runs of one are border edges
-    first = np.flatnonzero(starts)
-    single = np.diff(np.r_[first, len(order)]) == 1
-    h = order[first]
-    # half-edge h = 3 f + j runs from corner j of triangle f to corner j + 1 (mod 3):
-    # one gather each, no reordered copy of T
-    head = h + 1
-    head[h % 3 == 2] -= 3
-    corners = T.reshape(-1)
-    a, b = corners[h], corners[head]
-    del head
+    # each undirected edge once, from the runs; runs of one are border edges
+    single = runs.sizes() == 1
+    a, b = runs.ends[:, 0].astype(np.int64), runs.ends[:, 1].astype(np.int64)
     edge = a != b
     a, b, single = a[edge], b[edge], single[edge]
     # sums over each vertex's neighbours by bincount: no sparse matrix to sort

@@ -39,7 +39,7 @@ import os
 import igl
 import numpy as np
 
-from facewrap.geometry.adjacency import counting_sort_order
+from facewrap.geometry.edge_runs import counting_sort_order
 from facewrap.geometry.arrays import cross_rows, normalize_rows
 
 __all__ = ["FcpwSearch", "LibiglSearch", "search_tree", "closest_on_triangles",

@@ -15,7 +15,7 @@ the wrong thing silently (issue 16):
 * :func:`duplicated_landmarks` — two landmarks at the same point.
 * :func:`unique_faces` — faces listed twice (same three vertices) are dropped;
   vertices at one position (a triangle soup) merged; fins on non-manifold edges
-  (:func:`~facewrap.geometry.adjacency.dangling_fins`) and spikes left out.
+  (:func:`~facewrap.geometry.edge_runs.dangling_fins`) and spikes left out.
 * :func:`opposed_normal_fraction` — the scan's faces turned away from the aligned
   template's (every face flipped, or pieces wound against each other): each
   piece is wound one way and turned to face the template for the fit.
@@ -33,7 +33,7 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face_normals,
                                vertex_normals)
-from facewrap.geometry.adjacency import dangling_fins, edge_runs
+from facewrap.geometry.edge_runs import dangling_fins, edge_runs
 from facewrap.geometry.duplicates import unique_faces, welded
 from facewrap.geometry.normals import (SPIKE_LIMIT, coherent_orientation, disagreeing_edges,
                                        spike_vertices)
@@ -477,7 +477,7 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     """The scan as the fit should see it, with its tree and a warning per change.
 
     Vertices at one position merged (a soup is a surface again); duplicated
-    faces dropped; fins (:func:`~facewrap.geometry.adjacency.dangling_fins`) and
+    faces dropped; fins (:func:`~facewrap.geometry.edge_runs.dangling_fins`) and
     the triangles of spikes (:func:`~facewrap.geometry.normals.spike_vertices`)
     left out; each piece wound
     one way (:func:`~facewrap.geometry.normals.coherent_orientation`), facing the
