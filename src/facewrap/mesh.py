@@ -24,6 +24,8 @@ from typing import Sequence
 
 import numpy as np
 
+from facewrap.geometry.arrays import column_bounds
+
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
 
 
@@ -322,7 +324,7 @@ class Mesh:
     # -- derived geometry -------------------------------------------------------------
     def bounding_box(self) -> np.ndarray:
         """(2, 3) float64: min and max corner."""
-        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+        return column_bounds(self.vertices)
 
     def scale(self) -> float:
         """Length of the bounding-box diagonal (a size for tolerances)."""

@@ -94,10 +94,14 @@ def head_size(points) -> float:
     deciding the size; NaN rows are ignored; 0.0 for no finite point.
     """
     P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    P = P[np.isfinite(P).all(axis=1)]
+    finite = np.isfinite(P)
+    if not finite.all():
+        P = P[finite.all(axis=1)]
     if len(P) == 0:
         return 0.0
-    return float(np.sort(np.ptp(P, axis=0))[1])
+    # column by column: numpy reduces axis 0 of a narrow array a row at a time,
+    # 25 times slower on a million-vertex scan
+    return float(np.sort([c.max() - c.min() for c in P.T])[1])
 
 
 def infer_units(points) -> str:

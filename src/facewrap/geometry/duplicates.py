@@ -119,15 +119,21 @@ def unique_faces(triangles) -> np.ndarray:
     >>> unique_faces([[0, 1, 2], [1, 2, 3], [2, 1, 0], [0, 1, 2]]).tolist()
     [True, True, False, False]
     """
-    T = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
+    T = np.asarray(triangles, dtype=np.int64)
     keep = np.zeros(len(T), dtype=bool)
     if not len(T):
         return keep
-    if T.max() < 2 ** 21:
+    # each row's ids in order, by columns (np.sort(axis=1) of a million rows of
+    # three: 20 ms against 8)
+    a, b, c = T.T
+    lo = np.minimum(np.minimum(a, b), c)
+    hi = np.maximum(np.maximum(a, b), c)
+    mid = a + b + c - lo - hi
+    if hi.max() < 2 ** 21 and lo.min() >= 0:
         # one int64 key per sorted row: a 1-D unique, several times faster than
         # np.unique(axis=0) on a million triangles
-        key = (T[:, 0] << 42) | (T[:, 1] << 21) | T[:, 2]
+        key = (lo << 42) | (mid << 21) | hi
         keep[unique_integers(key, return_index=True)[1]] = True
     else:
-        keep[np.unique(T, axis=0, return_index=True)[1]] = True
+        keep[np.unique(np.stack([lo, mid, hi], axis=1), axis=0, return_index=True)[1]] = True
     return keep

@@ -40,7 +40,7 @@ import igl
 import numpy as np
 
 from facewrap.geometry.edge_runs import counting_sort_order
-from facewrap.geometry.arrays import cross_rows, normalize_rows
+from facewrap.geometry.arrays import column_bounds, cross_rows, normalize_rows
 
 __all__ = ["FcpwSearch", "LibiglSearch", "search_tree", "closest_on_triangles",
            "VertexFans", "load_fcpw", "ENGINES", "FCPW_FROM"]
@@ -97,7 +97,7 @@ def search_tree(V: np.ndarray, T: np.ndarray, engine: str | None = None):
         raise ValueError(f"FACEWRAP_SEARCH_TREE must be one of {', '.join(ENGINES)}, "
                          f"got {engine!r}")
     if engine == "fcpw" and load_fcpw() is not None and len(V) \
-            and np.ptp(V, axis=0).max() < _FLOAT32_SAFE:
+            and np.ptp(column_bounds(V), axis=0).max() < _FLOAT32_SAFE:
         return FcpwSearch(V, T)
     return LibiglSearch(V, T)
 
@@ -143,7 +143,8 @@ class FcpwSearch:
     def __init__(self, V, T):
         fcpw = load_fcpw()
         self._V, self._T = V, T
-        self.centre = (V.min(axis=0) + V.max(axis=0)) / 2
+        lo, hi = column_bounds(V)
+        self.centre = (lo + hi) / 2
         self._interactions = fcpw.interaction_3D_list
         scene = fcpw.scene_3D()
         scene.set_object_count(1)
@@ -299,7 +300,8 @@ class VertexFans:
         self.offsets = np.r_[0, np.cumsum(np.bincount(corners, minlength=len(V)))]
         # squared distances nearer each other than this (a trillionth of the mesh's
         # squared diagonal, beyond the relative _TIE) are one
-        self._tie_floor = _TIE * float(np.sum(np.ptp(V, axis=0) ** 2)) if len(V) else 0.0
+        self._tie_floor = (_TIE * float(np.sum(np.ptp(column_bounds(V), axis=0) ** 2))
+                           if len(V) else 0.0)
 
     def _fan_runs(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(counts, triangles)``: the fans of vertices ``v`` (k,), one run each."""

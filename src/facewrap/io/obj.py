@@ -228,10 +228,10 @@ def _bulk_floats(rows: _Rows, width: int, what: str, path, flat=None) -> np.ndar
                 raise InputError(f"{what} line needs {width} numbers, found {len(vals)}",
                                  path, rows.line(k))
             out[k] = vals[:width]
-    bad = ~np.isfinite(out).all(axis=1)
-    if bad.any():
+    finite = np.isfinite(out)
+    if not finite.all():    # (a flat test first: the per-row one costs 7 ms a million)
         raise InputError(f"{what} has a NaN or infinite value", path,
-                         rows.line(np.argmax(bad)))
+                         rows.line(np.argmax(~finite.all(axis=1))))
     return out
 
 
