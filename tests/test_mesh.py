@@ -70,3 +70,17 @@ def test_mesh_rejects_inconsistent_arrays(kwargs, msg):
     F = kwargs.pop("faces")
     with pytest.raises(ValueError, match=msg):
         Mesh(V, F, **kwargs)
+
+
+def test_a_mesh_copies_what_it_is_given_unless_handed_over():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]])
+    F = np.array([[0, 1, 2]])
+    kept = Mesh(V, F)
+    V[0, 0] = 5.0                       # the caller's array changes; the mesh does not
+    assert kept.vertices[0, 0] == 0.0 and not kept.vertices.flags.writeable
+    handed = Mesh(V, (np.array([0, 3]), F.ravel()), uvs=V[:, :2],
+                  face_uvs=(np.array([0, 3]), F.ravel()), copy=False)
+    assert np.shares_memory(handed.vertices, V)          # taken as it is, read-only now
+    assert not V.flags.writeable and not handed.face_uvs.flags.writeable
+    with pytest.raises(ValueError):
+        V[0, 0] = 1.0

@@ -7,9 +7,10 @@ the file it came from.  Geometry code works on a derived triangulation
 (:attr:`Mesh.triangles`) with a map back to the polygons
 (:attr:`Mesh.triangle_faces`).
 
-Meshes are immutable: every array is stored as a read-only copy, and operations that
-change geometry return a new mesh (:meth:`Mesh.with_vertices`) that shares topology,
-UVs and materials with the old one.  That is how a fitted template keeps the
+Meshes are immutable: every array is stored as a read-only copy (a reader hands over
+the arrays it made instead, ``copy=False``), and operations that change geometry
+return a new mesh (:meth:`Mesh.with_vertices`) that shares topology, UVs and
+materials with the old one.  That is how a fitted template keeps the
 template's vertex count, order, faces and UVs exactly.
 
 Polygons are stored flat, as in CSR sparse matrices: ``face_indices`` lists the
@@ -29,10 +30,10 @@ from facewrap.geometry.arrays import column_bounds
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
 
 
-def _readonly(a, dtype):
+def _readonly(a, dtype, copy: bool = True):
     if a is None:
         return None
-    arr = np.array(a, dtype=dtype, copy=True)
+    arr = np.array(a, dtype=dtype, copy=True) if copy else np.asarray(a, dtype=dtype)
     arr.setflags(write=False)
     return arr
 
@@ -149,6 +150,11 @@ class Mesh:
         Colours in [0, 1].
     texture : str, optional
         Path of a texture image, when the file names one.
+    copy : bool
+        Copy the arrays given (the default), so that nothing the caller still holds
+        can change the mesh.  False takes them as they are, made read-only: for a
+        reader that made them and keeps no other reference (a million-triangle
+        OBJ's arrays cost 0.1 s to copy).
 
     Examples
     --------
@@ -163,14 +169,14 @@ class Mesh:
                  face_normals=None, face_materials=None, materials: Sequence[str] = (),
                  face_groups=None, groups: Sequence[str] = (),
                  mtllib: Sequence[str] = (), vertex_colors=None,
-                 texture: str | None = None):
+                 texture: str | None = None, copy: bool = True):
         vertices = np.asarray(vertices, dtype=np.float64)
         if vertices.ndim != 2 or vertices.shape[1] != 3:
             raise ValueError(f"vertices must have shape (n, 3), got {vertices.shape}")
-        self.vertices = _readonly(vertices, np.float64)
+        self.vertices = _readonly(vertices, np.float64, copy)
         offsets, indices = self._flat(faces, "faces")
-        self.face_offsets = _readonly(offsets, np.int64)
-        self.face_indices = _readonly(indices, np.int64)
+        self.face_offsets = _readonly(offsets, np.int64, copy)
+        self.face_indices = _readonly(indices, np.int64, copy)
         n, m = len(vertices), len(offsets) - 1
         if len(indices) and (indices.min() < 0 or indices.max() >= n):
             raise ValueError(f"face indices must lie in [0, {n}), got range "
@@ -178,7 +184,7 @@ class Mesh:
         if np.any(np.diff(offsets) < 3):
             raise ValueError("every face needs at least 3 corners")
 
-        self.uvs = _readonly(uvs, np.float64)
+        self.uvs = _readonly(uvs, np.float64, copy)
         if self.uvs is not None:
             if self.uvs.ndim != 2 or self.uvs.shape[1] != 2:
                 raise ValueError(f"uvs must have shape (u, 2), got {self.uvs.shape}")
@@ -186,12 +192,13 @@ class Mesh:
                 if len(self.uvs) != n:
                     raise ValueError("face_uvs is required unless there is one uv per vertex")
                 face_uvs = indices
-        self.face_uvs = self._corner_indices(face_uvs, "face_uvs", self.uvs)
+        self.face_uvs = self._corner_indices(face_uvs, "face_uvs", self.uvs, copy)
 
-        self.normals = _readonly(normals, np.float64)
+        self.normals = _readonly(normals, np.float64, copy)
         if self.normals is not None and (self.normals.ndim != 2 or self.normals.shape[1] != 3):
             raise ValueError(f"normals must have shape (q, 3), got {self.normals.shape}")
-        self.face_normals = self._corner_indices(face_normals, "face_normals", self.normals)
+        self.face_normals = self._corner_indices(face_normals, "face_normals", self.normals,
+                                                 copy)
 
         self.materials = tuple(materials)
         self.face_materials = self._per_face(face_materials, m, len(self.materials),
@@ -199,7 +206,7 @@ class Mesh:
         self.groups = tuple(groups)
         self.face_groups = self._per_face(face_groups, m, len(self.groups), "face_groups")
         self.mtllib = tuple(mtllib)
-        self.vertex_colors = _readonly(vertex_colors, np.float64)
+        self.vertex_colors = _readonly(vertex_colors, np.float64, copy)
         if self.vertex_colors is not None and (
                 self.vertex_colors.ndim != 2 or len(self.vertex_colors) != n
                 or self.vertex_colors.shape[1] not in (3, 4)):
@@ -219,7 +226,7 @@ class Mesh:
         return polygons_from_list(faces if not hasattr(faces, "__array__")
                                   else np.asarray(faces))
 
-    def _corner_indices(self, corner, name, table):
+    def _corner_indices(self, corner, name, table, copy: bool = True):
         if corner is None:
             return None
         if table is None:
@@ -239,7 +246,7 @@ class Mesh:
             raise ValueError(f"{name} needs one index per face corner")
         if len(idx) and (idx.min() < 0 or idx.max() >= len(table)):
             raise ValueError(f"{name} index out of range [0, {len(table)})")
-        return _readonly(idx, np.int64)
+        return _readonly(idx, np.int64, copy)
 
     @staticmethod
     def _per_face(values, m, count, name):

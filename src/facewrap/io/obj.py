@@ -372,7 +372,7 @@ def read_obj(path) -> Mesh:
                 face_normals=(offsets, face_normals) if face_normals is not None else None,
                 face_materials=face_materials, materials=materials,
                 face_groups=face_groups, groups=groups, mtllib=mtllib,
-                vertex_colors=colors)
+                vertex_colors=colors, copy=False)   # made here, held by no one else
 
 
 class _Corners:
