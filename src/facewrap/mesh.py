@@ -25,8 +25,6 @@ from typing import Sequence
 
 import numpy as np
 
-from facewrap.geometry.arrays import column_bounds
-
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
 
 
@@ -331,6 +329,8 @@ class Mesh:
     # -- derived geometry -------------------------------------------------------------
     def bounding_box(self) -> np.ndarray:
         """(2, 3) float64: min and max corner."""
+        # (imported here: a command's help reads meshes' docs, not the geometry)
+        from facewrap.geometry.arrays import column_bounds
         return column_bounds(self.vertices)
 
     def scale(self) -> float:

@@ -93,10 +93,12 @@ def build_parser(command: str | None = None, *, every: bool = True
 
 
 #: glibc malloc options (mallopt(3), and the environment variables a child process
-#: reads at start): blocks up to 256 MiB come from the heap, and up to 1 GiB of
-#: freed memory stays there for the next array (see :func:`_memory_for_a_command`)
-_MALLOC_OPTIONS = {"MALLOC_MMAP_THRESHOLD_": (-3, 256 << 20),
-                   "MALLOC_TRIM_THRESHOLD_": (-1, 1 << 30)}
+#: reads at start), each with the values to try in turn: blocks up to 256 MiB come
+#: from the heap (glibc's documented ceiling is 32 MiB; 2.36 takes more, and 256
+#: saved another 40k page faults), and up to 1 GiB of freed memory stays there for
+#: the next array (see :func:`_memory_for_a_command`)
+_MALLOC_OPTIONS = {"MALLOC_MMAP_THRESHOLD_": (-3, (256 << 20, 32 << 20)),
+                   "MALLOC_TRIM_THRESHOLD_": (-1, (1 << 30,))}
 
 
 def _memory_for_a_command() -> None:
@@ -116,10 +118,12 @@ def _memory_for_a_command() -> None:
     * glibc gives blocks over 128 KiB-32 MiB their own mappings, returned to the
       system when freed, so the next array faults its pages in again: with the
       options of ``_MALLOC_OPTIONS`` page faults 285k -> 153k, kernel time
-      0.6 -> 0.4 s, wall ratio 1.10, the same peak memory (532 MiB).
+      0.6 -> 0.4 s, wall ratio 1.10, peak memory 538 against 532 MiB (the
+      freed blocks kept; ``bench_memory``'s 1M-triangle wrap 0.60 -> 0.63 GB).
 
-    Children (a batch's workers) inherit both through the environment.  The
-    59k-triangle wrap does not change.
+    Both together against neither: the 951k-triangle wrap 3.45 against 4.17 s,
+    the 59k-triangle one 1.46 against 1.71 s (medians of 10 pairs).  Children
+    (a batch's workers) inherit both through the environment.
     """
     if "numpy" not in sys.modules:
         os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
@@ -133,9 +137,10 @@ def _memory_for_a_command() -> None:
         return
     import ctypes
     libc = ctypes.CDLL(None)
-    for name, (option, value) in _MALLOC_OPTIONS.items():
-        if libc.mallopt(option, value) == 1:
-            os.environ[name] = str(value)
+    for name, (option, values) in _MALLOC_OPTIONS.items():
+        taken = next((v for v in values if libc.mallopt(option, v) == 1), None)
+        if taken is not None:
+            os.environ[name] = str(taken)
 
 
 def _spare_the_collector() -> None:
