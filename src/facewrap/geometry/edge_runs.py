@@ -31,7 +31,8 @@ class EdgeRuns(NamedTuple):
     """The half-edges of triangles in the order of their undirected edges.
 
     One stable sort of the edge keys that everything grouping triangles by edge
-    shares (:func:`triangle_adjacency`, :func:`non_manifold_edge_count`): on a
+    shares (:func:`~facewrap.geometry.adjacency.triangle_adjacency`,
+    :func:`non_manifold_edge_count`, the scan checks' spikes and fins): on a
     million-triangle scan the sort is the cost, so a scan's tree and its input
     checks make it once (:attr:`facewrap.geometry.ClosestPointTree.edge_runs`).
 
