@@ -1,0 +1,98 @@
+"""Hostile inputs of a fourth sweep: one test per bug class it found.
+
+Classes:
+
+- text saved as UTF-16 or UTF-32 with its byte-order mark (Windows PowerShell 5's
+  ``>`` and ``Out-File``, Notepad's and Excel's "Unicode") was refused as "binary
+  data, not a text file" by every text reader; it now reads as the UTF-8 it
+  transcodes to, and a sparse or binary file starting with such a mark is still
+  refused from its ends;
+- ``evaluate --run`` read the run's JSON with a reader of its own: a FIFO or
+  ``/dev/zero`` hung (the latter filling the memory), a 2 GB sparse file was read
+  whole, and nesting or a huge integer gave a line naming no file; it now reads it
+  as ``facewrap report`` does.
+
+Inputs are the built-in sample at its smallest.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from conftest import facewrap
+# the fixture: the built-in sample at its smallest (template 24, scan 40), as files
+from test_hostile_more import sample  # noqa: F401
+from test_hostile_sweep import error_line, wrap_argv
+
+
+def sparse(path: Path, head: bytes, size: int = 2 << 30) -> Path:
+    """A file of ``size`` bytes that is ``head`` and then a hole (takes no disk)."""
+    with open(path, "wb") as fh:
+        fh.write(head)
+        fh.truncate(size)
+    return path
+
+
+# -- UTF-16 and UTF-32 text ---------------------------------------------------------------
+@pytest.mark.parametrize("codec", ["utf-16", "utf-16-be", "utf-32"])
+def test_text_saved_as_wide_unicode_reads(sample, tmp_path, capsys, codec):
+    bom = {"utf-16": b"", "utf-16-be": b"\xfe\xff", "utf-32": b""}[codec]
+    wide = {}
+    for key in ("scan_landmarks", "template_landmarks"):
+        text = Path(sample[key]).read_text().replace("\n", "\r\n")
+        wide[key] = tmp_path / f"{key}.txt"
+        wide[key].write_bytes(bom + text.encode(codec))
+    out = tmp_path / "o.obj"
+    rc = facewrap(*wrap_argv(dict(sample, **wide), out))
+    assert rc == 0, capsys.readouterr().err
+    assert out.exists()
+
+
+def test_a_job_file_saved_as_utf16_runs(sample, tmp_path, capsys):
+    job = (f'version = 1\n[inputs]\ntemplate = "{sample["template"]}"\n'
+           f'scan = "{sample["scan"]}"\n'
+           f'template_landmarks = "{sample["template_landmarks"]}"\n'
+           f'scan_landmarks = "{sample["scan_landmarks"]}"\n'
+           f'[outputs]\noutput = "{tmp_path / "o.obj"}"\n[wrap]\nmodel = "rbf"\n')
+    path = tmp_path / "job.toml"
+    path.write_bytes(job.encode("utf-16"))
+    assert facewrap("run", path, "-q") == 0, capsys.readouterr().err
+    assert (tmp_path / "o.obj").exists()
+
+
+@pytest.mark.parametrize("what", ["sparse", "bad", "mark only"])
+def test_a_file_only_starting_as_utf16_is_refused(sample, tmp_path, capsys, what):
+    mark = "1 2 3\n".encode("utf-16")
+    path = tmp_path / "lm.txt"
+    if what == "sparse":   # refused from its ends, not read whole
+        sparse(path, mark)
+        needle = "binary data"
+    elif what == "bad":    # a lone surrogate
+        path.write_bytes(mark + b"\x00\xd8\x41\x00")
+        needle = "not UTF-16 text (byte 14)"
+    else:
+        path.write_bytes(b"\xff\xfe")
+        needle = "empty file"
+    rc = facewrap(*wrap_argv(dict(sample, scan_landmarks=path), tmp_path / "o.obj"))
+    error_line(capsys, rc, "lm.txt", needle)
+    assert not (tmp_path / "o.obj").exists()
+
+
+# -- evaluate --run: the shared JSON reader -----------------------------------------------
+def test_evaluate_reads_its_run_report_as_report_does(sample, tmp_path, capsys):
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    big = tmp_path / "big.json"
+    big.write_text('{"vertex_roles": ' + "9" * 5000 + "}")
+    cases = [(tmp_path, "is a folder"),
+             (deep, "nested too deeply"),
+             (big, "5000 digits"),
+             (sparse(tmp_path / "sparse.json", b'{"a": 1}'), "binary data")]
+    for path, needle in cases:
+        rc = facewrap("evaluate", sample["template"], sample["scan"], "-q", "--run", path)
+        line = error_line(capsys, rc, needle, "not a JSON report")
+        assert line.startswith(f"facewrap: error: {path}: "), line
