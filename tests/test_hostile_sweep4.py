@@ -10,7 +10,11 @@ Classes:
 - ``evaluate --run`` read the run's JSON with a reader of its own: a FIFO or
   ``/dev/zero`` hung (the latter filling the memory), a 2 GB sparse file was read
   whole, and nesting or a huge integer gave a line naming no file; it now reads it
-  as ``facewrap report`` does.
+  as ``facewrap report`` does;
+- an output name the file system takes (up to 255 bytes) but longer than 215
+  failed with "File name too long" after all the work: the staging and temporary
+  prefixes put before it made a name it does not take.  Those names are now cut
+  short (extension kept), and a name too long itself is refused before any work.
 
 Inputs are the built-in sample at its smallest.
 """
@@ -96,3 +100,21 @@ def test_evaluate_reads_its_run_report_as_report_does(sample, tmp_path, capsys):
         rc = facewrap("evaluate", sample["template"], sample["scan"], "-q", "--run", path)
         line = error_line(capsys, rc, needle, "not a JSON report")
         assert line.startswith(f"facewrap: error: {path}: "), line
+
+
+# -- long output names ----------------------------------------------------------------------
+def test_an_output_name_of_up_to_255_bytes_is_written(sample, tmp_path, capsys):
+    stem = "é" * 122                                       # 244 bytes, 248 with ".obj"
+    out = tmp_path / f"{stem}.obj"
+    rc = facewrap(*wrap_argv(sample, out, "--report", tmp_path / f"{stem}.json",
+                             "--texture", sample["scan_texture"]))
+    assert rc == 0, capsys.readouterr().err
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == sorted(f"{stem}{ext}" for ext in (".obj", ".json", ".mtl", ".png"))
+
+
+def test_an_output_name_too_long_is_refused_before_any_work(sample, tmp_path, capsys):
+    out = tmp_path / "new" / ("x" * 256 + ".obj")
+    rc = facewrap(*wrap_argv(sample, out))
+    error_line(capsys, rc, "260 bytes long, more than the 255")
+    assert list(tmp_path.iterdir()) == []
