@@ -14,15 +14,17 @@ Classes:
 - an output name the file system takes (up to 255 bytes) but longer than 215
   failed with "File name too long" after all the work: the staging and temporary
   prefixes put before it made a name it does not take.  Those names are now cut
-  short (extension kept), and a name too long itself is refused before any work.
+  short (extension kept), and a name too long itself is refused before any work;
+- ``animate --frames 100000`` was refused for its memory only after its 10^5
+  output paths were checked (7 s); the frames' budget is now checked first.
 
 Inputs are the built-in sample at its smallest.
 """
 
 from __future__ import annotations
 
-import json
-import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -118,3 +120,19 @@ def test_an_output_name_too_long_is_refused_before_any_work(sample, tmp_path, ca
     rc = facewrap(*wrap_argv(sample, out))
     error_line(capsys, rc, "260 bytes long, more than the 255")
     assert list(tmp_path.iterdir()) == []
+
+
+# -- a huge frame count: refused before its output paths are walked -------------------------
+def test_animate_refuses_too_many_frames_before_checking_each_output(sample, tmp_path):
+    """With the address space limited to 8 GiB (a budget of 4), 10^5 frames of the
+    sample's 1164 vertices (5.6 GiB) are refused; the output (here a file, the
+    scan) is looked at only after that (checking 10^5 paths took seconds)."""
+    prelude = ("import resource\n"
+               "resource.setrlimit(resource.RLIMIT_AS, (8 << 30, 8 << 30))\n"
+               "import sys\nfrom facewrap.cli import main\nsys.exit(main())\n")
+    r = subprocess.run([sys.executable, "-c", prelude, "animate", sample["template"],
+                        sample["template"], "-o", sample["scan"], "--frames", "100000"],
+                       capture_output=True, text=True, timeout=120)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("facewrap: error: --frames: 100000 frames"), lines[0]
