@@ -18,7 +18,11 @@ Classes:
 - ``animate --frames 100000`` was refused for its memory only after its 10^5
   output paths were checked (7 s); the frames' budget is now checked first;
 - ``transfer --gltf-scale 1e-300`` wrote a GLB whose positions all rounded to zero
-  in float32 (a point), without a word; the scale must now be in [1e-6, 1e6].
+  in float32 (a point), without a word; the scale must now be in [1e-6, 1e6];
+- ``track`` skipped the template-landmark checks ``wrap`` and ``rig`` make: a
+  vertex id listed twice failed deep in the landmark warp with "two landmarks are
+  at the same position" naming the scan; it is now named in its file as ``wrap``
+  names it.
 
 Inputs are the built-in sample at its smallest.
 """
@@ -152,3 +156,19 @@ def test_a_gltf_scale_too_small_for_float32_is_refused(sample, tmp_path, capsys,
                   "-q")
     error_line(capsys, rc, "--gltf-scale: must be a real number in [1e-06, 1e+06]")
     assert not (tmp_path / "x.glb").exists()
+
+
+# -- track checks its template landmarks as wrap does ---------------------------------------
+def test_track_names_a_template_vertex_id_listed_twice(sample, tmp_path, capsys):
+    ids = sample["template_landmarks"].read_text().split()
+    twice = tmp_path / "ids.txt"
+    twice.write_text("\n".join(ids[:5] + ids[4:5] + ids[6:]) + "\n")
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    (frames / "f_0.obj").write_bytes(Path(sample["scan"]).read_bytes())
+    rc = facewrap("track", sample["template"], frames, "--template-landmarks", twice,
+                  "--scan-landmarks", sample["scan_landmarks"], "-o", tmp_path / "out",
+                  "--model", "rbf", "-q")
+    line = error_line(capsys, rc, "landmarks 4 and 5 are at the same position")
+    assert line.startswith(f"facewrap: error: {twice}: "), line
+    assert not (tmp_path / "out").exists()
