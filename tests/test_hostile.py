@@ -196,7 +196,7 @@ def obj_binary_garbage(ctx):
     return ctx.run(p, scan=p)
 
 
-@case("OBJ", "UTF-16 encoded text", "error", "binary data")
+@case("OBJ", "UTF-16 encoded text (with its byte-order mark)", "ok", check=close_to_base())
 def obj_utf16(ctx):
     p = ctx.write("scan.obj", ctx.scan_text().encode("utf-16"))
     return ctx.run(p, scan=p)

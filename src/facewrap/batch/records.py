@@ -23,7 +23,7 @@ from dataclasses import asdict
 
 from facewrap.batch.manifest import done_record_path
 from facewrap.io.atomic import atomic_write
-from facewrap.io.paths import STAGE_PREFIX
+from facewrap.io.paths import STAGE_PREFIX, hidden_name
 from facewrap.jobs import kind_of
 from facewrap.version import __version__
 
@@ -160,13 +160,25 @@ def remove_stale(job) -> None:
         os.unlink(record)
     for out in kind_of(job).outputs(job) + [record]:
         folder, base = os.path.split(os.path.abspath(out))
-        # (a staged name's token is 8 hex digits: "*" could reach into another
-        # output's name that ends in this one's)
-        for pattern in (".tmp-*-" + glob.escape(base),
-                        STAGE_PREFIX + "?" * 8 + "-" + glob.escape(base)):
+        for pattern in _leftover_patterns(folder, base):
             for tmp in glob.glob(os.path.join(glob.escape(folder), pattern)):
                 if os.path.isdir(tmp) and not os.path.islink(tmp):
                     shutil.rmtree(tmp, ignore_errors=True)
                 else:
                     with contextlib.suppress(OSError):
                         os.unlink(tmp)
+
+
+def _leftover_patterns(folder: str, base: str) -> list[str]:
+    """Glob patterns of the hidden names output ``base`` is written under in
+    ``folder``: temporary, staged, and a staged file's temporary."""
+    # (a staged name's token is 8 hex digits: "*" could reach into another output's
+    # name that ends in this one's; a long name is written shortened: hidden_name)
+    token = "?" * 8 + "-"
+    patterns = [".tmp-*-" + glob.escape(base)]
+    for prefix in (".tmp-" + token, STAGE_PREFIX + token,
+                   ".tmp-" + token + STAGE_PREFIX + token):
+        name = hidden_name(prefix, base, folder)[len(prefix):]
+        patterns.append(prefix + glob.escape(name))
+    return patterns
+

@@ -28,6 +28,11 @@ def cmd_animate(args) -> int:
             or not np.array_equal(start.face_indices, end.face_indices)):
         raise InputError(f"is not in the topology of {args.start} (vertex count or "
                          "faces differ)", args.end)
+    # an OBJ frame is about as large as the start mesh's file (and at least a
+    # vertex line per vertex)
+    frame_bytes = max(os.path.getsize(args.start), 40 * start.n_vertices)
+    with _naming_frames():   # the frames alone first: checking 10^5 output paths is slow
+        check_sequence_budget(args.out, args.frames, start.n_vertices, frame_bytes)
     check_output_paths(files=obj_sequence_files(args.out, args.frames,
                                                 textures=bool(args.textures)),
                        folders=[args.out],
@@ -38,12 +43,10 @@ def cmd_animate(args) -> int:
         if a.shape != b.shape:
             raise InputError(f"image size {b.shape[:2]} differs from "
                              f"{args.textures[0]} {a.shape[:2]}", args.textures[1])
-    # an OBJ frame is about as large as the start mesh's file (and at least a
-    # vertex line per vertex)
-    frame_bytes = max(os.path.getsize(args.start), 40 * start.n_vertices)
-    with _naming_frames():
-        check_sequence_budget(args.out, args.frames, start.n_vertices, frame_bytes,
-                              image_shape=None if a is None else a.shape)
+    if a is not None:
+        with _naming_frames():   # and their textures
+            check_sequence_budget(args.out, args.frames, start.n_vertices, frame_bytes,
+                                  image_shape=a.shape)
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     textures = None if a is None else interpolate_textures(a, b, args.frames)
     paths = write_obj_sequence(args.out, start, frames, textures=textures)

@@ -17,7 +17,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file
+from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file, read_json
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
@@ -249,12 +249,13 @@ def _ratio(v) -> str:
 def _run_roles(path, n: int):
     """Fitted vertices (n,) bool and the unit ``(unit, source)`` of a run's report."""
     from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
+    # the shared reader, as `facewrap report` reads a run: a folder, FIFO or device is
+    # named instead of opened (a FIFO hung, /dev/zero filled the memory), a sparse or
+    # binary file is refused from its ends, and the errors name the file
     try:
-        run = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("no such file", path) from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"not a JSON report ({exc})", path) from None
+        run = read_json(path)
+    except InputError as exc:
+        raise InputError(f"not a JSON report ({exc.problem})", path, exc.line) from None
     if not isinstance(run, dict) or "vertex_roles" not in run:
         raise InputError("not a wrap report with 'vertex_roles' (which vertices were "
                          "fitted)", path)

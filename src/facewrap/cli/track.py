@@ -31,7 +31,7 @@ from facewrap.io.files import folder_files
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
-from facewrap.jobs.input_checks import check_scan
+from facewrap.jobs.input_checks import check_scan, check_template_landmarks
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
@@ -87,6 +87,9 @@ def _scan_landmarks(args, template, meshes, scans):
         if tl is None:
             detections["template"] = detect_mesh_landmarks(template, template_path)
             tl, tl_source = detections["template"].landmarks, template_path
+    # as wrap checks them: a vertex id listed twice failed deep in the landmark warp
+    # with a line naming the scan
+    check_template_landmarks(template, tl, tl_source)
     if not args.scan_landmarks:
         tl, first, detections["frame 0"] = detected_scan_landmarks(
             tl, tl_source, meshes[0], scans[0])

@@ -21,7 +21,7 @@ import os
 import secrets
 import stat
 
-from facewrap.io.paths import shown_path
+from facewrap.io.paths import hidden_name, shown_path
 
 __all__ = ["atomic_write"]
 
@@ -36,7 +36,7 @@ def _create_temporary(folder: str, name: str) -> tuple[int, str]:
     flags = (os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
              | getattr(os, "O_BINARY", 0))
     for _ in range(_TRIES):
-        tmp = os.path.join(folder, f".tmp-{secrets.token_hex(4)}-{name}")
+        tmp = os.path.join(folder, hidden_name(f".tmp-{secrets.token_hex(4)}-", name, folder))
         try:
             return os.open(tmp, flags, _NEW_FILE_MODE), tmp
         except FileExistsError:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import codecs
 import json
 import os
 import re
@@ -25,6 +26,13 @@ COORDINATE_LIMIT = 1e15
 # catch a binary or sparse (zero-filled) file handed to a text reader, small enough
 # to cost nothing.
 _SAMPLE_BYTES = 1 << 16
+
+# Byte-order marks of the wide Unicode encodings a text file is saved in on Windows
+# (PowerShell 5's ">" and Out-File, Notepad's and Excel's "Unicode"): the mark, the
+# codec of what follows it, bytes per code unit.  UTF-32 LE first: its mark begins
+# with UTF-16 LE's.
+_WIDE_BOMS = ((codecs.BOM_UTF32_LE, "utf-32-le", 4), (codecs.BOM_UTF32_BE, "utf-32-be", 4),
+              (codecs.BOM_UTF16_LE, "utf-16-le", 2), (codecs.BOM_UTF16_BE, "utf-16-be", 2))
 
 
 def not_a_file(path) -> InputError:
@@ -174,10 +182,24 @@ def read_file_bytes(path, text: bool = False) -> bytes:
     text : bool
         Also reject binary data (a NUL byte) for text formats.  Both ends of the
         file are looked at first, so a binary or sparse multi-GB file is refused
-        without being read.
+        without being read.  Text saved as UTF-16 or UTF-32 with its byte-order
+        mark (Windows' "Unicode") is returned as UTF-8, the mark left out.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "ids.txt"
+    >>> _ = p.write_bytes("3536\\r\\n3252\\r\\n".encode("utf-16"))
+    >>> read_file_bytes(p, text=True)
+    b'3536\\r\\n3252\\r\\n'
     """
-    if text and nul_at_ends(path, file_size(path)):
-        raise InputError("binary data, not a text file", path)
+    if text:
+        size = file_size(path)
+        wide = _wide_encoding(read_file_head(path, 4))
+        if wide is not None:
+            return _read_wide_text(path, size, *wide)
+        if nul_at_ends(path, size):
+            raise InputError("binary data, not a text file", path)
     try:
         with open(path, "rb") as fh:
             data = fh.read()
@@ -189,6 +211,52 @@ def read_file_bytes(path, text: bool = False) -> bytes:
     if text and b"\0" in data:
         raise InputError("binary data, not a text file", path)
     return data
+
+
+def _wide_encoding(head: bytes):
+    """(mark, codec, unit) of the wide Unicode encoding whose mark ``head`` starts
+    with, or None (UTF-8 and ASCII text, binary data)."""
+    for bom, codec, unit in _WIDE_BOMS:
+        if head.startswith(bom):
+            return bom, codec, unit
+    return None
+
+
+def _read_wide_text(path, size: int, bom: bytes, codec: str, unit: int) -> bytes:
+    """A UTF-16 or UTF-32 text file (with its byte-order mark) as UTF-8 bytes.
+
+    Every text reader then works on UTF-8 as usual: its line numbers and messages
+    are those of the file.  As for UTF-8, both ends are looked at before the whole
+    is read, and a NUL character (binary data, or the zeros of a sparse file)
+    is refused.
+    """
+    name = codec[:-3].upper()   # "UTF-16"
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_SAMPLE_BYTES)
+            tail = b""
+            if size > 2 * _SAMPLE_BYTES:
+                start = size - _SAMPLE_BYTES
+                fh.seek(start - (start - len(bom)) % unit)   # on a code unit
+                tail = fh.read(_SAMPLE_BYTES)
+            for sample in (head[len(bom):], tail):
+                sample = sample[:len(sample) - len(sample) % unit]
+                if "\0" in sample.decode(codec, errors="replace"):
+                    raise InputError(f"binary data, not a text file ({name})", path)
+            fh.seek(len(bom))
+            data = fh.read()
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc.strerror}", path) from None
+    try:
+        text = data.decode(codec)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not {name} text (byte {exc.start + len(bom)}), though it "
+                         f"starts with the {name} byte-order mark", path) from None
+    if not text or text.isspace():
+        raise InputError("empty file", path)
+    if "\0" in text:
+        raise InputError(f"binary data, not a text file ({name})", path)
+    return text.encode("utf-8")
 
 
 def read_json(path):

@@ -33,7 +33,7 @@ from pathlib import Path
 from facewrap.errors import InputError
 
 __all__ = ["real_path", "side_files", "find_overlap", "check_outputs_apart", "check_writable",
-           "check_output_paths", "special_kind", "shown_path",
+           "check_output_paths", "special_kind", "shown_path", "hidden_name",
            "new_folders_removed_on_failure", "StagedOutputs", "staged_outputs"]
 
 #: Prefix of staged files and folders (hidden, so a listing does not show them).
@@ -214,6 +214,41 @@ def shown_path(path) -> str:
     return os.sep.join(m.group(1) if (m := _STAGED.match(p)) else p for p in parts)
 
 
+def _name_max(folder) -> int:
+    """Longest file name (in bytes) the file system of ``folder`` takes."""
+    try:
+        return os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):   # missing folder, not POSIX
+        return 255
+
+
+def hidden_name(prefix: str, name: str, folder) -> str:
+    """``prefix + name``: the hidden name an output ``name`` is written under in
+    ``folder`` first, ``name``'s stem cut short when the whole would be longer than
+    the file system takes.
+
+    A name the user may give (up to 255 bytes) would otherwise become one the file
+    system refuses ("File name too long") once the staging and temporary prefixes
+    (40 characters together) are put before it, after all the work was done.  The
+    extension is kept: writers choose the format by it.
+
+    Examples
+    --------
+    >>> hidden_name(".tmp-0a1b2c3d-", "fit.obj", "/")
+    '.tmp-0a1b2c3d-fit.obj'
+    >>> n = hidden_name(".tmp-0a1b2c3d-", "x" * 250 + ".obj", "/")
+    >>> len(n), n[-6:]
+    (255, 'xx.obj')
+    """
+    limit = _name_max(folder)
+    stem, ext = os.path.splitext(name)
+    excess = len(os.fsencode(prefix + name)) - limit
+    while excess > 0 and stem:   # by characters: a multi-byte one is never split
+        excess -= len(os.fsencode(stem[-1]))
+        stem = stem[:-1]
+    return prefix + stem + ext
+
+
 def special_kind(path) -> str | None:
     """What ``path`` is when it exists but is neither a regular file nor a folder.
 
@@ -283,9 +318,22 @@ def check_writable(files=(), folders=(), source=None) -> None:
         if not os.path.isdir(existing):
             raise InputError(f"cannot create output {os.fspath(path)!r}: {existing!r} is "
                              "a file, not a folder", source or path)
+        _check_name_lengths(path, p, existing, source)
         if not os.access(existing, os.W_OK | os.X_OK):
             raise InputError(f"cannot create output {os.fspath(path)!r}: folder "
                              f"{existing!r} is not writable", source or path)
+
+
+def _check_name_lengths(path, p: str, existing: str, source) -> None:
+    """Each name ``p`` still has to create (below ``existing``) fits the file system
+    (refused after the work by ``open`` otherwise)."""
+    limit = _name_max(existing)
+    for name in Path(os.path.relpath(p, existing)).parts:
+        if len(os.fsencode(name)) > limit:
+            raise InputError(f"cannot create output {os.fspath(path)!r}: the name "
+                             f"{name[:20]!r}... is {len(os.fsencode(name))} bytes long, "
+                             f"more than the {limit} the file system takes",
+                             source or path)
 
 
 def check_output_paths(files=(), folders=(), inputs=(), source=None) -> None:
@@ -375,7 +423,8 @@ class StagedOutputs:
             self._made.append(f)
 
     def _hidden(self, final: Path) -> Path:
-        return final.parent / f"{STAGE_PREFIX}{secrets.token_hex(4)}-{final.name}"
+        return final.parent / hidden_name(f"{STAGE_PREFIX}{secrets.token_hex(4)}-",
+                                          final.name, final.parent)
 
     def file(self, final) -> Path:
         """Where to write the output file ``final`` (same folder and extension)."""

@@ -31,8 +31,9 @@ from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, resolve_units
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
-           "check_distinct_landmarks", "unpaired_landmarks", "nothing_to_fit",
-           "oversized_shapes", "check_landmarks_on_scan", "check_scan", "check_uv_layouts"]
+           "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
+           "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
+           "check_uv_layouts"]
 
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
@@ -142,6 +143,29 @@ def check_distinct_landmarks(points: np.ndarray, names, path) -> None:
         raise InputError(f"landmarks {label(i)} and {label(j)} are at the same position "
                          f"({len(twice)} such pair(s)): each landmark needs a place of "
                          "its own (a vertex id listed twice?)", path)
+
+
+def check_template_landmarks(template, landmarks: Landmarks, path) -> None:
+    """The template landmarks of a wrap or a track, checked as one: they span a plane
+    and each has a place of its own.
+
+    Parameters
+    ----------
+    template : Mesh
+    landmarks : Landmarks
+        On ``template``.
+    path : path
+        Where they come from (their file, a template profile or the template when
+        detected), named in errors.
+
+    Raises
+    ------
+    InputError
+        From :func:`check_landmark_spread` or :func:`check_distinct_landmarks`.
+    """
+    points = landmarks.positions(template)
+    check_landmark_spread(points, path)
+    check_distinct_landmarks(points, landmarks.names, path)
 
 
 def unpaired_landmarks(template: Landmarks, scan: Landmarks, template_path,

@@ -81,7 +81,7 @@ class TransferJobSettings:
         Also measure where the result depends on the correspondence and name
         target vertices where more markers would help.
     gltf_scale : float
-        Scale of the positions in the GLB (0.01 for cm → m), in (0, 1e6].
+        Scale of the positions in the GLB (0.01 for cm → m), in [1e-6, 1e6].
     """
     landmark_guided: bool = False
     anchor: int | None = None
@@ -96,8 +96,10 @@ class TransferJobSettings:
         "fix_flips": Flag(),
         "ambiguity": Flag(),
         # a bound keeps every scaled coordinate (at most 1e15, the readers' limit)
-        # inside float32, the GLB's positions: 1e308 overflowed into a JSON error
-        "gltf_scale": Interval(float, 0, 1e6, closed="right"),
+        # inside float32, the GLB's positions: 1e308 overflowed into a JSON error;
+        # below 1e-6 (micrometres to metres) a head's positions round to zero in
+        # float32 and the GLB holds a point, written without a word (1e-300)
+        "gltf_scale": Interval(float, 1e-6, 1e6),
     }
 
     def __post_init__(self):

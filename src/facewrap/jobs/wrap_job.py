@@ -43,9 +43,9 @@ from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import (check_distinct_landmarks, check_landmark_spread,
-                                        check_scan, check_uv_layouts, nothing_to_fit,
-                                        oversized_shapes, survey_mesh, unpaired_landmarks)
+from facewrap.jobs.input_checks import (check_scan, check_template_landmarks,
+                                        check_uv_layouts, nothing_to_fit, oversized_shapes,
+                                        survey_mesh, unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
@@ -327,8 +327,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         raise InputError("template is degenerate: all vertices at one point",
                          job.template)
     notes += survey_mesh(template, job.template, "template", pieces=False)
-    check_landmark_spread(tl.positions(template), job.template_landmarks)
-    check_distinct_landmarks(tl.positions(template), tl.names, tl_source)
+    check_template_landmarks(template, tl, job.template_landmarks or tl_source)
     if job.scan_landmarks:   # detected ones are a confident subset by design
         notes += unpaired_landmarks(tl, sl, tl_source, job.scan_landmarks)
     scan, sl, tree, scan_notes = check_scan(scan, sl, job.scan, job.scan_landmarks,
