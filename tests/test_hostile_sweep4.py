@@ -22,20 +22,27 @@ Classes:
 - ``track`` skipped the template-landmark checks ``wrap`` and ``rig`` make: a
   vertex id listed twice failed deep in the landmark warp with "two landmarks are
   at the same position" naming the scan; it is now named in its file as ``wrap``
-  names it.
+  names it;
+- vertices no face uses (an exporter's stray points) counted in a mesh's size and
+  units: one far away made the template's node spacing, distances and tolerances
+  wrong and its units "unknown", without a word; sizes and units are now those of
+  the surface, and the survey says how many there are.
 
 Inputs are the built-in sample at its smallest.
 """
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import facewrap
+from facewrap.io.obj import read_obj
 # the fixture: the built-in sample at its smallest (template 24, scan 40), as files
 from test_hostile_more import sample  # noqa: F401
 from test_hostile_sweep import error_line, wrap_argv
@@ -172,3 +179,26 @@ def test_track_names_a_template_vertex_id_listed_twice(sample, tmp_path, capsys)
     line = error_line(capsys, rc, "landmarks 4 and 5 are at the same position")
     assert line.startswith(f"facewrap: error: {twice}: "), line
     assert not (tmp_path / "out").exists()
+
+
+# -- vertices no face uses ------------------------------------------------------------------
+def test_stray_vertices_of_a_template_change_neither_its_size_nor_the_fit(sample, tmp_path,
+                                                                          capsys):
+    # an exporter's stray points (here one a long way off) were part of the
+    # template's size: its node spacing, distances, tolerances and units
+    stray = tmp_path / "template_with_strays.obj"
+    text = Path(sample["template"]).read_text()
+    stray.write_text(text + "v 1000 1000 1000\nv -3 0 0\n")
+    runs = {}
+    for name, template in (("clean", sample["template"]), ("stray", stray)):
+        out, report = tmp_path / f"out_{name}.obj", tmp_path / f"out_{name}.json"
+        argv = wrap_argv(dict(sample, template=template), out, "--report", report)
+        assert facewrap(*argv) == 0
+        runs[name] = (read_obj(out).vertices, json.loads(report.read_text()))
+    err = capsys.readouterr().err
+    assert "template_with_strays.obj: template has 2 vertices no face uses" in err
+    (clean, a), (strayed, b) = runs["clean"], runs["stray"]
+    assert b["units"] == a["units"] != "unknown"
+    n = len(clean)
+    size = np.ptp(clean, axis=0).max()
+    np.testing.assert_allclose(strayed[:n], clean, atol=1e-9 * size)

@@ -327,14 +327,33 @@ class Mesh:
         return self.face_uvs[self.triangle_corners]
 
     # -- derived geometry -------------------------------------------------------------
+    @cached_property
+    def surface_vertex_ids(self) -> np.ndarray:
+        """(k,) int64, sorted: the vertices some face uses (all of them, but for
+        stray points an exporter or a scanner left in the file)."""
+        ids = _used(self.face_indices, self.n_vertices)
+        ids.setflags(write=False)
+        return ids
+
+    def surface_points(self) -> np.ndarray:
+        """(k, 3) float64: the positions of :attr:`surface_vertex_ids` (every
+        vertex, not a copy, when no vertex is stray; every vertex of a mesh
+        without faces).  Sizes and units are measured on these: one stray point a
+        metre away must not make a head a metre wide."""
+        ids = self.surface_vertex_ids
+        if len(ids) in (0, self.n_vertices):
+            return self.vertices
+        return self.vertices[ids]
+
     def bounding_box(self) -> np.ndarray:
-        """(2, 3) float64: min and max corner."""
+        """(2, 3) float64: min and max corner of the :meth:`surface_points`."""
         # (imported here: a command's help reads meshes' docs, not the geometry)
         from facewrap.geometry.arrays import column_bounds
-        return column_bounds(self.vertices)
+        return column_bounds(self.surface_points())
 
     def scale(self) -> float:
-        """Length of the bounding-box diagonal (a size for tolerances)."""
+        """Length of the bounding-box diagonal of the :meth:`surface_points` (a
+        size for tolerances)."""
         lo, hi = self.bounding_box()
         return float(np.linalg.norm(hi - lo))
 

@@ -332,7 +332,7 @@ def cmd_evaluate(args) -> int:
     if args.units == "auto" and run_units is not None:
         unit, source = run_units
     else:
-        unit, source = resolve_units(args.units, result.vertices)
+        unit, source = resolve_units(args.units, result.surface_points())
     summary = {"result": str(args.result), "scan": str(args.scan), "units": unit,
                "units_source": source, **ev.summary(),
                "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible)),

@@ -34,7 +34,7 @@ def cmd_info(args) -> int:
         "bounding_box": [lo.tolist(), hi.tolist()],
         "diagonal": mesh.scale(),
     }
-    unit, source = resolve_units(args.units, mesh.vertices)
+    unit, source = resolve_units(args.units, mesh.surface_points())
     if args.json:
         print(json.dumps({**info, "units": unit, "units_source": source}, indent=1))
         return 0

@@ -58,7 +58,7 @@ def cmd_landmarks(args) -> int:
                              confidence=found.confidence,
                              low_confidence=found.low_confidence,
                              views=found.views, source="detected")
-    unit, source = resolve_units(args.units, mesh.vertices)
+    unit, source = resolve_units(args.units, mesh.surface_points())
     lines = [f"wrote {args.output}: {detection_summary(found, unit)}"]
     lines += [units_note(unit, source)] if source == "inferred" else []
     print("\n".join([] if args.quiet else lines), end="" if args.quiet else "\n")

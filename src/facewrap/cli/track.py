@@ -157,7 +157,7 @@ def cmd_track(args) -> int:
     with progress(len(meshes), "tracking") as bar:
         def say(i, result):
             if not units:
-                units.append(resolve_units(args.units, result.mesh.vertices))
+                units.append(resolve_units(args.units, result.mesh.surface_points()))
             m, unit = result.metrics, units[0][0]
             log.info("frame %d: fit mean %s, landmarks mean %s, %.2f s", i,
                      format_distance(m["fit_mean"], unit),
@@ -183,7 +183,7 @@ def cmd_track(args) -> int:
     notes = checked + frame_warnings(result, scans)
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
-    unit, source = units[0] if units else resolve_units(args.units, template.vertices)
+    unit, source = units[0] if units else resolve_units(args.units, template.surface_points())
     paths = write_track_outputs(
         args.out, result, output_frame=args.output_frame,
         extra_report={"template": str(args.template), "scans": [str(p) for p in scans],

@@ -35,6 +35,7 @@ __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_sp
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
            "check_uv_layouts"]
 
+
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
     return 2.0 * trusted_face_areas(mesh.vertices, mesh.triangles)
@@ -55,6 +56,10 @@ def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
     out = []
     T = mesh.triangles
     n = mesh.n_vertices
+    stray = n - len(mesh.surface_vertex_ids)
+    if stray and stray < n:
+        out.append(f"{path}: {what} has {stray} vertices no face uses (left out of its "
+                   "size and units)")
     repeated = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 0] == T[:, 2])
     if repeated.any():
         out.append(f"{path}: {what} has {int(repeated.sum())} triangle(s) with a "
@@ -302,7 +307,7 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
     check_landmark_spread(points, landmarks_path or path)
     notes += check_landmarks_on_scan(points, landmarks.names, tree, size,
                                      landmarks_path or path,
-                                     resolve_units(units, scan.vertices)[0])
+                                     resolve_units(units, scan.surface_points())[0])
     return scan, landmarks, tree, notes
 
 

@@ -392,7 +392,7 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
             notes: list) -> dict:
     """The rig's report before its outputs are written (they add paths and times)."""
     result = rig.wrap
-    units, source = resolve_units(job.units, rig.neutral.vertices)
+    units, source = resolve_units(job.units, rig.neutral.surface_points())
     report = {"job": {k: v for k, v in asdict(job).items() if v is not None},
               "settings": asdict(result.settings), "method": rig.method,
               "units": units, "units_source": source,

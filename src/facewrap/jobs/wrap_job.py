@@ -585,7 +585,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
         report["detected_landmarks"] = {k: detection_entry(v)
                                         for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
-                                                            result.mesh.vertices)
+                                                            result.mesh.surface_points())
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))

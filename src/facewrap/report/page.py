@@ -388,7 +388,7 @@ def _run_units(run: dict, units: str, result) -> tuple[str, str]:
     """``(unit, source)``: ``units`` when given, else the run's own, else inferred."""
     if units == "auto" and run.get("units") in UNIT_NAMES + (UNKNOWN,):
         return run["units"], run.get("units_source", "given")
-    return resolve_units(units, result.vertices)
+    return resolve_units(units, result.surface_points())
 
 
 def _ground_truth_values(ground_truth, result, codes) -> np.ndarray | None:
