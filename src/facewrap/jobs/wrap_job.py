@@ -233,9 +233,10 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     """
     ext = os.path.splitext(job.output)[1].lower()
     if ext not in MESH_EXTENSIONS:
-        raise InputError(f"output {job.output!r}: unknown mesh format "
-                         f"{ext or '(no extension)'!r}; use .obj or .ply",
-                         source or job.output)
+        # named as the job file's entry, or as the output path itself (said once)
+        where = f"output {job.output!r}: " if source else "output: "
+        raise InputError(f"{where}unknown mesh format {ext or '(no extension)'!r}; "
+                         "use .obj or .ply", source or job.output)
     check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
     # a setting's problem: named with the job file, or alone (not as the output's)
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:

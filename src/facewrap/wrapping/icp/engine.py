@@ -298,8 +298,10 @@ class NonRigidICP:
             frame=problem.frame, max_distance=self.max_distance,
             max_normal_angle=self.max_normal_angle, reject_border=self.reject_boundary)
         if len(matches) == 0:
-            raise ValueError("no template vertex found a valid scan point: "
-                             "is the scan aligned with the template?")
+            raise ValueError("no template vertex found a valid scan point within "
+                             "max_distance (--max-distance) and max_normal_angle "
+                             "(--max-normal-angle): is the scan aligned with the "
+                             "template, and are those limits wide enough?")
         sigma = max(self.robust_factor * float(np.median(matches.distances)),
                     stage.robust_scale, self.min_scale)
         return ScanPairs(used[matches.index], matches,
