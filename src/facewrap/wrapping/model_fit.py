@@ -118,7 +118,9 @@ def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
     IcpStart
     """
     V = np.asarray(vertices, dtype=np.float64)
-    frame = NormalisedFrame.of(V)
+    # the frame of the surface: a stray point no face uses would move its centre
+    # and size (and every tolerance in it)
+    frame = NormalisedFrame.of(template.with_vertices(V).surface_points())
     deltas, names = np.zeros((3 * len(V), 0)), []
     if spec.needs_blendshapes:
         D, names = blendshape_basis(template.vertices, blendshapes, pca_components)

@@ -27,7 +27,6 @@ import numpy as np
 
 from facewrap.evaluate import surface_distances
 from facewrap.geometry import ClosestPointTree, connected_components, turned_triangles
-from facewrap.geometry.arrays import column_bounds
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
@@ -192,7 +191,7 @@ def pull_landmarks(problem: WrapProblem, vertices, guard: bool = False
     """
     V, T, excluded = vertices, problem.template.triangles, problem.excluded
     tolerance = problem.settings.landmark_tolerance
-    size = float(np.linalg.norm(np.ptp(column_bounds(V), axis=0)))
+    size = problem.template.with_vertices(V).scale()     # of the surface
     fitted = problem.landmarks.positions(V, T)
     skin = T[~excluded[T].any(axis=1)]
     moved, pulls = pull_to_landmarks(V, fitted, problem.targets, tolerance * size,

@@ -147,10 +147,17 @@ def _surface_poisson_nodes(V, G, spacing, seed, rounds: int = 4):
     So: sample, find the vertices farther than ``spacing`` from every node along
     the surface, sample those again, and repeat until the surface is covered.
     """
-    nodes = poisson_disk_vertices(V, spacing, seed=seed)
+    # nodes on the surface only: a point no face uses (an exporter's stray) is
+    # skinned to the nearest ones instead (build_graph's Euclidean fill)
+    surface = np.flatnonzero(np.diff(G.indptr) > 0)
+    if len(surface) in (0, len(V)):
+        surface = np.arange(len(V))
+    nodes = surface[poisson_disk_vertices(V[surface], spacing, seed=seed)]
+    on_surface = np.zeros(len(V), dtype=bool)
+    on_surface[surface] = True
     for _ in range(rounds):
         d = dijkstra(G, directed=False, indices=nodes, min_only=True, limit=1.5 * spacing)
-        uncovered = np.flatnonzero(d > spacing)
+        uncovered = np.flatnonzero((d > spacing) & on_surface)
         if len(uncovered) == 0:
             break
         extra = uncovered[poisson_disk_vertices(V[uncovered], spacing, seed=seed)]
@@ -464,10 +471,16 @@ class GraphCache:
         # on disk too (facewrap.io.cache): a new process (every CLI run, every
         # batch worker) reads the graph of a template it has seen instead of
         # running the surface Dijkstra searches again
-        disk_key = content_key(V, T, float(spacing), "k=4 seed=0")
+        surface = np.zeros(len(V), dtype=bool)
+        surface[T.ravel()] = True
+        # (a template with points no face uses: a key of its own, since its graph
+        # changed when they were left out of the frame and the nodes)
+        disk_key = content_key(V, T, float(spacing),
+                               "k=4 seed=0" + ("" if surface.all() else " surface"))
         graph = _stored_graph(disk_key, len(V))
         if graph is None:
-            graph = build_graph(NormalisedFrame.of(V).to_frame(V), T, spacing=spacing)
+            frame = NormalisedFrame.of(V[surface] if surface.any() else V)
+            graph = build_graph(frame.to_frame(V), T, spacing=spacing)
             save_arrays(_GRAPH_KIND, disk_key, {f: getattr(graph, f) for f in _GRAPH_FIELDS},
                         version=_GRAPH_VERSION)
         self._graphs[key] = graph
