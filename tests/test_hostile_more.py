@@ -190,10 +190,11 @@ def test_pca_components_without_blendshapes_is_refused(sample, tmp_path, capsys)
     assert not (tmp_path / "f.obj").exists()
 
 
-@pytest.mark.parametrize("value", ["1e308", "0", "nan"])
+@pytest.mark.parametrize("value", ["1e308", "0", "nan", "1e-300", "1e-9"])
 def test_transfer_settings_name_their_option(sample, value, tmp_path, capsys):
     """A 1e308 --gltf-scale failed in the report's JSON ('Out of range float values
-    are not JSON compliant'); refused values were named TransferJobSettings.x."""
+    are not JSON compliant'); refused values were named TransferJobSettings.x; a
+    scale below 1e-6 rounded every position to zero in float32 (sweep 4)."""
     markers = tmp_path / "markers.txt"
     ids = sample["template_landmarks"].read_text().split()[:12]
     markers.write_text("".join(f"{i} {i}\n" for i in ids))
