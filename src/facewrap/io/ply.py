@@ -209,6 +209,9 @@ def _parse_header(data: bytes, path) -> _Header:
             if len(toks) != 3 or not toks[2].isdigit():
                 raise InputError("element line must read 'element <name> <count>' with "
                                  "a non-negative integer count", path, no)
+            if toks[1] in _WANTED and any(e.name == toks[1] for e in elements):
+                raise InputError(f"second '{toks[1]}' element: which one is the mesh "
+                                 "is ambiguous", path, no)
             elements.append(_Element(toks[1], int(toks[2]), no))
         elif key == "property":
             if not elements:
@@ -227,6 +230,9 @@ def _parse_header(data: bytes, path) -> _Header:
                     raise InputError("property must read 'property <type> <name>'",
                                      path, no)
                 prop = _Property(toks[2], _ply_type(toks[1], path, no), None, no)
+            if elements[-1].name in _WANTED and elements[-1].prop(prop.name):
+                raise InputError(f"{elements[-1].name} property {prop.name!r} given "
+                                 "twice: which one to read is ambiguous", path, no)
             elements[-1].props.append(prop)
         else:
             raise InputError(f"unknown header line {raw.strip()[:60]!r}", path, no)
