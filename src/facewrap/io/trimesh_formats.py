@@ -117,6 +117,72 @@ def _check_glb(path, size: int) -> None:
     if chunk_type != _GLB_JSON or 20 + chunk_length > size:
         raise InputError("GLB does not start with a JSON chunk that fits in the file",
                          path)
+    with open(path, "rb") as fh:
+        fh.seek(20)
+        _check_gltf_doc(_json_doc(fh.read(chunk_length), path), path)
+
+
+def _json_doc(data: bytes, path) -> dict:
+    """The glTF JSON document, as one error naming the file when it is not one."""
+    try:
+        doc = json.loads(data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"not glTF JSON: {' '.join(str(exc).split())}", path) from None
+    except RecursionError:
+        raise InputError("not glTF JSON: nested too deeply", path) from None
+    if not isinstance(doc, dict) or "asset" not in doc:
+        raise InputError("not glTF JSON (no 'asset')", path)
+    return doc
+
+
+def _accessor(doc: dict, index, what: str, path) -> dict:
+    accessors = doc.get("accessors")
+    if not isinstance(index, int) or not isinstance(accessors, list) \
+            or not 0 <= index < len(accessors) or not isinstance(accessors[index], dict):
+        raise InputError(f"{what} names accessor {index!r}, which the file does not "
+                         "have", path)
+    accessor = accessors[index]
+    if "sparse" in accessor:
+        raise InputError(f"{what} is a sparse accessor, which this reader does not "
+                         "apply (export without sparse accessors)", path)
+    if "bufferView" not in accessor:
+        raise InputError(f"{what} has no data (an accessor without a bufferView: "
+                         "a compression extension this reader does not decode?)", path)
+    return accessor
+
+
+def _check_gltf_doc(doc: dict, path) -> None:
+    """Refuse what trimesh would misread without a word: triangle fans (dropped),
+    sparse or bufferless accessors (read as zeros), positions that are not float
+    VEC3 and indices that are not unsigned integers (read as garbage)."""
+    meshes = doc.get("meshes", [])
+    for m, mesh in enumerate(meshes if isinstance(meshes, list) else []):
+        prims = mesh.get("primitives", []) if isinstance(mesh, dict) else []
+        for k, prim in enumerate(prims if isinstance(prims, list) else []):
+            if not isinstance(prim, dict):
+                continue
+            where = f"mesh {m} primitive {k}"
+            mode = prim.get("mode", 4)
+            if mode not in (0, 1, 2, 3, 4, 5):
+                raise InputError(f"{where} has mode {mode!r}; this reader takes "
+                                 "triangles and triangle strips (4, 5)", path)
+            if mode < 4:
+                continue            # points and lines: no surface, left out
+            attributes = prim.get("attributes")
+            if not isinstance(attributes, dict) or "POSITION" not in attributes:
+                raise InputError(f"{where} has no POSITION attribute", path)
+            pos = _accessor(doc, attributes["POSITION"], f"{where} POSITION", path)
+            if pos.get("componentType") != 5126 or pos.get("type") != "VEC3":
+                raise InputError(f"{where} POSITION is not float VEC3 (componentType "
+                                 f"{pos.get('componentType')!r}, type "
+                                 f"{pos.get('type')!r})", path)
+            if "indices" in prim:
+                idx = _accessor(doc, prim["indices"], f"{where} indices", path)
+                if idx.get("componentType") not in (5121, 5123, 5125) \
+                        or idx.get("type") != "SCALAR":
+                    raise InputError(f"{where} indices are not unsigned integer "
+                                     f"SCALARs (componentType {idx.get('componentType')!r}"
+                                     f", type {idx.get('type')!r})", path)
 
 
 def _check_gltf(path, size: int) -> None:
@@ -125,12 +191,7 @@ def _check_gltf(path, size: int) -> None:
         raise InputError(f"a .gltf of {size} bytes is not JSON a scan needs; embed "
                          "large buffers as .bin files or use .glb", path)
     with open(path, "rb") as fh:
-        try:
-            doc = json.loads(fh.read())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"not glTF JSON: {' '.join(str(exc).split())}", path) from None
-    if not isinstance(doc, dict) or "asset" not in doc:
-        raise InputError("not glTF JSON (no 'asset')", path)
+        _check_gltf_doc(_json_doc(fh.read(), path), path)
 
 
 def _load(path, kind: str):

@@ -1,0 +1,126 @@
+"""Hostile inputs of a sweep of the mesh formats other than OBJ: one test per bug class.
+
+Classes:
+
+- PLY: a second ``vertex`` or ``face`` element, or a ``vertex``/``face`` property
+  named twice, was read silently (the first kept, the rest dropped, an
+  out-of-range face in the second element never seen); it is now refused as
+  ambiguous, naming the header line;
+- glTF: accessors trimesh misreads without a word were taken: float face indices
+  (garbage faces), positions that are not float VEC3 (bytes of a float read as
+  uint8, or 2D positions that failed as a numpy error naming no file), sparse
+  accessors (the sparse values never applied), accessors without a bufferView
+  (all zeros: a scan of one point), triangle fans (dropped); they are now refused
+  naming the mesh and primitive.  A glTF JSON nested too deeply failed with a line
+  naming no file; it is now named.
+
+Inputs are tiny meshes written here and the built-in sample at its smallest.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import facewrap
+from test_hostile_more import one_line_error
+
+
+def _run_info(path: Path, capsys, *needles: str) -> str:
+    return one_line_error(capsys, facewrap("info", path), str(path), *needles)
+
+
+# -- PLY: an element or property given twice ------------------------------------------------
+_PLY_HEAD = ("ply\nformat ascii 1.0\nelement vertex 4\n{vprops}element face 2\n"
+             "property list uchar int vertex_indices\n{more}end_header\n"
+             "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n")
+_XYZ = "property float x\nproperty float y\nproperty float z\n"
+
+
+@pytest.mark.parametrize("vprops, more, rows, needle", [
+    (_XYZ, "element vertex 4\n" + _XYZ, "9 9 9\n" * 4, "second 'vertex' element"),
+    (_XYZ, "element face 1\nproperty list uchar int vertex_indices\n", "3 0 0 9\n",
+     "second 'face' element"),
+    ("property float x\n" + _XYZ, "", None, "property 'x' given twice"),
+])
+def test_a_ply_element_or_property_given_twice_is_refused(tmp_path, capsys, vprops,
+                                                          more, rows, needle):
+    text = _PLY_HEAD.format(vprops=vprops, more=more)
+    if rows is None:   # one more column per vertex row
+        head, body = text.split("end_header\n")
+        lines = body.splitlines()
+        text = head + "end_header\n" + "\n".join(
+            ["5 " + ln for ln in lines[:4]] + lines[4:]) + "\n"
+    else:
+        text += rows
+    p = tmp_path / "scan.ply"
+    p.write_text(text)
+    _run_info(p, capsys, needle)
+
+
+# -- glTF: accessors trimesh misreads -------------------------------------------------------
+_V = np.array([[0, 0, 0], [100, 0, 0], [0, 100, 0], [100, 100, 10]], np.float32)
+_I = np.array([0, 1, 2, 1, 3, 2], np.uint32)
+
+
+def _doc() -> dict:
+    return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+            "buffers": [{"byteLength": 72}],
+            "bufferViews": [{"buffer": 0, "byteLength": 48},
+                            {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4,
+                           "type": "VEC3", "min": [0, 0, 0], "max": [100, 100, 10]},
+                          {"bufferView": 1, "componentType": 5125, "count": 6,
+                           "type": "SCALAR"}]}
+
+
+def _glb(doc: dict) -> bytes:
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    binary = _V.tobytes() + _I.tobytes()
+    chunks = (struct.pack("<II", len(js), 0x4E4F534A) + js
+              + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    return b"glTF" + struct.pack("<II", 2, 12 + len(chunks)) + chunks
+
+
+def _sparse(d):
+    d["accessors"][0]["sparse"] = {"count": 1, "indices": {"bufferView": 1,
+                                                           "componentType": 5125},
+                                   "values": {"bufferView": 0}}
+
+
+@pytest.mark.parametrize("change, needle", [
+    (lambda d: d["accessors"][1].update(componentType=5126), "indices are not unsigned"),
+    (lambda d: d["accessors"][0].update(componentType=5121), "POSITION is not float VEC3"),
+    (lambda d: d["accessors"][0].update(type="VEC2"), "POSITION is not float VEC3"),
+    (_sparse, "sparse accessor"),
+    (lambda d: d["accessors"][0].pop("bufferView"), "has no data"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(mode=6), "has mode 6"),
+])
+def test_a_glb_accessor_trimesh_misreads_is_refused(tmp_path, capsys, change, needle):
+    doc = _doc()
+    p = tmp_path / "scan.glb"
+    p.write_bytes(_glb(doc))
+    assert facewrap("info", p) == 0            # the file as it is reads
+    capsys.readouterr()
+    change(doc)
+    p.write_bytes(_glb(doc))
+    _run_info(p, capsys, needle, "mesh 0 primitive 0")
+
+
+@pytest.mark.parametrize("ext", [".gltf", ".glb"])
+def test_a_gltf_nested_too_deeply_names_its_file(tmp_path, capsys, ext):
+    js = b'{"asset": {"version": "2.0"}, "x": ' + b"[" * 50000 + b"]" * 50000 + b"}"
+    js += b" " * (-len(js) % 4)
+    p = tmp_path / f"scan{ext}"
+    if ext == ".glb":
+        js = (b"glTF" + struct.pack("<II", 2, 20 + len(js))
+              + struct.pack("<II", len(js), 0x4E4F534A) + js)
+    p.write_bytes(js)
+    _run_info(p, capsys, "nested too deeply")
