@@ -12,9 +12,15 @@ Classes:
   accessors (the sparse values never applied), accessors without a bufferView
   (all zeros: a scan of one point), triangle fans (dropped); they are now refused
   naming the mesh and primitive.  A glTF JSON nested too deeply failed with a line
-  naming no file; it is now named.
+  naming no file; it is now named;
+- OFF: trimesh's reader mangles ``#`` comments in the body (the text before the
+  first comment is repeated, so the counts row became vertex 0 and the last face
+  was dropped, or a real scan failed with "invalid literal for int()"), and takes
+  a face row with fewer indices than its count as a smaller polygon; OFF is now
+  read by facewrap itself, row by row, each bad row named by its line;
+  a header whose counts leave rows out (trimesh dropped them) is refused.
 
-Inputs are tiny meshes written here and the built-in sample at its smallest.
+Inputs are tiny meshes written here (no sample files are needed).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import numpy as np
 import pytest
 
 from conftest import facewrap
+from facewrap.io.obj import read_obj
 from test_hostile_more import one_line_error
 
 
@@ -124,3 +131,51 @@ def test_a_gltf_nested_too_deeply_names_its_file(tmp_path, capsys, ext):
               + struct.pack("<II", len(js), 0x4E4F534A) + js)
     p.write_bytes(js)
     _run_info(p, capsys, "nested too deeply")
+
+
+# -- OFF: comments, short face rows, counts that leave rows out ------------------------------
+_OFF_V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+
+
+def _off(tmp_path, text: str) -> Path:
+    p = tmp_path / "scan.off"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text", [
+    "OFF\n4 2 0\n# vertices\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n",
+    "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2 # first\n3 1 3 2\n",
+    "OFF\n4 2 0\n0 0 0 # origin\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n",
+])
+def test_an_off_with_comments_in_its_body_reads_as_written(tmp_path, capsys, text):
+    out = tmp_path / "out.obj"
+    assert facewrap("convert", _off(tmp_path, text), out) == 0, capsys.readouterr().err
+    mesh = read_obj(out)
+    assert np.abs(mesh.vertices - np.array(_OFF_V, float)).max() < 1e-9
+    assert mesh.triangles.tolist() == [[0, 1, 2], [1, 3, 2]]
+
+
+def test_a_scanner_off_with_comments_everywhere_reads_as_written(tmp_path, capsys):
+    V = np.random.default_rng(0).random((30, 3)) * 100
+    F = np.array([[i, i + 1, i + 2] for i in range(28)])
+    rows = [" ".join(repr(float(x)) for x in v) + "  # a vertex" for v in V]
+    text = (f"OFF\n{len(V)} {len(F)} 0\n# vertices\n"
+            + "\n".join(rows) + "\n# faces\n"
+            + "".join(f"3 {a} {b} {c}\n" for a, b, c in F))
+    out = tmp_path / "out.obj"
+    assert facewrap("convert", _off(tmp_path, text), out) == 0, capsys.readouterr().err
+    assert np.abs(read_obj(out).vertices - V).max() < 1e-9
+    assert np.array_equal(read_obj(out).triangles, F)
+
+
+@pytest.mark.parametrize("face, line", [("4 0 1 2", 7), ("1000000000 0 1 2", 7)])
+def test_an_off_face_row_short_of_its_count_is_named(tmp_path, capsys, face, line):
+    p = _off(tmp_path, f"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n{face}\n3 1 3 2\n")
+    err = _run_info(p, capsys, "OFF face row")
+    assert f"{p}:{line}:" in err
+
+
+def test_an_off_whose_counts_leave_rows_out_is_refused(tmp_path, capsys):
+    p = _off(tmp_path, "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n")
+    _run_info(p, capsys, "4 vertices and 1 faces but 6 rows follow")
