@@ -18,7 +18,14 @@ Classes:
   was dropped, or a real scan failed with "invalid literal for int()"), and takes
   a face row with fewer indices than its count as a smaller polygon; OFF is now
   read by facewrap itself, row by row, each bad row named by its line;
-  a header whose counts leave rows out (trimesh dropped them) is refused.
+  a header whose counts leave rows out (trimesh dropped them) is refused;
+- glTF external files: a buffer or image naming a FIFO beside the file hung every
+  command (``info`` too), and a buffer file far bigger than its ``byteLength`` (a
+  sparse 3 GB file) was read whole; each external file is now checked first: inside
+  the glTF's folder (symlinks resolved), a regular file, a buffer of the size it
+  states.  (Paths outside the folder were already refused by trimesh, with a
+  message telling the user to "pass FilePathResolver(...)"; they are now refused
+  saying where the file is.)
 
 Inputs are tiny meshes written here (no sample files are needed).
 """
@@ -179,3 +186,70 @@ def test_an_off_face_row_short_of_its_count_is_named(tmp_path, capsys, face, lin
 def test_an_off_whose_counts_leave_rows_out_is_refused(tmp_path, capsys):
     p = _off(tmp_path, "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n")
     _run_info(p, capsys, "4 vertices and 1 faces but 6 rows follow")
+
+
+# -- glTF: external files -------------------------------------------------------------------
+def _gltf_beside(tmp_path, buffer_uri: str, image_uri: str | None = None) -> Path:
+    """A .gltf whose one buffer is the file ``buffer_uri`` (and an image, if given)."""
+    doc = _doc()
+    doc["buffers"][0]["uri"] = buffer_uri
+    if image_uri is not None:
+        doc["images"] = [{"uri": image_uri}]
+    (tmp_path / "scan.bin").write_bytes(_V.tobytes() + _I.tobytes())
+    p = tmp_path / "scan.gltf"
+    p.write_text(json.dumps(doc))
+    return p
+
+
+def _info_in_a_child(path: Path, limit_bytes: int | None = None):
+    """``facewrap info PATH`` in a child process (a hang or a blow-up stays there)."""
+    import os
+    import subprocess
+    import sys
+
+    def limit():
+        if limit_bytes:
+            import resource
+            resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    env = dict(os.environ, PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    try:
+        return subprocess.run([sys.executable, "-m", "facewrap.cli", "info", str(path)],
+                              capture_output=True, text=True, timeout=20, env=env,
+                              preexec_fn=limit)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"facewrap info {path} hung")
+
+
+@pytest.mark.parametrize("what", ["buffer", "image"])
+def test_a_fifo_beside_a_gltf_is_named_not_opened(tmp_path, what):
+    import os
+    os.mkfifo(tmp_path / "fifo")
+    p = (_gltf_beside(tmp_path, "fifo") if what == "buffer"
+         else _gltf_beside(tmp_path, "scan.bin", "fifo"))
+    done = _info_in_a_child(p)
+    assert done.returncode == 2 and "is a fifo" in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_gltf_buffer_far_bigger_than_stated_is_refused_unread(tmp_path):
+    p = _gltf_beside(tmp_path, "big.bin")
+    with open(tmp_path / "big.bin", "wb") as fh:   # sparse: takes no disk
+        fh.write(_V.tobytes() + _I.tobytes())
+        fh.truncate(3 << 30)
+    done = _info_in_a_child(p, limit_bytes=2 << 30)
+    assert done.returncode == 2, done.stderr
+    assert "has 3221225472 bytes, its byteLength says 72" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("where", ["../outside.bin", "/abs", "link.bin", "%2E%2E/outside.bin"])
+def test_a_gltf_buffer_outside_its_folder_is_refused(tmp_path, capsys, where):
+    folder = tmp_path / "scan"
+    folder.mkdir()
+    (tmp_path / "outside.bin").write_bytes(_V.tobytes() + _I.tobytes())
+    (folder / "link.bin").symlink_to(tmp_path / "outside.bin")
+    uri = str(tmp_path / "outside.bin") if where == "/abs" else where
+    p = _gltf_beside(folder, uri)
+    _run_info(p, capsys, "outside the glTF's folder")
+    p = _gltf_beside(folder, "scan.bin")           # beside it, it reads
+    assert facewrap("info", p) == 0

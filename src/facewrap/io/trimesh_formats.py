@@ -30,11 +30,13 @@ import json
 import os
 import re
 import struct
+from urllib.parse import unquote
 
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.io.files import file_size, nul_at_ends, read_file_bytes, read_file_head
+from facewrap.io.files import (file_size, not_a_file, nul_at_ends, read_file_bytes,
+                               read_file_head)
 from facewrap.mesh import Mesh
 
 __all__ = ["TRIMESH_EXTENSIONS", "read_trimesh_format", "read_scene_texture"]
@@ -236,10 +238,51 @@ def _accessor(doc: dict, index, what: str, path) -> dict:
     return accessor
 
 
+def _external_file(uri, what: str, path) -> str | None:
+    """The file a buffer's or image's ``uri`` names, checked: inside the glTF's
+    folder (symlinks resolved) and a regular file (a missing image is left to
+    trimesh, which reads none); None for a ``data:`` URI."""
+    if not isinstance(uri, str):
+        raise InputError(f"{what} has a uri that is not a string", path)
+    if uri.startswith("data:"):
+        return None
+    name = unquote(uri)
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
+    target = os.path.realpath(os.path.join(folder, name))
+    if "://" in uri or os.path.isabs(name) or os.path.commonpath(
+            [folder, target]) != folder:
+        raise InputError(f"{what} names {uri[:80]!r}, outside the glTF's folder; "
+                         "only files beside it (or data: URIs) are read", path)
+    if not os.path.isfile(target) and (what.startswith("buffer")
+                                       or os.path.lexists(target)):
+        raise InputError(f"{what} names {uri[:80]!r}: {not_a_file(target).problem}",
+                         path)
+    return target
+
+
+def _check_uris(doc: dict, path) -> None:
+    """Every external buffer and image beside the file, regular, and each buffer of
+    the size it states (a bigger one would be read whole: a sparse 2 GB file)."""
+    for kind in ("buffers", "images"):
+        items = doc.get(kind)
+        for k, item in enumerate(items if isinstance(items, list) else []):
+            if not isinstance(item, dict) or "uri" not in item:
+                continue
+            what = f"{kind[:-1]} {k}"
+            target = _external_file(item["uri"], what, path)
+            if target is None or kind == "images":
+                continue
+            stated, size = item.get("byteLength"), os.path.getsize(target)
+            if not isinstance(stated, int) or not stated <= size < stated + 4:
+                raise InputError(f"{what} file {item['uri'][:80]!r} has {size} bytes, "
+                                 f"its byteLength says {stated!r}", path)
+
+
 def _check_gltf_doc(doc: dict, path) -> None:
     """Refuse what trimesh would misread without a word: triangle fans (dropped),
     sparse or bufferless accessors (read as zeros), positions that are not float
     VEC3 and indices that are not unsigned integers (read as garbage)."""
+    _check_uris(doc, path)
     meshes = doc.get("meshes", [])
     for m, mesh in enumerate(meshes if isinstance(meshes, list) else []):
         prims = mesh.get("primitives", []) if isinstance(mesh, dict) else []
