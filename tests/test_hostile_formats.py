@@ -5,7 +5,9 @@ Classes:
 - PLY: a second ``vertex`` or ``face`` element, or a ``vertex``/``face`` property
   named twice, was read silently (the first kept, the rest dropped, an
   out-of-range face in the second element never seen); it is now refused as
-  ambiguous, naming the header line;
+  ambiguous, naming the header line; an ASCII PLY whose counts leave lines out
+  (``element face 1`` over two face lines) was read without them, and is now
+  refused naming the first line left out;
 - glTF: accessors trimesh misreads without a word were taken: float face indices
   (garbage faces), positions that are not float VEC3 (bytes of a float read as
   uint8, or 2D positions that failed as a numpy error naming no file), sparse
@@ -74,6 +76,15 @@ def test_a_ply_element_or_property_given_twice_is_refused(tmp_path, capsys, vpro
     p = tmp_path / "scan.ply"
     p.write_text(text)
     _run_info(p, capsys, needle)
+
+
+def test_an_ascii_ply_whose_counts_leave_lines_out_is_refused(tmp_path, capsys):
+    p = tmp_path / "scan.ply"
+    p.write_text(_PLY_HEAD.format(vprops=_XYZ, more="").replace("face 2", "face 1"))
+    err = _run_info(p, capsys, "1 more lines than the header's element counts take")
+    assert f"{p}:15:" in err
+    p.write_text(_PLY_HEAD.format(vprops=_XYZ, more="") + "\n  \n")   # blank: fine
+    assert facewrap("info", p) == 0
 
 
 # -- glTF: accessors trimesh misreads -------------------------------------------------------

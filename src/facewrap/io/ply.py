@@ -390,6 +390,9 @@ def _ascii_tables(data: bytes, header: _Header, path) -> dict[str, _Table]:
         scalars, lists = _ascii_walk(flat, tokens, element,
                                      _wanted_props(element), lines, path)
         tables[element.name] = _Table(element, path, scalars, lists, lines=lines)
+    if cursor < len(rows_all):   # counts that leave rows out: part of the scan unread
+        raise InputError(f"{len(rows_all) - cursor} more lines than the header's element "
+                         "counts take", path, header.n_lines + int(rows_all[cursor]) + 1)
     return tables
 
 
