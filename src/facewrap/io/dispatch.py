@@ -2,8 +2,8 @@
 
 OBJ and PLY are read and written by facewrap's own exact readers
 (:mod:`facewrap.io.obj`, :mod:`facewrap.io.ply`); STL, OFF and glTF scans
-(``.stl``, ``.off``, ``.glb``, ``.gltf``) are read through trimesh
-(:mod:`facewrap.io.trimesh_formats`).  Outputs are OBJ or PLY.
+(``.stl``, ``.off``, ``.glb``, ``.gltf``) by :mod:`facewrap.io.trimesh_formats`
+(through trimesh, except OFF, read there row by row).  Outputs are OBJ or PLY.
 """
 
 from __future__ import annotations

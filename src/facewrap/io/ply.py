@@ -209,6 +209,9 @@ def _parse_header(data: bytes, path) -> _Header:
             if len(toks) != 3 or not toks[2].isdigit():
                 raise InputError("element line must read 'element <name> <count>' with "
                                  "a non-negative integer count", path, no)
+            if toks[1] in _WANTED and any(e.name == toks[1] for e in elements):
+                raise InputError(f"second '{toks[1]}' element: which one is the mesh "
+                                 "is ambiguous", path, no)
             elements.append(_Element(toks[1], int(toks[2]), no))
         elif key == "property":
             if not elements:
@@ -227,6 +230,9 @@ def _parse_header(data: bytes, path) -> _Header:
                     raise InputError("property must read 'property <type> <name>'",
                                      path, no)
                 prop = _Property(toks[2], _ply_type(toks[1], path, no), None, no)
+            if elements[-1].name in _WANTED and elements[-1].prop(prop.name):
+                raise InputError(f"{elements[-1].name} property {prop.name!r} given "
+                                 "twice: which one to read is ambiguous", path, no)
             elements[-1].props.append(prop)
         else:
             raise InputError(f"unknown header line {raw.strip()[:60]!r}", path, no)
@@ -384,6 +390,9 @@ def _ascii_tables(data: bytes, header: _Header, path) -> dict[str, _Table]:
         scalars, lists = _ascii_walk(flat, tokens, element,
                                      _wanted_props(element), lines, path)
         tables[element.name] = _Table(element, path, scalars, lists, lines=lines)
+    if cursor < len(rows_all):   # counts that leave rows out: part of the scan unread
+        raise InputError(f"{len(rows_all) - cursor} more lines than the header's element "
+                         "counts take", path, header.n_lines + int(rows_all[cursor]) + 1)
     return tables
 
 

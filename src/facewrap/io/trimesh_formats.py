@@ -1,4 +1,4 @@
-"""Scans in STL, OFF and glTF (``.glb``/``.gltf``), read through trimesh.
+"""Scans in STL, OFF and glTF (``.glb``/``.gltf``), read through trimesh (OFF here).
 
 These formats are read by `trimesh <https://trimesh.org>`_ (imported on first use:
 no other command pays for it) and turned into a :class:`~facewrap.mesh.Mesh`:
@@ -6,7 +6,10 @@ no other command pays for it) and turned into a :class:`~facewrap.mesh.Mesh`:
 * **STL** — a triangle soup by design (three corners per triangle); exactly
   coincident corners are merged into shared vertices here, so the scan is one
   surface and not a heap of loose triangles.  Binary or ASCII.
-* **OFF** (and ``COFF``) — vertices in file order, polygons triangulated by trimesh.
+* **OFF** (and ``COFF``) — read here, not by trimesh (whose reader mangles ``#``
+  comments and takes a face row short of its count as a smaller polygon): vertices
+  in file order, each polygon a fan of triangles from its first corner, in file
+  order; every row is checked and a bad one named by its line.
 * **glTF 2.0** (binary ``.glb``, or ``.gltf`` with its buffers) — every triangle
   mesh of the scene, each instance placed by its node's world transform, one after
   another in the order of the file's meshes; per-vertex texture coordinates are kept
@@ -27,11 +30,13 @@ import json
 import os
 import re
 import struct
+from urllib.parse import unquote
 
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.io.files import file_size, nul_at_ends, read_file_head
+from facewrap.io.files import (file_size, not_a_file, nul_at_ends, read_file_bytes,
+                               read_file_head)
 from facewrap.mesh import Mesh
 
 __all__ = ["TRIMESH_EXTENSIONS", "read_trimesh_format", "read_scene_texture"]
@@ -64,26 +69,31 @@ def _check_stl(path, size: int) -> None:
                      f"({84 + 50 * count} bytes), the file has {size} bytes", path)
 
 
-def _content_rows(text: str) -> list[str]:
-    """Lines that are not blank or ``#`` comments, stripped."""
-    return [r for r in (ln.split("#", 1)[0].strip() for ln in text.splitlines()) if r]
+def _content_rows(text: str) -> list[tuple[int, str]]:
+    """(line number, text) of the lines that are not blank or ``#`` comments,
+    comments cut off and the text stripped (a UTF-8 byte-order mark left out)."""
+    rows = ((no, ln.split("#", 1)[0].strip())
+            for no, ln in enumerate(text.lstrip("\ufeff").splitlines(), start=1))
+    return [(no, row) for no, row in rows if row]
 
 
 def _off_counts(path) -> tuple[int, int, int]:
     """(vertices, faces, header rows) from an OFF header; only the head is read."""
-    rows = _content_rows(read_file_head(path, 4096).decode("ascii", errors="replace"))
+    rows = [row for _, row in _content_rows(
+        read_file_head(path, 4096).decode("utf-8", errors="replace"))]
     tokens = " ".join(rows[:2]).split()
     if not tokens or tokens[0] not in ("OFF", "COFF"):
         raise InputError("not an OFF file (no 'OFF' or 'COFF' first; this reader "
                          "takes those two)", path)
     counts = tokens[1:3]
-    if len(counts) < 2 or not all(re.fullmatch(r"\d+", t) for t in counts):
+    if len(counts) < 2 or not all(re.fullmatch(r"[0-9]+", t) for t in counts):
         raise InputError("OFF header needs the vertex and face counts after 'OFF'", path)
     return int(counts[0]), int(counts[1]), 2 if rows[0] == tokens[0] else 1
 
 
-def _check_off(path, size: int) -> tuple[int, int]:
-    """The OFF header's counts, checked against the file's size and its rows."""
+def _read_off(path, size: int) -> Mesh:
+    """An OFF file, read here row by row (trimesh's reader mangles ``#`` comments
+    and takes a face row short of its count as a smaller polygon, silently)."""
     if nul_at_ends(path, size):  # before reading it whole: a sparse or binary file
         raise InputError("binary data, not a text OFF file", path)
     nv, nf, header_rows = _off_counts(path)
@@ -94,13 +104,90 @@ def _check_off(path, size: int) -> tuple[int, int]:
     if need > size:
         raise InputError(f"OFF header says {nv} vertices and {nf} faces (at least "
                          f"{need} bytes) but the file has {size} bytes", path)
-    # every row must be there: trimesh stops short without a word
-    with open(path, "rb") as fh:
-        rows = len(_content_rows(fh.read().decode("utf-8", errors="replace")))
-    if rows - header_rows < nv + nf:
-        raise InputError(f"OFF header says {nv} vertices and {nf} faces but only "
-                         f"{rows - header_rows} rows follow", path)
-    return nv, nf
+    rows = _content_rows(read_file_bytes(path).decode("utf-8", errors="replace"))
+    rows = rows[header_rows:]
+    if len(rows) != nv + nf:   # fewer: cut short; more: counts that leave rows out
+        raise InputError(f"OFF header says {nv} vertices and {nf} faces but "
+                         f"{'only ' if len(rows) < nv + nf else ''}{len(rows)} rows "
+                         "follow", path)
+    V = _off_vertices(rows[:nv], path)
+    return _mesh(V, _off_faces(rows[nv:], nv, path), path)
+
+
+def _off_vertices(rows, path) -> np.ndarray:
+    """x y z of each vertex row (a COFF colour after them, up to 4 values, skipped)."""
+    tokens = [row.split() for _, row in rows]
+    for (no, _), t in zip(rows, tokens):
+        if not 3 <= len(t) <= 7:
+            raise InputError(f"OFF vertex row has {len(t)} values; it needs x y z "
+                             "(and at most a colour)", path, no)
+    try:
+        return np.array([t[:3] for t in tokens], dtype=np.float64)
+    except ValueError:
+        for (no, _), t in zip(rows, tokens):
+            try:
+                np.array(t[:3], dtype=np.float64)
+            except ValueError:
+                raise InputError(f"OFF vertex row is not three numbers: "
+                                 f"{' '.join(t[:3])[:60]!r}", path, no) from None
+        raise
+
+
+def _off_faces(rows, nv: int, path) -> np.ndarray:
+    """Each face row ``n i1 .. in [colour]`` as triangles (a fan from its first
+    corner), in file order; every row checked and named by its line."""
+    fast = _uniform_faces(rows, nv)
+    if fast is not None:
+        return fast
+    polys = []
+    for no, row in rows:
+        t = row.split()
+        n = int(t[0]) if t[0].isdecimal() and t[0].isascii() else -1
+        if n < 3 or not n <= len(t) - 1 <= n + 4:
+            raise InputError(f"OFF face row {row[:40]!r}: a face is its number of "
+                             "corners (3 or more), that many vertex indices and at "
+                             "most a colour", path, no)
+        try:
+            corners = [int(i) for i in t[1:n + 1]]
+        except ValueError:
+            raise InputError(f"OFF face row has an index that is not a whole number: "
+                             f"{row[:60]!r}", path, no) from None
+        bad = next((i for i in corners if not 0 <= i < nv), None)
+        if bad is not None:
+            raise InputError(f"OFF face index {bad} is outside the range of the "
+                             f"{nv} vertices", path, no)
+        polys.append(corners)
+    return _fan(polys)
+
+
+def _uniform_faces(rows, nv: int) -> np.ndarray | None:
+    """Faces of one size and nothing after their indices (the usual OFF), read in
+    bulk; None when any row is otherwise (the row-by-row reading names it)."""
+    tokens = [row.split() for _, row in rows]
+    width = len(tokens[0])
+    if width < 4 or any(len(t) != width for t in tokens):
+        return None
+    try:
+        table = np.array(tokens, dtype=np.int64)
+    except (ValueError, OverflowError):
+        return None
+    corners = table[:, 1:]
+    if (table[:, 0] != width - 1).any() or corners.min() < 0 or corners.max() >= nv:
+        return None
+    k = np.arange(1, width - 2)
+    return np.stack([np.broadcast_to(corners[:, :1], (len(table), len(k))),
+                     corners[:, k], corners[:, k + 1]], axis=-1).reshape(-1, 3)
+
+
+def _fan(polys: list[list[int]]) -> np.ndarray:
+    """Polygons as triangles (0, k, k + 1), in order; (m, 3) int64."""
+    sizes = np.fromiter((len(p) for p in polys), dtype=np.int64, count=len(polys))
+    flat = np.fromiter((i for p in polys for i in p), dtype=np.int64, count=sizes.sum())
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    per = sizes - 2
+    first = np.repeat(starts, per)
+    k = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per) + 1
+    return np.column_stack([flat[first], flat[first + k], flat[first + k + 1]])
 
 
 def _check_glb(path, size: int) -> None:
@@ -117,6 +204,113 @@ def _check_glb(path, size: int) -> None:
     if chunk_type != _GLB_JSON or 20 + chunk_length > size:
         raise InputError("GLB does not start with a JSON chunk that fits in the file",
                          path)
+    with open(path, "rb") as fh:
+        fh.seek(20)
+        _check_gltf_doc(_json_doc(fh.read(chunk_length), path), path)
+
+
+def _json_doc(data: bytes, path) -> dict:
+    """The glTF JSON document, as one error naming the file when it is not one."""
+    try:
+        doc = json.loads(data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"not glTF JSON: {' '.join(str(exc).split())}", path) from None
+    except RecursionError:
+        raise InputError("not glTF JSON: nested too deeply", path) from None
+    if not isinstance(doc, dict) or "asset" not in doc:
+        raise InputError("not glTF JSON (no 'asset')", path)
+    return doc
+
+
+def _accessor(doc: dict, index, what: str, path) -> dict:
+    accessors = doc.get("accessors")
+    if not isinstance(index, int) or not isinstance(accessors, list) \
+            or not 0 <= index < len(accessors) or not isinstance(accessors[index], dict):
+        raise InputError(f"{what} names accessor {index!r}, which the file does not "
+                         "have", path)
+    accessor = accessors[index]
+    if "sparse" in accessor:
+        raise InputError(f"{what} is a sparse accessor, which this reader does not "
+                         "apply (export without sparse accessors)", path)
+    if "bufferView" not in accessor:
+        raise InputError(f"{what} has no data (an accessor without a bufferView: "
+                         "a compression extension this reader does not decode?)", path)
+    return accessor
+
+
+def _external_file(uri, what: str, path) -> str | None:
+    """The file a buffer's or image's ``uri`` names, checked: inside the glTF's
+    folder (symlinks resolved) and a regular file (a missing image is left to
+    trimesh, which reads none); None for a ``data:`` URI."""
+    if not isinstance(uri, str):
+        raise InputError(f"{what} has a uri that is not a string", path)
+    if uri.startswith("data:"):
+        return None
+    name = unquote(uri)
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
+    target = os.path.realpath(os.path.join(folder, name))
+    if "://" in uri or os.path.isabs(name) or os.path.commonpath(
+            [folder, target]) != folder:
+        raise InputError(f"{what} names {uri[:80]!r}, outside the glTF's folder; "
+                         "only files beside it (or data: URIs) are read", path)
+    if not os.path.isfile(target) and (what.startswith("buffer")
+                                       or os.path.lexists(target)):
+        raise InputError(f"{what} names {uri[:80]!r}: {not_a_file(target).problem}",
+                         path)
+    return target
+
+
+def _check_uris(doc: dict, path) -> None:
+    """Every external buffer and image beside the file, regular, and each buffer of
+    the size it states (a bigger one would be read whole: a sparse 2 GB file)."""
+    for kind in ("buffers", "images"):
+        items = doc.get(kind)
+        for k, item in enumerate(items if isinstance(items, list) else []):
+            if not isinstance(item, dict) or "uri" not in item:
+                continue
+            what = f"{kind[:-1]} {k}"
+            target = _external_file(item["uri"], what, path)
+            if target is None or kind == "images":
+                continue
+            stated, size = item.get("byteLength"), os.path.getsize(target)
+            if not isinstance(stated, int) or not stated <= size < stated + 4:
+                raise InputError(f"{what} file {item['uri'][:80]!r} has {size} bytes, "
+                                 f"its byteLength says {stated!r}", path)
+
+
+def _check_gltf_doc(doc: dict, path) -> None:
+    """Refuse what trimesh would misread without a word: triangle fans (dropped),
+    sparse or bufferless accessors (read as zeros), positions that are not float
+    VEC3 and indices that are not unsigned integers (read as garbage)."""
+    _check_uris(doc, path)
+    meshes = doc.get("meshes", [])
+    for m, mesh in enumerate(meshes if isinstance(meshes, list) else []):
+        prims = mesh.get("primitives", []) if isinstance(mesh, dict) else []
+        for k, prim in enumerate(prims if isinstance(prims, list) else []):
+            if not isinstance(prim, dict):
+                continue
+            where = f"mesh {m} primitive {k}"
+            mode = prim.get("mode", 4)
+            if mode not in (0, 1, 2, 3, 4, 5):
+                raise InputError(f"{where} has mode {mode!r}; this reader takes "
+                                 "triangles and triangle strips (4, 5)", path)
+            if mode < 4:
+                continue            # points and lines: no surface, left out
+            attributes = prim.get("attributes")
+            if not isinstance(attributes, dict) or "POSITION" not in attributes:
+                raise InputError(f"{where} has no POSITION attribute", path)
+            pos = _accessor(doc, attributes["POSITION"], f"{where} POSITION", path)
+            if pos.get("componentType") != 5126 or pos.get("type") != "VEC3":
+                raise InputError(f"{where} POSITION is not float VEC3 (componentType "
+                                 f"{pos.get('componentType')!r}, type "
+                                 f"{pos.get('type')!r})", path)
+            if "indices" in prim:
+                idx = _accessor(doc, prim["indices"], f"{where} indices", path)
+                if idx.get("componentType") not in (5121, 5123, 5125) \
+                        or idx.get("type") != "SCALAR":
+                    raise InputError(f"{where} indices are not unsigned integer "
+                                     f"SCALARs (componentType {idx.get('componentType')!r}"
+                                     f", type {idx.get('type')!r})", path)
 
 
 def _check_gltf(path, size: int) -> None:
@@ -125,12 +319,7 @@ def _check_gltf(path, size: int) -> None:
         raise InputError(f"a .gltf of {size} bytes is not JSON a scan needs; embed "
                          "large buffers as .bin files or use .glb", path)
     with open(path, "rb") as fh:
-        try:
-            doc = json.loads(fh.read())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"not glTF JSON: {' '.join(str(exc).split())}", path) from None
-    if not isinstance(doc, dict) or "asset" not in doc:
-        raise InputError("not glTF JSON (no 'asset')", path)
+        _check_gltf_doc(_json_doc(fh.read(), path), path)
 
 
 def _load(path, kind: str):
@@ -236,11 +425,10 @@ def read_trimesh_format(path) -> Mesh:
     size = file_size(path)
     if size == 0:
         raise InputError("empty file", path)
-    counts = None
+    if kind == "off":
+        return _read_off(path, size)
     if kind == "stl":
         _check_stl(path, size)
-    elif kind == "off":
-        counts = _check_off(path, size)
     elif kind == "glb":
         _check_glb(path, size)
     else:
@@ -253,11 +441,7 @@ def read_trimesh_format(path) -> Mesh:
         raise InputError("holds no triangles", path)
     V = np.vstack([np.asarray(g.vertices, dtype=np.float64) for _, g, _ in pieces])
     F = np.vstack([np.asarray(g.faces, dtype=np.int64) for _, g, _ in pieces])
-    if kind == "stl":
-        V, F = _welded(V, F)
-    elif len(V) != counts[0]:
-        raise InputError(f"OFF header says {counts[0]} vertices, {len(V)} were read",
-                         path)
+    V, F = _welded(V, F)   # STL: a triangle soup
     return _mesh(V, F, path)
 
 
