@@ -15,6 +15,9 @@ Classes:
   (all zeros: a scan of one point), triangle fans (dropped); they are now refused
   naming the mesh and primitive.  A glTF JSON nested too deeply failed with a line
   naming no file; it is now named;
+- OFF: a header under more than 4 KiB of comments was not found (or its counts
+  cut short where the 4 KiB ended); it is now looked for in up to 1 MiB of whole
+  lines;
 - OFF: trimesh's reader mangles ``#`` comments in the body (the text before the
   first comment is repeated, so the counts row became vertex 0 and the last face
   was dropped, or a real scan failed with "invalid literal for int()"), and takes
@@ -197,6 +200,20 @@ def test_an_off_face_row_short_of_its_count_is_named(tmp_path, capsys, face, lin
 def test_an_off_whose_counts_leave_rows_out_is_refused(tmp_path, capsys):
     p = _off(tmp_path, "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n")
     _run_info(p, capsys, "4 vertices and 1 faces but 6 rows follow")
+
+
+@pytest.mark.parametrize("pad", [4093, 10_000])
+def test_an_off_under_a_long_block_of_comments_reads(tmp_path, capsys, pad):
+    # the header was looked for in the first 4 KiB only: under a licence block the
+    # counts were missing, or cut short where the 4 KiB ended (4093: the counts
+    # line starts 2 bytes before it, "0004" was read as "00")
+    comments = "".join(f"# {'x' * 60}\n" for _ in range(pad // 63 + 1))[:pad - 4]
+    text = ("OFF\n" + comments + "\n0004 0002 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n"
+            "3 0 1 2\n3 1 3 2\n")
+    assert pad > 4096 or text.index("0004") == 4094
+    out = tmp_path / "out.obj"
+    assert facewrap("convert", _off(tmp_path, text), out) == 0, capsys.readouterr().err
+    assert len(read_obj(out).triangles) == 2
 
 
 # -- glTF: external files -------------------------------------------------------------------

@@ -69,6 +69,10 @@ def _check_stl(path, size: int) -> None:
                      f"({84 + 50 * count} bytes), the file has {size} bytes", path)
 
 
+#: how much of an OFF file its header is looked for in, in turn
+_OFF_HEAD_BYTES = (4096, 1 << 20)
+
+
 def _content_rows(text: str) -> list[tuple[int, str]]:
     """(line number, text) of the lines that are not blank or ``#`` comments,
     comments cut off and the text stripped (a UTF-8 byte-order mark left out)."""
@@ -78,10 +82,16 @@ def _content_rows(text: str) -> list[tuple[int, str]]:
 
 
 def _off_counts(path) -> tuple[int, int, int]:
-    """(vertices, faces, header rows) from an OFF header; only the head is read."""
-    rows = [row for _, row in _content_rows(
-        read_file_head(path, 4096).decode("utf-8", errors="replace"))]
-    tokens = " ".join(rows[:2]).split()
+    """(vertices, faces, header rows) from an OFF header; only the head is read
+    (its whole lines: 4 KiB, or up to 1 MiB under a long block of comments)."""
+    for limit in _OFF_HEAD_BYTES:
+        head = read_file_head(path, limit)
+        if len(head) == limit:       # a line cut at the end would cut a count short
+            head = head[:head.rfind(b"\n") + 1]
+        rows = [row for _, row in _content_rows(head.decode("utf-8", errors="replace"))]
+        tokens = " ".join(rows[:2]).split()
+        if len(tokens) >= 3:
+            break
     if not tokens or tokens[0] not in ("OFF", "COFF"):
         raise InputError("not an OFF file (no 'OFF' or 'COFF' first; this reader "
                          "takes those two)", path)
