@@ -3,7 +3,7 @@ import pytest
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.mesh import Mesh
-from facewrap.wrapping.blend import smooth_extension
+from facewrap.wrapping.blend import SmoothExtension, smooth_extension
 from facewrap.wrapping.projection import METHOD_PRISM, project_to_surface
 
 
@@ -75,6 +75,31 @@ def test_smooth_extension_reproduces_linear_fields_and_keeps_known_values():
         out = smooth_extension(m, lin, known, order=order)
         assert np.allclose(out[known], lin[known])
         assert np.allclose(out, lin, atol=1e-8)
+
+
+def test_pieces_no_known_vertex_reaches_are_held_at_zero_not_solved(monkeypatch):
+    """A second piece (a part: an eyeball beside the skin) with no known vertex keeps
+    a zero displacement and never enters the factorisation; the skin's extension is
+    the one it has alone."""
+    import facewrap.wrapping.blend as blend
+    skin, part = grid(12), grid(9)
+    n = skin.n_vertices
+    both = Mesh(np.vstack([skin.vertices, part.vertices + [0, 0, -1.0]]),
+                np.vstack([skin.triangles, part.triangles + n]))
+    known = np.zeros(both.n_vertices, dtype=bool)
+    known[:n] = np.abs(skin.vertices[:, :2]).max(1) > 0.5
+    d = np.random.default_rng(0).normal(size=(both.n_vertices, 3))
+    sizes = []
+    real = blend.FixedSystem
+    monkeypatch.setattr(blend, "FixedSystem",
+                        lambda *a, **k: sizes.append(len(real(*a, **k).free)) or real(*a, **k))
+    extend = SmoothExtension(both, order=1)
+    out = extend(d, known)
+    assert sizes == [int((~known[:n]).sum())]              # the part's vertices held
+    assert np.all(out[n:] == 0.0)
+    alone = smooth_extension(Mesh(skin.vertices, skin.triangles), d[:n], known[:n], order=1)
+    assert np.allclose(out[:n], alone, rtol=0, atol=1e-9)
+    assert np.allclose(extend(d, known), out, rtol=0, atol=1e-12)   # used again
 
 
 def test_bad_arguments():

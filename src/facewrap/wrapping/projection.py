@@ -29,7 +29,7 @@ from facewrap.geometry import (ClosestPointTree, face_normals, turned, vertex_ad
 from facewrap.geometry.matching import compatible
 from facewrap.geometry.arrays import cross_rows
 from facewrap.mesh import Mesh
-from facewrap.wrapping.blend import extension_operator, smooth_extension
+from facewrap.wrapping.blend import SmoothExtension, smooth_extension
 from facewrap.wrapping.unfold import step_back_new_folds
 
 __all__ = ["Projection", "project_to_surface", "prism_projection", "seen_fit_p95",
@@ -212,10 +212,10 @@ def _blend_without_folds(template: Mesh, Vt, P, ok, fold_angle: float,
     T = template.triangles
     n0 = face_normals(Vt, T)
     ok = ok.copy()
-    operator = extension_operator(template, 1)   # harmonic; one mesh, every round
+    extend = SmoothExtension(template, 1)   # harmonic; one mesh, every round
     adjacency = None
     for _ in range(fold_rounds + 1):
-        out = Vt + smooth_extension(template, P - Vt, ok, operator=operator)
+        out = Vt + extend(P - Vt, ok)
         out[ok] = P[ok]  # exact landing points (no round-off from the blend)
         if fold_rounds == 0:
             break

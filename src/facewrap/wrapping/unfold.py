@@ -18,7 +18,7 @@ from facewrap.geometry import (adjacent_triangle_pairs, face_normals, facing_apa
                                vertex_adjacency)
 from facewrap.geometry.similarity import similarity_transform
 from facewrap.mesh import Mesh
-from facewrap.wrapping.blend import extension_operator, smooth_extension
+from facewrap.wrapping.blend import SmoothExtension
 
 __all__ = ["relax_flips", "unfold_among", "settle_turned_corners", "step_back_new_folds",
            "turn_back_within"]
@@ -121,8 +121,8 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
     A fit can leave a few triangles turned over where the scan ends, in a crease
     or beside a cavity.  Their vertices and one ring around them give up their
     displacement from ``reference`` and take the smooth extension of their
-    neighbours' (:func:`smooth_extension`); the relaxed region grows by a ring a
-    round until no triangle is turned past ``angle`` (90 degrees), ``rounds`` are
+    neighbours' (:class:`~facewrap.wrapping.blend.SmoothExtension`); the relaxed
+    region grows by a ring a round until no triangle is turned past ``angle`` (90 degrees), ``rounds`` are
     done (no region is wider than about ``rounds`` rings), three rounds unfold
     nothing more or ``most_relaxed`` of the vertices are relaxed.  With ``each_region``,
     only the connected pieces of the region that still hold a turned triangle
@@ -193,7 +193,7 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
     relaxed = np.zeros(len(X), dtype=bool)
     out = X
     A = None
-    operator = None
+    extend = None
     last, stalled = len(T) + 1, 0
     best = (len(T) + 1, X, relaxed)
     for _ in range(rounds):
@@ -209,7 +209,7 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
         last = int(flipped.sum())
         if A is None:
             A = vertex_adjacency(T, len(X)).tocsr()
-            operator = extension_operator(template, order)
+            extend = SmoothExtension(template, order)
         if each_region:
             grown = _grown_where_folded(A, relaxed, T[flipped])
         else:
@@ -217,7 +217,7 @@ def relax_flips(template: Mesh, reference, vertices, *, fixed=None, order: int =
             grown[T[flipped]] = True
             grown |= (A @ grown.astype(np.float64)) > 0
         relaxed |= grown & ~keep
-        out = V0 + smooth_extension(template, X - V0, ~relaxed, operator=operator)
+        out = V0 + extend(X - V0, ~relaxed)
         out[~relaxed] = X[~relaxed]
     if each_region and relaxed.any():
         out, relaxed = _unfolded_regions_only(A, X, out, relaxed,
