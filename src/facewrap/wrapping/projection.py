@@ -173,11 +173,15 @@ def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distan
     tri = np.full(n, -1, dtype=np.int64)
     bary = np.zeros((n, 3))
     todo = allowed.copy()
-    cp = tree.query(Vt)
+    # closest points of the allowed vertices only (a production head's parts and
+    # cavities, half its vertices, never land)
+    near = np.full(n, -1, dtype=np.int64)
+    near[allowed] = np.arange(np.count_nonzero(allowed))
+    cp = tree.query(Vt[allowed])
     if "prism" in methods and todo.any():
         idx = np.flatnonzero(todo)
-        cand = np.concatenate([cp.triangles[idx, None],
-                               tree.neighbours_of(cp.triangles[idx])], axis=1)
+        cand = np.concatenate([cp.triangles[near[idx], None],
+                               tree.neighbours_of(cp.triangles[near[idx]])], axis=1)
         found, t_, b_, _ = prism_projection(Vt[idx], tree, cand)
         hit = idx[found]
         method[hit], tri[hit], bary[hit] = METHOD_PRISM, t_[found], b_[found]
@@ -191,8 +195,8 @@ def _landing_points(Vt, Nt, tree: ClosestPointTree, allowed, methods, max_distan
         todo[hit] = False
     if "closest" in methods and todo.any():
         idx = np.flatnonzero(todo)
-        method[idx], tri[idx], bary[idx] = METHOD_CLOSEST, cp.triangles[idx], \
-            cp.barycentric[idx]
+        method[idx], tri[idx], bary[idx] = METHOD_CLOSEST, cp.triangles[near[idx]], \
+            cp.barycentric[near[idx]]
     return method, tri, bary
 
 
