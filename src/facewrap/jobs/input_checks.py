@@ -214,14 +214,20 @@ def oversized_shapes(shapes: dict, template: Mesh, path) -> list[str]:
     template's size: no expression does, a shape in other units (or of another
     head) does, and the fit would quietly give it no weight."""
     size = template.scale()
-    moves = {name: float(np.linalg.norm(V - template.vertices, axis=1).max())
-             for name, V in shapes.items()}
+    moves = {name: _farthest_move(V, template.vertices) for name, V in shapes.items()}
     big = [name for name, m in moves.items() if m > 0.5 * size]
     if not big:
         return []
     return [f"{path}: {len(big)} shape(s) move a vertex farther than half the template's "
             f"size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its size): other "
             "units, or not this template's shapes?"]
+
+
+def _farthest_move(V, R) -> float:
+    """The longest of the moves ``V − R`` (n, 3): a row-wise dot product, several
+    times faster than ``np.linalg.norm(..., axis=1)`` on 53 shapes per wrap."""
+    d = np.asarray(V, dtype=np.float64) - R
+    return float(np.sqrt(np.einsum("ij,ij->i", d, d).max(initial=0.0)))
 
 
 def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path,
