@@ -547,7 +547,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
     # here that becomes the file, in its warnings and in a refusal alike
     files = {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
-             "template landmarks": job.template_landmarks}
+             "template landmarks": job.template_landmarks, "template": job.template}
     try:
         result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                       inputs["scan_landmarks"], settings, exclude=inputs["exclude"],

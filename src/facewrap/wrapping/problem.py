@@ -16,6 +16,7 @@ import numpy as np
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
+from facewrap.wrapping.likeness import check_likeness
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
@@ -131,6 +132,9 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
     scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
                                           mask=~excluded)
+    if aligned is not None:   # a scan of another object passes every check above
+        scan_notes += check_likeness(aligned, ~excluded, similarity.apply(
+            template_points[ia]), scan_points[ib], tree)
     bordered = border_fraction(tree)
     if s.reject_boundary and bordered > LACY_LIMIT:
         s.reject_boundary = False
