@@ -127,3 +127,102 @@ def test_a_glb_overrunning_its_buffer_names_the_culprit(tmp_path, capsys, change
     p.write_bytes(glb(doc, binary))
     line = error_line(capsys, facewrap("info", p), str(p), needle)
     assert "AssertionError" not in line and "reshape" not in line
+
+
+# -- a scan of something else than a face ------------------------------------------------------
+def flat_and_round_scans(sample, folder: Path) -> dict:
+    """The sample's scan landmarks on a plane (flattened onto it) and on a ball
+    (pushed out onto it), each with its scan, as file paths."""
+    from facewrap.io.obj import write_obj
+    from facewrap.mesh import Mesh
+    import trimesh
+    P = np.loadtxt(sample["scan_landmarks"])
+    flat = P.copy()
+    flat[:, 2] = P[:, 2].mean()
+    n = 30
+    lo, hi = flat.min(axis=0) - 60, flat.max(axis=0) + 60
+    x, y = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
+    i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)).ravel()
+    plane = Mesh(np.column_stack([x.ravel(), y.ravel(), np.full(n * n, flat[0, 2])]),
+                 np.vstack([np.column_stack([i, i + 1, i + n]),
+                            np.column_stack([i + 1, i + n + 1, i + n])]))
+    ball = trimesh.creation.icosphere(3, radius=100.0)
+    centre = P.mean(axis=0)
+    out = {}
+    for name, mesh, points in [
+            ("plane", plane, flat),
+            ("ball", Mesh(np.asarray(ball.vertices) + centre, np.asarray(ball.faces)),
+             centre + 100 * (P - centre) / np.linalg.norm(P - centre, axis=1)[:, None])]:
+        write_obj(folder / f"{name}.obj", mesh)
+        np.savetxt(folder / f"{name}_landmarks.txt", points)
+        out[name] = (folder / f"{name}.obj", folder / f"{name}_landmarks.txt")
+    return out
+
+
+@pytest.mark.parametrize("shape", ["plane", "ball"])
+def test_a_scan_that_is_no_face_is_said(sample, tmp_path, capsys, shape):
+    """A plane or a ball with the landmarks on it passed every check and was fitted
+    (the sample onto the plane: 29 mm median error against its truth), silently."""
+    scan, landmarks = flat_and_round_scans(sample, tmp_path)[shape]
+    out = tmp_path / "o.obj"
+    rc = facewrap(*wrap_argv(dict(sample, scan=scan, scan_landmarks=landmarks), out))
+    line, = warning_lines(capsys, rc, f"{scan}: under the landmark alignment",
+                          "% of the landmarks' spread", "is it a scan of a face")
+
+
+def test_a_face_scan_is_not_said_to_be_unlike(sample, tmp_path, capsys):
+    rc = facewrap(*wrap_argv(sample, tmp_path / "o.obj"))
+    assert rc == 0
+    assert "landmark alignment" not in capsys.readouterr().err
+
+
+# -- a template wound inward -------------------------------------------------------------------
+def test_a_flipped_template_is_named_not_the_scan(sample, tmp_path, capsys):
+    """A template whose faces face into the head made the good scan look flipped: the
+    warning named the scan ("100 % of the scan ... faces inward")."""
+    from facewrap.io.obj import read_obj, write_obj
+    from facewrap.mesh import Mesh
+    template = read_obj(sample["template"])
+    flipped = tmp_path / "template.obj"
+    write_obj(flipped, Mesh(template.vertices, [p[::-1] for p in template.polygons()]))
+    rc = facewrap(*wrap_argv(dict(sample, template=flipped), tmp_path / "o.obj"))
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert f"{flipped}: its faces are flipped (they face into the head)" in err
+    assert str(sample["scan"]) not in err
+
+
+# -- options that contradict -------------------------------------------------------------------
+@pytest.mark.parametrize("model", ["graph", "rbf"])
+def test_pca_components_with_a_model_of_no_blendshapes_is_refused(sample, tmp_path, capsys,
+                                                                  model):
+    """``--model graph --blendshapes DIR --pca-components 3`` dropped the setting
+    silently (only its absence of blendshapes was refused)."""
+    argv = wrap_argv(sample, tmp_path / "o.obj", "--blendshapes",
+                     Path(sample["template"]).parent / "blendshapes", "--pca-components",
+                     "3", "--model", model)
+    error_line(capsys, facewrap(*argv), "--pca-components", f"the model {model!r} fits "
+                                                             "no blendshapes")
+    assert not (tmp_path / "o.obj").exists()
+
+
+# -- template landmarks on a part that is not skin --------------------------------------------
+def test_template_landmarks_on_an_eyeball_are_said(sample, tmp_path, capsys):
+    """Eye-corner ids pointing at the eyeball beside them (a piece the scanner does
+    not see and the fit does not pull) were fitted without a word."""
+    from facewrap.io.obj import read_obj
+    from scipy.sparse import coo_matrix, csgraph
+    template = read_obj(sample["template"])
+    T, n = template.triangles, template.n_vertices
+    _, piece = csgraph.connected_components(coo_matrix(
+        (np.ones(T.size), (T.ravel(), np.roll(T, 1, axis=1).ravel())), shape=(n, n)))
+    eyeball = np.flatnonzero(piece != np.argmax(np.bincount(piece)))
+    ids = np.loadtxt(sample["template_landmarks"], dtype=int)
+    for j in (36, 45):       # the outer eye corners: onto the nearest eyeball vertex
+        ids[j] = eyeball[np.argmin(np.linalg.norm(
+            template.vertices[eyeball] - template.vertices[ids[j]], axis=1))]
+    moved = tmp_path / "template_landmarks.txt"
+    np.savetxt(moved, ids, fmt="%d")
+    rc = facewrap(*wrap_argv(dict(sample, template_landmarks=moved), tmp_path / "o.obj"))
+    warning_lines(capsys, rc, f"{moved}: 2 of 68 landmarks (36, 45) lie on a part that "
+                              "is not skin")

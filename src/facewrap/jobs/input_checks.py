@@ -8,7 +8,8 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 :func:`check_distinct_landmarks` (two template landmarks at one place),
 :func:`unpaired_landmarks` (named landmarks left out of the pairing),
 :func:`nothing_to_fit` (every vertex excluded or pinned), :func:`oversized_shapes`
-(blendshapes larger than the head), :func:`check_uv_layouts` (texture coordinates
+(blendshapes larger than the head), :func:`check_pca_components` (a setting the
+shapes or the model would drop), :func:`check_uv_layouts` (texture coordinates
 that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
 (and of each frame of a track) in one call.
@@ -29,11 +30,12 @@ from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, resolve_units
+from facewrap.wrapping.models import model_spec
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
-           "check_uv_layouts"]
+           "check_uv_layouts", "check_pca_components"]
 
 
 def doubled_areas(mesh) -> np.ndarray:
@@ -222,6 +224,34 @@ def oversized_shapes(shapes: dict, template: Mesh, path) -> list[str]:
     return [f"{path}: {len(big)} shape(s) move a vertex farther than half the template's "
             f"size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its size): other "
             "units, or not this template's shapes?"]
+
+
+def check_pca_components(settings, shapes: dict | None, path) -> None:
+    """Refuse a ``pca_components`` setting that would be dropped silently: without
+    blendshapes, with a model that fits no blend weights, or asking for more
+    components than there are shapes (the basis has one axis per shape).
+
+    Parameters
+    ----------
+    settings : WrapSettings or None
+    shapes : dict of str to (n, 3) float, or None
+        The blendshapes read from ``path``.
+    path : path or None
+        The blendshapes folder, named in the error.
+    """
+    k = None if settings is None else settings.pca_components
+    if k is None:
+        return
+    what = f"pca_components (--pca-components) is {k}"
+    if not shapes:
+        raise InputError(f"{what} but no blendshapes are given: components of which "
+                         "shapes?")
+    if not model_spec(settings.model, has_blendshapes=True).needs_blendshapes:
+        raise InputError(f"{what} but the model {settings.model!r} fits no blendshapes: "
+                         "it would have no effect (use the blendshape or hybrid model)")
+    if k > len(shapes):
+        raise InputError(f"{what} but the folder holds {len(shapes)} shape(s); use at "
+                         f"most {len(shapes)}", path)
 
 
 def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path,

@@ -51,7 +51,7 @@ def check_likeness(aligned, fitted, aligned_points, scan_points,
     --------
     >>> from facewrap.sample import make_scan, make_template
     >>> t = make_template(16)
-    >>> s = make_scan(t, resolution=24, texture_size=8)
+    >>> s = make_scan(t, resolution=24, texture_size=8, transform=False)
     >>> fitted = np.ones(t.mesh.n_vertices, bool)
     >>> check_likeness(t.mesh.vertices, fitted, t.landmarks.positions(t.mesh),
     ...                s.landmarks.points, ClosestPointTree(s.mesh.vertices,
