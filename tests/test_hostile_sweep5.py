@@ -226,3 +226,91 @@ def test_template_landmarks_on_an_eyeball_are_said(sample, tmp_path, capsys):
     rc = facewrap(*wrap_argv(dict(sample, template_landmarks=moved), tmp_path / "o.obj"))
     warning_lines(capsys, rc, f"{moved}: 2 of 68 landmarks (36, 45) lie on a part that "
                               "is not skin")
+
+
+# -- two poses that cannot be of one head: animate's ends, evaluate's truth ---------------
+def moved_copies(sample, folder: Path) -> dict:
+    """The sample's template mirrored, in metres (from mm), turned 180 degrees about
+    its vertical axis, and its smile shape as it is; as OBJ files."""
+    from facewrap.io.obj import read_obj, write_obj
+    from facewrap.mesh import Mesh
+    template = read_obj(sample["template"])
+    V, faces = template.vertices, list(template.polygons())
+    out = {}
+    for name, W in [("mirrored", V * [-1, 1, 1]), ("metres", V / 1000),
+                    ("turned", V * [-1, 1, -1])]:
+        out[name] = folder / f"{name}.obj"
+        write_obj(out[name], Mesh(W, faces))
+    out["smile"] = Path(sample["template"]).parent / "blendshapes" / "smile.obj"
+    return out
+
+
+@pytest.mark.parametrize("end, needle", [
+    ("mirrored", "is a mirror image of"), ("metres", "is 0.001 times the size of"),
+    ("turned", "is turned 180 degrees from")])
+def test_animate_says_ends_that_are_not_two_poses_of_one_head(sample, tmp_path, capsys,
+                                                              end, needle):
+    """A mirrored end, an end in metres or one turned around was interpolated
+    without a word (the middle frame of the mirrored pair is a flat head)."""
+    path = moved_copies(sample, tmp_path)[end]
+    rc = facewrap("animate", sample["template"], path, "--frames", "3", "-o",
+                  tmp_path / "a")
+    line, = warning_lines(capsys, rc, f"{path}: {needle}")
+    assert len(list((tmp_path / "a").glob("*.obj"))) == 3
+
+
+def test_animate_says_nothing_of_an_expression(sample, tmp_path, capsys):
+    path = moved_copies(sample, tmp_path)["smile"]
+    assert facewrap("animate", sample["template"], path, "-o", tmp_path / "a") == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_evaluate_says_a_ground_truth_that_cannot_be_the_results(sample, tmp_path, capsys):
+    """A truth in centimetres, mirrored, or in the template's frame (a wrap run with
+    ``--output-frame template``) gave its errors as if they measured the fit."""
+    fitted = tmp_path / "fitted.obj"
+    assert facewrap(*wrap_argv(sample, fitted)) == 0
+    framed = tmp_path / "framed.obj"
+    assert facewrap(*wrap_argv(sample, framed, "--output-frame", "template")) == 0
+    capsys.readouterr()
+    truth = np.load(sample["ground_truth"])
+    for name, G, result, needle in [
+            ("cm", truth / 10, fitted, "times the size of the result"),
+            ("mirrored", truth * [-1, 1, 1], fitted, "is a mirror image of the result"),
+            ("truth", truth, framed, "in another frame (a wrap's --output-frame)")]:
+        path = tmp_path / f"{name}.npy"
+        np.save(path, G)
+        rc = facewrap("evaluate", result, sample["scan"], "--ground-truth", path, "-q")
+        warning_lines(capsys, rc, f"{path}: ", needle, "its errors measure that")
+    rc = facewrap("evaluate", fitted, sample["scan"], "--ground-truth",
+                  sample["ground_truth"], "-q")
+    assert rc == 0 and "warning" not in capsys.readouterr().err
+
+
+# -- transfer: source shapes that are no pose of the source neutral ---------------------------
+@pytest.mark.parametrize("moved, needle", [
+    (lambda N, V: N + 1000 * (V - N), "move a vertex farther than half the source neutral"),
+    (lambda N, V: V * [-1, 1, 1], "move a vertex farther than half the source neutral"),
+    (lambda N, V: V * [-1, 1, -1], "move a vertex farther than half the source neutral"),
+    (lambda N, V: V / 1000, "are not of the source neutral's size (e.g. 'smile', 0.001"),
+])
+def test_transfer_says_a_source_shape_that_is_no_pose_of_its_neutral(sample, tmp_path,
+                                                                     capsys, moved, needle):
+    """A source shape in other units, mirrored, turned around or in metres was
+    transferred without a word (the wrap's blendshape check was not made)."""
+    from facewrap.io.obj import read_obj, write_obj
+    from facewrap.mesh import Mesh
+    neutral = read_obj(sample["template"])
+    smile = read_obj(Path(sample["template"]).parent / "blendshapes" / "smile.obj")
+    shapes = tmp_path / "shapes"
+    shapes.mkdir()
+    write_obj(shapes / "smile.obj", Mesh(moved(neutral.vertices, smile.vertices),
+                                         list(smile.polygons())))
+    target = tmp_path / "target.obj"
+    write_obj(target, Mesh(1.5 * neutral.vertices + [10.0, 0, 0], neutral.triangles))
+    markers = tmp_path / "markers.txt"
+    ids = Path(sample["template_landmarks"]).read_text().split()[:12]
+    markers.write_text("".join(f"{i} {i}\n" for i in ids))
+    rc = facewrap("transfer", sample["template"], target, "--markers", markers,
+                  "--source-shapes", shapes, "-o", tmp_path / "out", "-q")
+    warning_lines(capsys, rc, f"{shapes}: 1 shape(s) ", needle)

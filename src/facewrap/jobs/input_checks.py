@@ -211,19 +211,30 @@ def nothing_to_fit(n_vertices: int, held: dict) -> list[str]:
             "onto the scan (the result only follows the landmarks)"]
 
 
-def oversized_shapes(shapes: dict, template: Mesh, path) -> list[str]:
+def oversized_shapes(shapes: dict, template: Mesh, path, what: str = "template"
+                     ) -> list[str]:
     """One line naming the blendshapes that move a vertex farther than half the
     template's size: no expression does, a shape in other units (or of another
-    head) does, and the fit would quietly give it no weight."""
+    head, mirrored, moved or turned) does, and the fit would quietly give it no
+    weight, or a transfer carry it over (``what``: the neutral's name in the line)."""
     size = template.scale()
     moves = {name: float(np.linalg.norm(V - template.vertices, axis=1).max())
              for name, V in shapes.items()}
     big = [name for name, m in moves.items() if m > 0.5 * size]
-    if not big:
-        return []
-    return [f"{path}: {len(big)} shape(s) move a vertex farther than half the template's "
-            f"size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its size): other "
-            "units, or not this template's shapes?"]
+    # a shape shrunk to a point (metres against millimetres) moves no vertex far
+    used = template.surface_vertex_ids      # the vertices template.scale() measures
+    ratio = {name: float(np.linalg.norm(np.ptp(V[used], axis=0))) / size
+             for name, V in shapes.items()} if size > 0 else {}
+    other = [name for name, r in ratio.items() if not 0.8 <= r <= 1.25 and name not in big]
+    out = []
+    if big:
+        out.append(f"{path}: {len(big)} shape(s) move a vertex farther than half the "
+                   f"{what}'s size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its "
+                   f"size): other units, mirrored or moved, or not this {what}'s shapes?")
+    if other:
+        out.append(f"{path}: {len(other)} shape(s) are not of the {what}'s size (e.g. "
+                   f"{other[0]!r}, {ratio[other[0]]:.3g} times it): in other units?")
+    return out
 
 
 def check_pca_components(settings, shapes: dict | None, path) -> None:
