@@ -314,3 +314,18 @@ def test_transfer_says_a_source_shape_that_is_no_pose_of_its_neutral(sample, tmp
     rc = facewrap("transfer", sample["template"], target, "--markers", markers,
                   "--source-shapes", shapes, "-o", tmp_path / "out", "-q")
     warning_lines(capsys, rc, f"{shapes}: 1 shape(s) ", needle)
+
+
+def test_icp_stages_for_a_closed_form_model_are_refused(sample, tmp_path, capsys):
+    """A job file's ``[[wrap.stages]]`` with ``model = "rbf"`` (fitted without ICP)
+    were dropped silently."""
+    job = tmp_path / "job.toml"
+    job.write_text(f'version = 1\n[inputs]\ntemplate = "{sample["template"]}"\n'
+                   f'scan = "{sample["scan"]}"\n'
+                   f'template_landmarks = "{sample["template_landmarks"]}"\n'
+                   f'scan_landmarks = "{sample["scan_landmarks"]}"\n'
+                   f'[outputs]\noutput = "{tmp_path / "out" / "o.obj"}"\n'
+                   '[wrap]\nmodel = "rbf"\n[[wrap.stages]]\niterations = 10\n')
+    error_line(capsys, facewrap("run", job, "-q"), "[[wrap.stages]]",
+               "the model 'rbf' is fitted in closed form")
+    assert not (tmp_path / "out").exists()

@@ -8,7 +8,7 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 :func:`check_distinct_landmarks` (two template landmarks at one place),
 :func:`unpaired_landmarks` (named landmarks left out of the pairing),
 :func:`nothing_to_fit` (every vertex excluded or pinned), :func:`oversized_shapes`
-(blendshapes larger than the head), :func:`check_pca_components` (a setting the
+(blendshapes larger than the head), :func:`check_model_settings` (a setting the
 shapes or the model would drop), :func:`check_uv_layouts` (texture coordinates
 that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
@@ -35,7 +35,7 @@ from facewrap.wrapping.models import model_spec
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
-           "check_uv_layouts", "check_pca_components"]
+           "check_uv_layouts", "check_model_settings"]
 
 
 def doubled_areas(mesh) -> np.ndarray:
@@ -237,8 +237,9 @@ def oversized_shapes(shapes: dict, template: Mesh, path, what: str = "template"
     return out
 
 
-def check_pca_components(settings, shapes: dict | None, path) -> None:
-    """Refuse a ``pca_components`` setting that would be dropped silently: without
+def check_model_settings(settings, shapes: dict | None, path) -> None:
+    """Refuse settings the model or the shapes would drop silently: ICP ``stages``
+    for a model fitted in closed form (rbf), or ``pca_components`` without
     blendshapes, with a model that fits no blend weights, or asking for more
     components than there are shapes (the basis has one axis per shape).
 
@@ -250,15 +251,22 @@ def check_pca_components(settings, shapes: dict | None, path) -> None:
     path : path or None
         The blendshapes folder, named in the error.
     """
-    k = None if settings is None else settings.pca_components
+    if settings is None:
+        return
+    spec = model_spec(settings.model, has_blendshapes=bool(shapes))
+    if settings.stages is not None and spec.schedule is None:
+        raise InputError(f"stages ([[wrap.stages]]) are given but the model "
+                         f"{spec.name!r} is fitted in closed form, without ICP stages: "
+                         "they would have no effect")
+    k = settings.pca_components
     if k is None:
         return
     what = f"pca_components (--pca-components) is {k}"
     if not shapes:
         raise InputError(f"{what} but no blendshapes are given: components of which "
                          "shapes?")
-    if not model_spec(settings.model, has_blendshapes=True).needs_blendshapes:
-        raise InputError(f"{what} but the model {settings.model!r} fits no blendshapes: "
+    if not spec.needs_blendshapes:
+        raise InputError(f"{what} but the model {spec.name!r} fits no blendshapes: "
                          "it would have no effect (use the blendshape or hybrid model)")
     if k > len(shapes):
         raise InputError(f"{what} but the folder holds {len(shapes)} shape(s); use at "

@@ -43,7 +43,7 @@ from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import (check_pca_components, check_scan,
+from facewrap.jobs.input_checks import (check_model_settings, check_scan,
                                         check_template_landmarks, check_uv_layouts,
                                         nothing_to_fit, oversized_shapes, survey_mesh,
                                         unpaired_landmarks)
@@ -352,7 +352,7 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
         notes += oversized_shapes(shapes, template, job.blendshapes)
-    check_pca_components(settings, shapes, job.blendshapes)
+    check_model_settings(settings, shapes, job.blendshapes)
     image = None
     if job.texture:
         notes += check_uv_layouts(template, scan, job.template, job.scan)
