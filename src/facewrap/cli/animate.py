@@ -9,7 +9,6 @@ import sys
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.geometry.similarity import pose_change
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
 
@@ -83,6 +82,8 @@ def unlike_ends(start, end, start_path, end_path) -> list[str]:
     list of str
         One line each.
     """
+    # deferred: `facewrap animate --help` loads no geometry
+    from facewrap.geometry.similarity import pose_change
     change = pose_change(start, end)
     if change.mirrored:   # then the best proper turn and scale say nothing more
         return [f"{end_path}: is a mirror image of {start_path} (left and right "

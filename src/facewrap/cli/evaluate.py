@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from facewrap.errors import InputError
-from facewrap.geometry.similarity import pose_change
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file, read_json
@@ -134,6 +133,8 @@ def ground_truth_unlike(result, truth, path, result_path) -> list[str]:
     list of str
         One line naming ``path``, or none.
     """
+    # deferred: `facewrap evaluate --help` loads no geometry
+    from facewrap.geometry.similarity import pose_change
     change = pose_change(result.vertices, truth)
     unit = infer_units(result.surface_points())
     tail = "its errors measure that, not the fit"

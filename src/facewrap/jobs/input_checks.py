@@ -265,12 +265,12 @@ def check_model_settings(settings, shapes: dict | None, path) -> None:
     if not shapes:
         raise InputError(f"{what} but no blendshapes are given: components of which "
                          "shapes?")
-    if not spec.needs_blendshapes:
-        raise InputError(f"{what} but the model {spec.name!r} fits no blendshapes: "
-                         "it would have no effect (use the blendshape or hybrid model)")
     if k > len(shapes):
         raise InputError(f"{what} but the folder holds {len(shapes)} shape(s); use at "
                          f"most {len(shapes)}", path)
+    if not spec.needs_blendshapes:
+        raise InputError(f"{what} but the model {spec.name!r} fits no blendshapes: "
+                         "it would have no effect (use the blendshape or hybrid model)")
 
 
 def check_landmarks_on_scan(points: np.ndarray, names, tree, scale: float, path,
