@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 
 import numpy as np
 
@@ -11,7 +12,7 @@ from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.paths import check_output_paths
 
-__all__ = ["register", "cmd_animate"]
+__all__ = ["register", "cmd_animate", "unlike_ends", "TURN_LIMIT", "SIZE_LIMIT"]
 
 
 def cmd_animate(args) -> int:
@@ -47,11 +48,56 @@ def cmd_animate(args) -> int:
         with _naming_frames():   # and their textures
             check_sequence_budget(args.out, args.frames, start.n_vertices, frame_bytes,
                                   image_shape=a.shape)
+    notes = unlike_ends(start.vertices, end.vertices, args.start, args.end)
     frames = interpolate_vertices(start.vertices, end.vertices, args.frames)
     textures = None if a is None else interpolate_textures(a, b, args.frames)
     paths = write_obj_sequence(args.out, start, frames, textures=textures)
+    for note in notes:   # written all the same, but never as if they were fine
+        print(f"facewrap: warning: {note}", file=sys.stderr)
     print(f"wrote {len(paths)} frames to {args.out}")
     return 0
+
+
+#: in-between frames of ends turned farther apart than this (degrees) shrink: the
+#: halfway frame by 1 - cos(angle / 2), 8 % at 45 degrees
+TURN_LIMIT = 45.0
+#: ends whose sizes differ by more than this factor either way are not one head
+SIZE_LIMIT = 1.25
+
+
+def unlike_ends(start, end, start_path, end_path) -> list[str]:
+    """Warnings for two meshes that cannot be two poses of one head: one a mirror
+    image of the other, one in other units, or turned so far that the straight
+    in-between frames shrink the head.
+
+    Parameters
+    ----------
+    start, end : (n, 3) float
+        Vertex positions in one topology.
+    start_path, end_path : path
+        For the messages (they name the end).
+
+    Returns
+    -------
+    list of str
+        One line each.
+    """
+    # deferred: `facewrap animate --help` loads no geometry
+    from facewrap.geometry.similarity import pose_change
+    change = pose_change(start, end)
+    if change.mirrored:   # then the best proper turn and scale say nothing more
+        return [f"{end_path}: is a mirror image of {start_path} (left and right "
+                "swapped): the in-between frames pass through a flattened head"]
+    notes = []
+    if not 1 / SIZE_LIMIT <= change.scale <= SIZE_LIMIT:
+        notes.append(f"{end_path}: is {change.scale:.3g} times the size of {start_path}: "
+                     "in other units?")
+    if change.angle > TURN_LIMIT:
+        shrink = 1 - np.cos(np.radians(change.angle) / 2)
+        notes.append(f"{end_path}: is turned {change.angle:.0f} degrees from "
+                     f"{start_path}: the straight in-between frames shrink the head (the "
+                     f"middle one by {100 * shrink:.0f} %)")
+    return notes
 
 
 @contextlib.contextmanager

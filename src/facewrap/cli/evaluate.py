@@ -24,6 +24,7 @@ from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_dist
                             infer_units, resolve_units, units_note)
 
 __all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "landmarks_mispaired",
+           "ground_truth_unlike", "TRUTH_SIZE_LIMIT", "TRUTH_SHIFT_LIMIT", "TRUTH_TURN_LIMIT",
            "register", "cmd_evaluate", "read_ground_truth"]
 
 # --heatmap-of choice -> (vertex_values key, colour-bar label, picture title)
@@ -104,6 +105,51 @@ def implausible_pair(result, scan, result_path, scan_path) -> list[str]:
         notes.append(f"{scan_path}: does not overlap the result {result_path} (their "
                      "bounding boxes are apart): not the scan it was fitted to?")
     return notes
+
+
+#: a ground truth this many times larger or smaller than the result is in other units
+TRUTH_SIZE_LIMIT = 1.25
+#: a ground truth whose centroid lies farther than this fraction of the result's
+#: diagonal from the result's, or turned more than TRUTH_TURN_LIMIT degrees, is in
+#: another frame (a wrap's --output-frame template, a truth in the template's frame)
+TRUTH_SHIFT_LIMIT, TRUTH_TURN_LIMIT = 0.1, 8.0
+
+
+def ground_truth_unlike(result, truth, path, result_path) -> list[str]:
+    """A warning when the ground truth cannot be the true place of the result's
+    vertices as given: a mirror image of it, in other units, or in another frame.
+    Its errors would measure that, not the fit.
+
+    Parameters
+    ----------
+    result : Mesh
+    truth : (n, 3) float
+        NaN rows for vertices without truth.
+    path, result_path : path
+        The ground truth's and the result's files, for the message.
+
+    Returns
+    -------
+    list of str
+        One line naming ``path``, or none.
+    """
+    # deferred: `facewrap evaluate --help` loads no geometry
+    from facewrap.geometry.similarity import pose_change
+    change = pose_change(result.vertices, truth)
+    unit = infer_units(result.surface_points())
+    tail = "its errors measure that, not the fit"
+    if change.mirrored:
+        return [f"{path}: is a mirror image of the result ({result_path}; left and right "
+                f"swapped): {tail}"]
+    if not 1 / TRUTH_SIZE_LIMIT <= change.scale <= TRUTH_SIZE_LIMIT:
+        return [f"{path}: is {change.scale:.3g} times the size of the result "
+                f"({result_path}): in other units? {tail}"]
+    if change.shift > TRUTH_SHIFT_LIMIT * result.scale() or change.angle > TRUTH_TURN_LIMIT:
+        moved = format_distance(change.shift, unit)
+        return [f"{path}: lies {moved} from the result ({result_path}) and is turned "
+                f"{change.angle:.0f} degrees: in another frame (a wrap's --output-frame), "
+                f"or a fit that failed? {tail}"]
+    return []
 
 
 def landmarks_off_scan(scan, landmarks, path) -> list[str]:
@@ -304,6 +350,7 @@ def cmd_evaluate(args) -> int:
     gt = ref = None
     if args.ground_truth:
         gt = read_ground_truth(args.ground_truth, result)
+        odd += ground_truth_unlike(result, gt, args.ground_truth, args.result)
     if args.reference:
         ref = read_mesh(args.reference)
         _same_topology(result, ref, args.reference, "the reference")

@@ -23,7 +23,7 @@ from facewrap.geometry.checks import as_mesh_arrays
 __all__ = ["face_normals", "face_areas", "vertex_normals", "trusted_face_normals",
            "trusted_face_areas", "trusted_vertex_normals", "TriangleMeasures",
            "trusted_normals_and_measures", "coherent_orientation", "disagreeing_edges",
-           "spike_vertices", "SPIKE_LIMIT", "SPIKE_NOISE"]
+           "spike_vertices", "SPIKE_LIMIT", "SPIKE_NOISE", "outwardness"]
 
 
 def trusted_face_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -240,6 +240,40 @@ def _manifold_pairs(T: np.ndarray, runs: EdgeRuns | None
     tail = T.reshape(-1)                               # half-edge h starts at tail[h]
     keep = f1 != f2
     return f1[keep], f2[keep], tail[h1[keep]] == tail[h2[keep]]
+
+
+def outwardness(V, T) -> float:
+    """How much the triangles face away from the middle of the surface, in [-1, 1].
+
+    The area-weighted mean cosine between each triangle's normal and the direction
+    from the centroid of the used vertices to the triangle: a head, a face mask or
+    a scan of one wound outward gives about 0.3 to 0.8, the same wound inward
+    (every face flipped) the negative, a flat or mixed surface about 0.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    T : (t, 3) int
+
+    Returns
+    -------
+    float
+        0.0 for a surface of no area.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.]])
+    >>> T = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> outwardness(V, T) > 0.5, outwardness(V, T[:, ::-1]) < -0.5
+    (True, True)
+    """
+    V, T = as_mesh_arrays(V, T)
+    a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
+    normal = np.cross(b - a, c - a)                  # twice the area along the normal
+    arm = (a + b + c) / 3.0 - V[np.unique(T)].mean(axis=0)
+    weight = np.linalg.norm(normal, axis=1) * np.linalg.norm(arm, axis=1)
+    total = weight.sum()
+    return float(np.einsum("ij,ij->", normal, arm) / total) if total > 0 else 0.0
 
 
 def disagreeing_edges(T, runs: EdgeRuns | None = None) -> int:

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Similarity", "similarity_transform", "mirror_fit", "MIRROR_RATIO"]
+__all__ = ["Similarity", "similarity_transform", "mirror_fit", "MIRROR_RATIO",
+           "PoseChange", "pose_change"]
 
 #: a paired point set is mirrored when its best mirrored fit leaves less than this
 #: fraction of the best proper fit's residual (nearly planar sets or few points fit
@@ -161,3 +162,63 @@ def mirror_fit(source, target, weights=None, scale: bool = True) -> tuple[float,
               ).sum(axis=1)
         out.append(float(np.sqrt(w @ d2 / w.sum())))
     return out[0], out[1]
+
+
+@dataclass(frozen=True)
+class PoseChange:
+    """How one vertex set in a topology sits against another of the same topology.
+
+    Attributes
+    ----------
+    scale : float
+        Of the best similarity from the first onto the second.
+    angle : float
+        Its rotation, in degrees.
+    shift : float
+        How far the centroid moves, in the sets' units.
+    mirrored : bool
+        The second is a mirror image of the first (:func:`mirror_fit`).
+    """
+    scale: float
+    angle: float
+    shift: float
+    mirrored: bool
+
+
+def pose_change(source, target) -> PoseChange:
+    """The scale, turn, shift and handedness between two poses of one mesh: two
+    frames of an animation, a fitted mesh and its ground truth.  An expression
+    changes none of them much; other units, another frame or a mirrored file do.
+
+    Parameters
+    ----------
+    source, target : (n, 3) float
+        Vertex positions in one topology (rows with a NaN are left out).
+
+    Returns
+    -------
+    PoseChange
+
+    Examples
+    --------
+    >>> P = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 3], [1, 1, 1.]])
+    >>> c = pose_change(P, 10 * P)
+    >>> round(c.scale, 6), round(c.angle, 6), c.mirrored
+    (10.0, 0.0, False)
+    >>> pose_change(P, P * [-1, 1, 1]).mirrored
+    True
+    """
+    X, Y = np.asarray(source, np.float64), np.asarray(target, np.float64)
+    keep = np.isfinite(X).all(axis=1) & np.isfinite(Y).all(axis=1)
+    X, Y = X[keep], Y[keep]
+    if len(X) < 4:
+        return PoseChange(1.0, 0.0, 0.0, False)
+    sim = similarity_transform(X, Y)
+    cos = np.clip((np.trace(sim.rotation) - 1.0) / 2.0, -1.0, 1.0)
+    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+    shift = float(np.linalg.norm(Y.mean(axis=0) - X.mean(axis=0)))
+    proper, mirrored = mirror_fit(X, Y)
+    # a flat set fits its mirror image as well (both residuals are rounding noise)
+    flipped = mirrored < MIRROR_RATIO * proper and proper > 1e-3 * size
+    return PoseChange(float(sim.scale), float(np.degrees(np.arccos(cos))), shift,
+                      bool(flipped))

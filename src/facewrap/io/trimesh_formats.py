@@ -1,11 +1,12 @@
-"""Scans in STL, OFF and glTF (``.glb``/``.gltf``), read through trimesh (OFF here).
+"""Scans in STL, OFF and glTF (``.glb``/``.gltf``), glTF read through trimesh.
 
-These formats are read by `trimesh <https://trimesh.org>`_ (imported on first use:
-no other command pays for it) and turned into a :class:`~facewrap.mesh.Mesh`:
+glTF is read by `trimesh <https://trimesh.org>`_ (imported on first use: no other
+command pays for it); each format is turned into a :class:`~facewrap.mesh.Mesh`:
 
-* **STL** — a triangle soup by design (three corners per triangle); exactly
-  coincident corners are merged into shared vertices here, so the scan is one
-  surface and not a heap of loose triangles.  Binary or ASCII.
+* **STL** — read by :mod:`facewrap.io.stl`, binary or ASCII; a triangle soup by
+  design (three corners per triangle), exactly coincident corners are merged into
+  shared vertices here, so the scan is one surface and not a heap of loose
+  triangles.
 * **OFF** (and ``COFF``) — read here, not by trimesh (whose reader mangles ``#``
   comments and takes a face row short of its count as a smaller polygon): vertices
   in file order, each polygon a fan of triangles from its first corner, in file
@@ -19,9 +20,9 @@ no other command pays for it) and turned into a :class:`~facewrap.mesh.Mesh`:
 
 The errors follow the other readers: anything wrong is one
 :class:`~facewrap.errors.InputError` naming the file.  Counts the file's header
-states (STL triangles, OFF vertices and faces, the GLB length and chunks) are
-checked against its size before trimesh is asked to read it, so a bogus file is
-refused without reading it whole.
+states (STL triangles, OFF vertices and faces, the GLB length and chunks, each
+glTF accessor and bufferView inside the bytes it points into) are checked against
+its size before it is read, so a bogus file is refused without reading it whole.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io.files import (file_size, not_a_file, nul_at_ends, read_file_bytes,
                                read_file_head)
+from facewrap.io.stl import read_stl
 from facewrap.mesh import Mesh
 
 __all__ = ["TRIMESH_EXTENSIONS", "read_trimesh_format", "read_scene_texture"]
@@ -48,25 +50,6 @@ TRIMESH_EXTENSIONS = {".stl": "stl", ".off": "off", ".glb": "glb", ".gltf": "glt
 # "3 0 1 2\n"): a header promising more than the file can hold is refused at once.
 _OFF_VERTEX_BYTES, _OFF_FACE_BYTES = 6, 8
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = b"glTF", 0x4E4F534A, 0x004E4942
-
-
-def _check_stl(path, size: int) -> None:
-    """Binary STL: 80-byte header, triangle count, 50 bytes per triangle; else ASCII."""
-    head = read_file_head(path, 84)
-    if len(head) == 84:
-        count = struct.unpack("<I", head[80:84])[0]
-        if 84 + 50 * count == size:
-            if count == 0:
-                raise InputError("STL holds no triangles", path)
-            return
-    if head.lstrip()[:5].lower() == b"solid" and not nul_at_ends(path, size):
-        return  # ASCII STL (binary ones may start with "solid" too: their size decides)
-    if len(head) < 84:
-        raise InputError(f"not an STL file ({size} bytes: shorter than a binary STL "
-                         "header)", path)
-    count = struct.unpack("<I", head[80:84])[0]
-    raise InputError(f"truncated or not a binary STL: the header says {count} triangles "
-                     f"({84 + 50 * count} bytes), the file has {size} bytes", path)
 
 
 #: how much of an OFF file its header is looked for in, in turn
@@ -216,7 +199,15 @@ def _check_glb(path, size: int) -> None:
                          path)
     with open(path, "rb") as fh:
         fh.seek(20)
-        _check_gltf_doc(_json_doc(fh.read(chunk_length), path), path)
+        doc = _json_doc(fh.read(chunk_length), path)
+        fh.seek(20 + chunk_length + (-chunk_length) % 4)  # chunks start 4-byte aligned
+        bin_head = fh.read(8)
+    bin_size = 0
+    if len(bin_head) == 8:
+        length, kind = struct.unpack("<II", bin_head)
+        if kind == _GLB_BIN:       # the bytes the file holds, whatever it says
+            bin_size = min(length, size - 28 - chunk_length - (-chunk_length) % 4)
+    _check_gltf_doc(doc, path, bin_size)
 
 
 def _json_doc(data: bytes, path) -> dict:
@@ -288,11 +279,90 @@ def _check_uris(doc: dict, path) -> None:
                                  f"its byteLength says {stated!r}", path)
 
 
-def _check_gltf_doc(doc: dict, path) -> None:
+#: bytes of each glTF componentType, and components of each accessor type
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9,
+                    "MAT4": 16}
+
+
+def _whole(item: dict, key: str, what: str, path, default=None) -> int:
+    value = item.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise InputError(f"{what} {key} is {value!r}, not a whole number >= 0", path)
+    return value
+
+
+def _buffer_sizes(doc: dict, bin_size: int) -> list[int]:
+    """The bytes each buffer holds: its file (checked by ``_check_uris``) or data:
+    URI, the GLB's binary chunk for the first buffer without a uri, else none;
+    never more than its ``byteLength`` says."""
+    sizes, chunk = [], bin_size
+    for item in doc.get("buffers") or []:
+        item = item if isinstance(item, dict) else {}
+        stated = item.get("byteLength")
+        stated = stated if isinstance(stated, int) and stated >= 0 else 0
+        uri = item.get("uri")
+        if uri is None:
+            held, chunk = chunk, 0
+        elif isinstance(uri, str) and uri.startswith("data:") and "base64," in uri:
+            payload = uri[uri.index("base64,") + 7:].rstrip("=")
+            held = len(payload) * 3 // 4
+        else:
+            held = stated
+        sizes.append(min(stated, held))
+    return sizes
+
+
+def _check_layout(doc: dict, path, bin_size: int) -> None:
+    """Each bufferView inside its buffer, each accessor inside its bufferView
+    (trimesh failed on an overrun with a bare AssertionError or a reshape error)."""
+    buffers, views = _buffer_sizes(doc, bin_size), doc.get("bufferViews") or []
+    for k, view in enumerate(views):
+        what = f"bufferView {k}"
+        view = view if isinstance(view, dict) else {}
+        b = _whole(view, "buffer", what, path)
+        if b >= len(buffers):
+            raise InputError(f"{what} names buffer {b}, which the file does not have",
+                             path)
+        start, length = (_whole(view, key, what, path, 0)
+                         for key in ("byteOffset", "byteLength"))
+        if start + length > buffers[b]:
+            raise InputError(f"{what} overruns buffer {b}: it spans bytes {start} to "
+                             f"{start + length}, the buffer holds {buffers[b]} bytes", path)
+    for k, acc in enumerate(doc.get("accessors") or []):
+        if not isinstance(acc, dict) or "bufferView" not in acc:
+            continue
+        what = f"accessor {k}"
+        v = _whole(acc, "bufferView", what, path)
+        if v >= len(views):
+            raise InputError(f"{what} names bufferView {v}, which the file does not "
+                             "have", path)
+        size = _COMPONENT_BYTES.get(acc.get("componentType"), 0) \
+            * _TYPE_COMPONENTS.get(acc.get("type"), 0)
+        if not size:
+            raise InputError(f"{what} has componentType {acc.get('componentType')!r} "
+                             f"and type {acc.get('type')!r}, not glTF's", path)
+        count, start = _whole(acc, "count", what, path), _whole(acc, "byteOffset",
+                                                               what, path, 0)
+        view = views[v] if isinstance(views[v], dict) else {}
+        stride = view.get("byteStride", size)
+        if isinstance(stride, bool) or not isinstance(stride, int) or stride < size:
+            raise InputError(f"bufferView {v} has byteStride {stride!r}, less than the "
+                             f"{size} bytes of each element of {what}", path)
+        need = start + (count - 1) * stride + size if count else start
+        if need > view.get("byteLength", 0):
+            raise InputError(f"{what} overruns bufferView {v}: its {count} elements "
+                             f"need bytes {start} to {need}, the view holds "
+                             f"{view.get('byteLength', 0)} bytes", path)
+
+
+def _check_gltf_doc(doc: dict, path, bin_size: int = 0) -> None:
     """Refuse what trimesh would misread without a word: triangle fans (dropped),
     sparse or bufferless accessors (read as zeros), positions that are not float
-    VEC3 and indices that are not unsigned integers (read as garbage)."""
+    VEC3 and indices that are not unsigned integers (read as garbage), views and
+    accessors beyond the bytes they point into (a bare AssertionError)."""
     _check_uris(doc, path)
+    _check_layout(doc, path, bin_size)
     meshes = doc.get("meshes", [])
     for m, mesh in enumerate(meshes if isinstance(meshes, list) else []):
         prims = mesh.get("primitives", []) if isinstance(mesh, dict) else []
@@ -438,21 +508,13 @@ def read_trimesh_format(path) -> Mesh:
     if kind == "off":
         return _read_off(path, size)
     if kind == "stl":
-        _check_stl(path, size)
-    elif kind == "glb":
+        V, F = _welded(*read_stl(path, size))   # a triangle soup: corners merged
+        return _mesh(V, F, path)
+    if kind == "glb":
         _check_glb(path, size)
     else:
         _check_gltf(path, size)
-    scene = _load(path, kind)
-    if kind in ("glb", "gltf"):
-        return _scene_mesh(scene, path)
-    pieces = _pieces(scene)
-    if not pieces:
-        raise InputError("holds no triangles", path)
-    V = np.vstack([np.asarray(g.vertices, dtype=np.float64) for _, g, _ in pieces])
-    F = np.vstack([np.asarray(g.faces, dtype=np.int64) for _, g, _ in pieces])
-    V, F = _welded(V, F)   # STL: a triangle soup
-    return _mesh(V, F, path)
+    return _scene_mesh(_load(path, kind), path)
 
 
 def read_scene_texture(path) -> np.ndarray | None:

@@ -8,7 +8,8 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 :func:`check_distinct_landmarks` (two template landmarks at one place),
 :func:`unpaired_landmarks` (named landmarks left out of the pairing),
 :func:`nothing_to_fit` (every vertex excluded or pinned), :func:`oversized_shapes`
-(blendshapes larger than the head), :func:`check_uv_layouts` (texture coordinates
+(blendshapes larger than the head), :func:`check_model_settings` (a setting the
+shapes or the model would drop), :func:`check_uv_layouts` (texture coordinates
 that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
 (and of each frame of a track) in one call.
@@ -29,11 +30,12 @@ from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, resolve_units
+from facewrap.wrapping.models import model_spec
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
-           "check_uv_layouts"]
+           "check_uv_layouts", "check_model_settings"]
 
 
 def doubled_areas(mesh) -> np.ndarray:
@@ -209,18 +211,65 @@ def nothing_to_fit(n_vertices: int, held: dict) -> list[str]:
             "onto the scan (the result only follows the landmarks)"]
 
 
-def oversized_shapes(shapes: dict, template: Mesh, path) -> list[str]:
+def oversized_shapes(shapes: dict, template: Mesh, path, what: str = "template"
+                     ) -> list[str]:
     """One line naming the blendshapes that move a vertex farther than half the
     template's size: no expression does, a shape in other units (or of another
-    head) does, and the fit would quietly give it no weight."""
+    head, mirrored, moved or turned) does, and the fit would quietly give it no
+    weight, or a transfer carry it over (``what``: the neutral's name in the line)."""
     size = template.scale()
     moves = {name: _farthest_move(V, template.vertices) for name, V in shapes.items()}
     big = [name for name, m in moves.items() if m > 0.5 * size]
-    if not big:
-        return []
-    return [f"{path}: {len(big)} shape(s) move a vertex farther than half the template's "
-            f"size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its size): other "
-            "units, or not this template's shapes?"]
+    # a shape shrunk to a point (metres against millimetres) moves no vertex far
+    used = template.surface_vertex_ids      # the vertices template.scale() measures
+    ratio = {name: float(np.linalg.norm(np.ptp(V[used], axis=0))) / size
+             for name, V in shapes.items()} if size > 0 else {}
+    other = [name for name, r in ratio.items() if not 0.8 <= r <= 1.25 and name not in big]
+    out = []
+    if big:
+        out.append(f"{path}: {len(big)} shape(s) move a vertex farther than half the "
+                   f"{what}'s size (e.g. {big[0]!r}, {moves[big[0]] / size:.3g} times its "
+                   f"size): other units, mirrored or moved, or not this {what}'s shapes?")
+    if other:
+        out.append(f"{path}: {len(other)} shape(s) are not of the {what}'s size (e.g. "
+                   f"{other[0]!r}, {ratio[other[0]]:.3g} times it): in other units?")
+    return out
+
+
+def check_model_settings(settings, shapes: dict | None, path) -> None:
+    """Refuse settings the model or the shapes would drop silently: ICP ``stages``
+    for a model fitted in closed form (rbf), or ``pca_components`` without
+    blendshapes, with a model that fits no blend weights, or asking for more
+    components than there are shapes (the basis has one axis per shape).
+
+    Parameters
+    ----------
+    settings : WrapSettings or None
+    shapes : dict of str to (n, 3) float, or None
+        The blendshapes read from ``path``.
+    path : path or None
+        The blendshapes folder, named in the error.
+    """
+    if settings is None:
+        return
+    spec = model_spec(settings.model, has_blendshapes=bool(shapes))
+    if settings.stages is not None and spec.schedule is None:
+        raise InputError(f"stages ([[wrap.stages]]) are given but the model "
+                         f"{spec.name!r} is fitted in closed form, without ICP stages: "
+                         "they would have no effect")
+    k = settings.pca_components
+    if k is None:
+        return
+    what = f"pca_components (--pca-components) is {k}"
+    if not shapes:
+        raise InputError(f"{what} but no blendshapes are given: components of which "
+                         "shapes?")
+    if k > len(shapes):
+        raise InputError(f"{what} but the folder holds {len(shapes)} shape(s); use at "
+                         f"most {len(shapes)}", path)
+    if not spec.needs_blendshapes:
+        raise InputError(f"{what} but the model {spec.name!r} fits no blendshapes: "
+                         "it would have no effect (use the blendshape or hybrid model)")
 
 
 def _farthest_move(V, R) -> float:

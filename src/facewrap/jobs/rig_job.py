@@ -236,7 +236,8 @@ def _files(scan: str, landmarks: str | None, job: RigJob) -> dict:
     """The file each of a wrap's refusals and warnings is about (they start
     ``"scan landmarks: ..."``)."""
     return {"scan": scan, "scan landmarks": landmarks or scan,
-            "template landmarks": job.template_landmarks}
+            "template landmarks": (job.template_landmarks or job.template_profile
+                                   or job.template), "template": job.template}
 
 
 def _named(notes, files: dict) -> list[str]:

@@ -50,6 +50,7 @@ from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.input_checks import oversized_shapes
 from facewrap.params import Flag, Interval, NoneAllowed, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -246,6 +247,11 @@ def _read_inputs(job: TransferJob) -> dict:
         raise InputError(f"anchor {anchor} out of range (target has "
                          f"{target.n_vertices} vertices)", job.target_neutral)
     shapes = read_source_shapes(job.source_shapes, source)
+    for item in job.source_shapes:   # a pose in other units, mirrored or moved: said
+        names = ({q.stem for q in folder_files(item, [".obj"])} if Path(item).is_dir()
+                 else {Path(item).stem})
+        notes += oversized_shapes({k: v for k, v in shapes.items() if k in names},
+                                  source, item, what="source neutral")
     corr = None
     if job.correspondence and Path(job.correspondence).is_file():
         corr = Correspondence.load(job.correspondence)

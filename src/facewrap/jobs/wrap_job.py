@@ -43,9 +43,10 @@ from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import (check_scan, check_template_landmarks,
-                                        check_uv_layouts, nothing_to_fit, oversized_shapes,
-                                        survey_mesh, unpaired_landmarks)
+from facewrap.jobs.input_checks import (check_model_settings, check_scan,
+                                        check_template_landmarks, check_uv_layouts,
+                                        nothing_to_fit, oversized_shapes, survey_mesh,
+                                        unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
@@ -347,19 +348,11 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
         # lips meet along a seam that the shape test calls a cavity)
         fit_mask = profile.fitting
     shapes = None
-    if not job.blendshapes and settings is not None and settings.pca_components:
-        # without shapes the setting would be dropped silently: say it has no effect
-        raise InputError(f"pca_components (--pca-components) is {settings.pca_components}"
-                         " but no blendshapes are given: components of which shapes?")
     if job.blendshapes:
         # a copy of the template inside the folder is skipped (it equals the neutral)
         shapes = load_shape_folder(job.blendshapes, template, exclude=())
         notes += oversized_shapes(shapes, template, job.blendshapes)
-        k = None if settings is None else settings.pca_components
-        if k is not None and k > len(shapes):   # the basis has one axis per shape
-            raise InputError(f"pca_components (--pca-components) is {k} but the folder "
-                             f"holds {len(shapes)} shape(s); use at most {len(shapes)}",
-                             job.blendshapes)
+    check_model_settings(settings, shapes, job.blendshapes)
     image = None
     if job.texture:
         notes += check_uv_layouts(template, scan, job.template, job.scan)
@@ -547,7 +540,8 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     # the wrap's plausibility checks say what they are about ("scan landmarks: ...");
     # here that becomes the file, in its warnings and in a refusal alike
     files = {"scan": job.scan, "scan landmarks": job.scan_landmarks or job.scan,
-             "template landmarks": job.template_landmarks}
+             "template landmarks": (job.template_landmarks or job.template_profile
+                                    or job.template), "template": job.template}
     try:
         result = wrap(inputs["template"], inputs["scan"], inputs["template_landmarks"],
                       inputs["scan_landmarks"], settings, exclude=inputs["exclude"],

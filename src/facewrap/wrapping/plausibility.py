@@ -36,7 +36,7 @@ from facewrap.geometry import (ClosestPointTree, closest_compatible_points, face
 from facewrap.geometry.edge_runs import dangling_fins, edge_runs
 from facewrap.geometry.duplicates import unique_faces, welded
 from facewrap.geometry.normals import (SPIKE_LIMIT, coherent_orientation, disagreeing_edges,
-                                       spike_vertices)
+                                       outwardness, spike_vertices)
 from facewrap.geometry.similarity import (MIRROR_RATIO, Similarity, mirror_fit,
                                          similarity_transform)
 from facewrap.landmarks import IBUG68_NAMES, Landmarks
@@ -47,7 +47,7 @@ __all__ = ["MIRROR_RATIO", "RESIDUAL_LIMIT", "SCALE_RANGE", "OPPOSED_LIMIT", "OP
            "mispaired_landmarks", "LOCAL_LIMIT", "local_misfit", "check_landmark_residuals",
            "duplicated_landmarks", "check_landmarks", "unique_faces", "opposed_normal_fraction",
            "dangling_fins", "checked_scan", "check_scale", "UNSCALED_LIMIT",
-           "check_unscaled_size", "LACY_LIMIT", "border_fraction"]
+           "check_unscaled_size", "LACY_LIMIT", "border_fraction", "INWARD_LIMIT"]
 
 #: warn when a landmark stays farther than this (fraction of the landmarks' spread)
 #: from its target after the robust similarity
@@ -58,6 +58,9 @@ SCALE_RANGE = (0.05, 20.0)
 #: the scan's faces are taken as flipped when more than this fraction of the
 #: template vertices near the scan face the opposite way
 OPPOSED_LIMIT = 0.5
+#: a template whose faces face into the head by more than this (see
+#: :func:`~facewrap.geometry.normals.outwardness`: heads 0.3 to 0.8) is flipped
+INWARD_LIMIT = -0.1
 #: about this many template vertices (every k-th) estimate that fraction
 OPPOSED_SAMPLE = 2000
 #: with scaling off, warn when the landmarks put the scan this much larger or
@@ -440,15 +443,18 @@ def _tidied_triangles(V, T, tree: ClosestPointTree | None = None
     return W, T[~drop] if drop.any() else T, notes
 
 
-def _oriented(T, tree: ClosestPointTree, aligned, normals, max_distance
-              ) -> tuple[np.ndarray, list[str]]:
+def _oriented(T, tree: ClosestPointTree, aligned, normals, max_distance,
+              template_flipped: bool = False) -> tuple[np.ndarray, list[str]]:
     """The scan's triangles wound one way per piece and facing the template
-    (see :func:`checked_scan`)."""
+    (see :func:`checked_scan`); a scan turned only to face a flipped template is
+    not said to be flipped (the template is)."""
     if disagreeing_edges(T, tree.edge_runs) == 0:
         opposed = (float("nan") if aligned is None else
                    opposed_normal_fraction(aligned, T, normals, tree, max_distance))
         if not opposed > OPPOSED_LIMIT:
             return T, []
+        if template_flipped:
+            return T[:, ::-1], []
         return T[:, ::-1], [f"scan: {100 * opposed:.0f} % of the scan under the template "
                             "faces inward (its faces are flipped); the fit uses them "
                             "reversed"]
@@ -508,16 +514,24 @@ def checked_scan(scan: Mesh, tree: ClosestPointTree | None, aligned_template,
     if notes or tree is None:
         tree = ClosestPointTree(V, T)
     aligned = normals = None
+    template_flipped = False
     if aligned_template is not None:
         aligned = np.asarray(aligned_template, np.float64)
         normals = vertex_normals(aligned, template_triangles)
+        # a template wound inward makes a good scan look flipped: name the template
+        template_flipped = outwardness(aligned, template_triangles) < INWARD_LIMIT
         if mask is not None:
             aligned, normals = aligned[mask], normals[mask]
         # a fraction: every k-th of the vertices estimates it as well as all of them
         # (to a percent at 2,000 points; the test is 50 %), for a fifth of the queries
         step = max(1, len(aligned) // OPPOSED_SAMPLE)
         aligned, normals = aligned[::step], normals[::step]
-    U, turned = _oriented(T, tree, aligned, normals, 0.05 * scan.scale())
+    U, turned = _oriented(T, tree, aligned, normals, 0.05 * scan.scale(),
+                          template_flipped)
+    if template_flipped:
+        notes.append("template: its faces are flipped (they face into the head); the "
+                     "scan is matched to them, and the result keeps the template's "
+                     "winding")
     if turned:
         notes += turned
         T, tree = U, ClosestPointTree(V, U)

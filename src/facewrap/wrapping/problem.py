@@ -16,11 +16,13 @@ import numpy as np
 from facewrap.geometry import ClosestPointTree
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
 from facewrap.mesh import Mesh
+from facewrap.wrapping.likeness import check_likeness
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
                                            check_scale, check_unscaled_size, checked_scan)
-from facewrap.wrapping.roles import FITTED, cached_hidden_surface, vertex_roles
+from facewrap.wrapping.roles import (FITTED, cached_hidden_surface, landmarks_on_parts,
+                                    vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
 
 __all__ = ["WrapProblem", "prepare_wrap", "alignment_weights", "SNAP_TOLERANCE"]
@@ -117,12 +119,14 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
                          pinned=pinned)
     excluded = roles != FITTED
+    notes = landmarks_on_parts(template_landmarks, roles, template.triangles)
     template_points = template_landmarks.positions(template)
     scan_points = scan_landmarks.positions(scan)
     weights = alignment_weights(template_landmarks, ia)
-    notes, similarity = check_landmarks(template_landmarks, template_points,
-                                        scan_landmarks, scan_points, (ia, ib), weights,
-                                        scale=s.scale, allow_mirrored=s.allow_mirrored)
+    checked, similarity = check_landmarks(template_landmarks, template_points,
+                                          scan_landmarks, scan_points, (ia, ib), weights,
+                                          scale=s.scale, allow_mirrored=s.allow_mirrored)
+    notes += checked
     aligned = None
     if similarity is not None:
         notes += check_scale(similarity.scale)
@@ -131,6 +135,9 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         notes += check_unscaled_size(template_points[ia], scan_points[ib], weights)
     scan, tree, scan_notes = checked_scan(scan, scan_tree, aligned, template.triangles,
                                           mask=~excluded)
+    if aligned is not None:   # a scan of another object passes every check above
+        scan_notes += check_likeness(aligned, ~excluded, similarity.apply(
+            template_points[ia]), scan_points[ib], tree)
     bordered = border_fraction(tree)
     if s.reject_boundary and bordered > LACY_LIMIT:
         s.reject_boundary = False

@@ -36,6 +36,7 @@ from facewrap.io.cache import content_key, load_arrays, save_arrays
 
 __all__ = ["VERTEX_ROLES", "FITTED", "PART", "CAVITY", "EXCLUDED", "PINNED",
            "HiddenSurface", "find_hidden_surface", "vertex_roles", "role_ranges",
+           "landmarks_on_parts",
            "role_counts"]
 
 #: role names, indexed by the codes of :func:`vertex_roles` (the one table, kept where
@@ -323,3 +324,48 @@ def role_counts(roles) -> dict:
     """
     counts = np.bincount(np.asarray(roles, dtype=np.int64), minlength=len(VERTEX_ROLES))
     return {name: int(c) for name, c in zip(VERTEX_ROLES, counts)}
+
+
+def landmarks_on_parts(landmarks, roles, triangles) -> list[str]:
+    """A warning naming the template landmarks on a part (a piece that is not
+    skin: an eyeball, the teeth), which a scanner does not see and the fit does not
+    pull: ids pointing at the wrong piece of a template with parts pull its skin
+    toward scan points that belong elsewhere, silently.
+
+    Parameters
+    ----------
+    landmarks : Landmarks
+        The template's, snapped onto it (vertices or surface points).
+    roles : (n,) int8
+        :func:`vertex_roles`.
+    triangles : (t, 3) int
+        The template's triangulation (surface points lie on its triangles).
+
+    Returns
+    -------
+    list of str
+        One line starting ``"template landmarks: "``, or none.
+
+    Examples
+    --------
+    >>> from facewrap.landmarks import Landmarks
+    >>> roles = np.array([FITTED, FITTED, PART], dtype=np.int8)
+    >>> landmarks_on_parts(Landmarks.from_vertices([0, 1]), roles, [[0, 1, 2]])
+    []
+    >>> landmarks_on_parts(Landmarks.from_vertices([0, 2]), roles, [[0, 1, 2]])[0][:48]
+    'template landmarks: 1 of 2 landmarks (1) lie on '
+    """
+    roles = np.asarray(roles)
+    on_part = np.zeros(len(landmarks), dtype=bool)
+    vertex, triangle = landmarks.vertex, landmarks.triangle
+    on_part[vertex >= 0] = roles[vertex[vertex >= 0]] == PART
+    corners = np.asarray(triangles, dtype=np.int64)[triangle[triangle >= 0]]
+    on_part[triangle >= 0] = (roles[corners] == PART).all(axis=1)
+    if not on_part.any():
+        return []
+    which = np.flatnonzero(on_part)
+    labels = ", ".join(landmarks.label(int(i)) for i in which[:6])
+    return [f"template landmarks: {len(which)} of {len(landmarks)} landmarks ({labels}"
+            f"{', ...' if len(which) > 6 else ''}) lie on a part that is not skin (an "
+            "eyeball, teeth: the scanner does not see it, the fit does not pull it); "
+            "ids pointing at the wrong piece of the template?"]
