@@ -77,6 +77,18 @@ def test_an_ascii_stl_without_its_last_endsolid_reads(tmp_path):
     np.testing.assert_array_equal(a.triangles, b.triangles)
 
 
+def test_an_ascii_stl_reads_alike_through_either_reader(tmp_path):
+    """One clean solid takes the fast reader; two solids the row-by-row one."""
+    one, two = tmp_path / "one.stl", tmp_path / "two.stl"
+    rows = ascii_stl(4)
+    one.write_text("\n".join(rows) + "\n")
+    two.write_text("\n".join(rows[:15] + ["endsolid a", "solid b"] + rows[15:]) + "\n")
+    a, b = read_mesh(one), read_mesh(two)
+    assert len(a.triangles) == len(b.triangles) == 4
+    np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a.triangles, b.triangles)
+
+
 @pytest.mark.parametrize("edit, needle", [
     (lambda r: r[:-4], "the facet of line 16 runs to the end of the file (cut short?)"),
     (lambda r: r[:-4] + ["endsolid"], "the facet of line 16 ends early"),

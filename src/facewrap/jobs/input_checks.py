@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from facewrap.errors import InputError
+from facewrap.geometry.arrays import column_bounds
 from facewrap.geometry.edge_runs import EdgeRuns, edge_runs, non_manifold_edge_count
 from facewrap.geometry.duplicates import any_duplicate_positions, duplicate_rows
 from facewrap.geometry import ClosestPointTree
@@ -222,7 +223,8 @@ def oversized_shapes(shapes: dict, template: Mesh, path, what: str = "template"
     big = [name for name, m in moves.items() if m > 0.5 * size]
     # a shape shrunk to a point (metres against millimetres) moves no vertex far
     used = template.surface_vertex_ids      # the vertices template.scale() measures
-    ratio = {name: float(np.linalg.norm(np.ptp(V[used], axis=0))) / size
+    every = len(used) == template.n_vertices
+    ratio = {name: _diagonal(V if every else V[used]) / size
              for name, V in shapes.items()} if size > 0 else {}
     other = [name for name, r in ratio.items() if not 0.8 <= r <= 1.25 and name not in big]
     out = []
@@ -270,6 +272,13 @@ def check_model_settings(settings, shapes: dict | None, path) -> None:
     if not spec.needs_blendshapes:
         raise InputError(f"{what} but the model {spec.name!r} fits no blendshapes: "
                          "it would have no effect (use the blendshape or hybrid model)")
+
+
+def _diagonal(V) -> float:
+    """The bounding-box diagonal of ``V`` (n, 3), by columns (see
+    :func:`~facewrap.geometry.arrays.column_bounds`)."""
+    lo, hi = column_bounds(V)
+    return float(np.linalg.norm(hi - lo))
 
 
 def _farthest_move(V, R) -> float:
