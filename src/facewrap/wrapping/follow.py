@@ -197,7 +197,6 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
     if not sides.usable:
         return X
     if solid[pieces].any():
-        bent = np.bincount(pieces, sides.wrong(X[part], X)[0], minlength=len(solid))
         kept = np.bincount(pieces, sides.wrong(rigid, X)[0], minlength=len(solid))
         # rigid only where that keeps the whole piece behind the skin: putting single
         # vertices of a rigid piece back would dent it
