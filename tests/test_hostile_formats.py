@@ -95,7 +95,8 @@ _V = np.array([[0, 0, 0], [100, 0, 0], [0, 100, 0], [100, 100, 10]], np.float32)
 _I = np.array([0, 1, 2, 1, 3, 2], np.uint32)
 
 
-def _doc() -> dict:
+def quad_gltf_doc() -> dict:
+    """The glTF JSON of a quad (two triangles): positions then uint32 indices."""
     return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
             "nodes": [{"mesh": 0}],
             "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
@@ -132,7 +133,7 @@ def _sparse(d):
     (lambda d: d["meshes"][0]["primitives"][0].update(mode=6), "has mode 6"),
 ])
 def test_a_glb_accessor_trimesh_misreads_is_refused(tmp_path, capsys, change, needle):
-    doc = _doc()
+    doc = quad_gltf_doc()
     p = tmp_path / "scan.glb"
     p.write_bytes(_glb(doc))
     assert facewrap("info", p) == 0            # the file as it is reads
@@ -219,7 +220,7 @@ def test_an_off_under_a_long_block_of_comments_reads(tmp_path, capsys, pad):
 # -- glTF: external files -------------------------------------------------------------------
 def _gltf_beside(tmp_path, buffer_uri: str, image_uri: str | None = None) -> Path:
     """A .gltf whose one buffer is the file ``buffer_uri`` (and an image, if given)."""
-    doc = _doc()
+    doc = quad_gltf_doc()
     doc["buffers"][0]["uri"] = buffer_uri
     if image_uri is not None:
         doc["images"] = [{"uri": image_uri}]

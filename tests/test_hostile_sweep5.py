@@ -50,6 +50,7 @@ import pytest
 from conftest import facewrap
 from facewrap.io.dispatch import read_mesh
 # the fixture: the built-in sample at its smallest (template 24, scan 40), as files
+from test_hostile_formats import quad_gltf_doc
 from test_hostile_more import sample  # noqa: F401
 from test_hostile_sweep import error_line, warning_lines, wrap_argv
 
@@ -116,19 +117,10 @@ def glb(doc: dict, binary: bytes) -> bytes:
 
 
 def quad_doc() -> tuple[dict, bytes]:
+    """A quad's glTF JSON (``test_hostile_formats``') and its binary chunk."""
     V = np.array([[0, 0, 0], [100, 0, 0], [0, 100, 0], [100, 100, 10]], np.float32)
     I = np.array([0, 1, 2, 1, 3, 2], np.uint32)
-    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
-           "nodes": [{"mesh": 0}],
-           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-           "buffers": [{"byteLength": 72}],
-           "bufferViews": [{"buffer": 0, "byteLength": 48},
-                           {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
-           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4,
-                          "type": "VEC3", "min": [0, 0, 0], "max": [100, 100, 10]},
-                         {"bufferView": 1, "componentType": 5125, "count": 6,
-                          "type": "SCALAR"}]}
-    return doc, V.tobytes() + I.tobytes()
+    return quad_gltf_doc(), V.tobytes() + I.tobytes()
 
 
 @pytest.mark.parametrize("change, needle", [
