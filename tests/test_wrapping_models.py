@@ -109,6 +109,26 @@ def test_graph_skinning_follows_the_surface_not_space():
     assert np.isin(j, graph.vertex_nodes[bottom]).any()
 
 
+def test_graph_skins_each_vertex_by_its_nearest_nodes_along_the_surface():
+    """Every vertex's nodes are its k nearest by surface distance (within the
+    graph's reach), nearest first, the lower node first among equals: a regular
+    grid, full of equal distances."""
+    from scipy.sparse.csgraph import dijkstra
+    from facewrap.geometry import edges as mesh_edges
+    V, T = folded_strip()
+    spacing, k = 0.1, 4
+    graph = build_graph(V, T, spacing=spacing, k=k)
+    E = mesh_edges(T)
+    length = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    G = sp.coo_matrix((np.r_[length, length], (np.r_[E[:, 0], E[:, 1]],
+                                                np.r_[E[:, 1], E[:, 0]])), shape=(len(V),) * 2)
+    D = dijkstra(G.tocsr(), directed=False, indices=graph.nodes, limit=4 * spacing).T
+    assert np.isfinite(np.sort(D, axis=1)[:, k - 1]).all()    # every vertex in reach
+    j = np.broadcast_to(np.arange(len(graph.nodes)), D.shape)
+    want = np.lexsort((j, D), axis=1)[:, :k]                   # nearest, lower first
+    np.testing.assert_array_equal(graph.vertex_nodes, want)
+
+
 def test_graph_identity_and_rigid_motion(face):
     _, base, _, _, graph = face
     model = GraphModel(base, graph)

@@ -188,24 +188,34 @@ def _nearest_nodes_on_surface(G, V, nodes, count, limit):
 
 def _nearest_within(G, sources, count, limit, rows=None):
     """(n, count) indices into ``sources`` and distances of the nearest sources
-    of every vertex (or of ``rows``) within ``limit``; inf where fewer."""
+    of every vertex (or of ``rows``) within ``limit``; inf where fewer.
+
+    Each source reaches a few hundred vertices within ``limit``: the (vertex,
+    source, distance) triples it reaches are kept and sorted once (by vertex, then
+    distance, then the lower source), where selecting among every vertex's row of
+    mostly infinite distances cost twice the searches themselves."""
     n = G.shape[0] if rows is None else len(rows)
-    best_d = np.full((n, count), np.inf)
-    best_j = np.zeros((n, count), dtype=np.int64)
+    found = []
     chunk = max(64, int(4_000_000 // max(G.shape[0], 1)))  # sources per chunk bound memory
     for start in range(0, len(sources), chunk):
         ids = np.arange(start, min(start + chunk, len(sources)))
-        D = dijkstra(G, directed=False, indices=sources[ids], limit=limit).T  # (n, c)
+        D = dijkstra(G, directed=False, indices=sources[ids], limit=limit)   # (c, n)
         if rows is not None:
-            D = D[rows]
-        cand_d = np.concatenate([best_d, D], axis=1)
-        cand_j = np.concatenate([best_j, np.broadcast_to(ids, D.shape)], axis=1)
-        # the count smallest (linear time), then ordered among themselves
-        pick = np.argpartition(cand_d, count - 1, axis=1)[:, :count]
-        best_d = np.take_along_axis(cand_d, pick, 1)
-        best_j = np.take_along_axis(cand_j, pick, 1)
-    order = np.lexsort((best_j, best_d), axis=1)     # ties: lower node first
-    return np.take_along_axis(best_j, order, 1), np.take_along_axis(best_d, order, 1)
+            D = D[:, rows]
+        s, v = np.nonzero(np.isfinite(D))
+        found.append((v, ids[s], D[s, v]))
+    v, j, d = (np.concatenate(parts) for parts in zip(*found)) if found else (
+        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    order = np.lexsort((j, d, v))           # ties: lower node first
+    v, j, d = v[order], j[order], d[order]
+    first = np.searchsorted(v, np.arange(n))
+    rank = np.arange(len(v)) - first[v]
+    keep = rank < count
+    best_d = np.full((n, count), np.inf)
+    best_j = np.zeros((n, count), dtype=np.int64)
+    best_d[v[keep], rank[keep]] = d[keep]
+    best_j[v[keep], rank[keep]] = j[keep]
+    return best_j, best_d
 
 
 def _tie_components(pairs, X, ties: int = 3):
