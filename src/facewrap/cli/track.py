@@ -35,7 +35,8 @@ from facewrap.jobs.input_checks import check_scan, check_template_landmarks
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
-from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
+from facewrap.units import (add_units_argument, format_distance, resolve_units,
+                            units_conflict, units_note)
 from facewrap.wrapping import track, write_track_outputs
 from facewrap.wrapping.track import FrameError, track_output_files
 
@@ -138,6 +139,9 @@ def cmd_track(args) -> int:
         found = check_scan(mesh, own, scans[i], given[i] if own is not None else None,
                            survey=False, units=args.units)[3]
         checked += [f"frame {i} ({scans[i]}): {note}" for note in found]
+    # one sequence, one unit: a given one its first frame's size contradicts, once
+    conflict = units_conflict(args.units, meshes[0].surface_points())
+    checked += [f"frame 0 ({scans[0]}): {conflict}"] if conflict else []
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"
