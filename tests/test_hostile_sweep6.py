@@ -10,7 +10,21 @@ Classes:
   file (:func:`facewrap.units.units_conflict`);
 - a batch summary's distances (``fit_mean`` ... ``landmark_max``) carried no unit,
   and the jobs of one batch may be in different units; each row now says its
-  ``units`` (CSV and JSON, and a resumed job's from its done-record).
+  ``units`` (CSV and JSON, and a resumed job's from its done-record);
+- ``rig``'s expression scans were fitted whatever they showed: one in other units
+  (ten times the neutral's size) failed after the neutral's fit with "no template
+  vertex found a valid scan point" naming no file (in metres: fitted into garbage
+  after a warning about the template's scale); it is now refused before any fit,
+  naming the scan (:func:`~facewrap.jobs.input_checks.check_scan_sizes`);
+- an expression scan of another person, or one that shows no expression (the
+  neutral again, moved or re-exported), made a rig without a word; each is now one
+  warning line naming the scan, judged on its wrap by geometry stabilised on the
+  skull (:func:`~facewrap.rig.stabilise.unlike_neutral`); the fit is unchanged;
+- a scan given twice (the neutral again among a rig's expressions, an expression
+  twice, a sequence's frame written twice for ``track``) was fitted as new data
+  silently; it is now one warning line naming it and the scan it repeats
+  (:func:`~facewrap.jobs.input_checks.repeated_scans`), and a ``track`` frame in
+  other units than the first is refused naming it, before any fit.
 
 Inputs are the built-in sample at its smallest.
 """
@@ -21,12 +35,17 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import facewrap
+from facewrap.io.dispatch import read_mesh, write_mesh
+from facewrap.sample.files import write_sample
+from facewrap.sample.scan import make_scan
+from facewrap.sample.template import make_template
 # the fixture: the built-in sample at its smallest (template 24, scan 40), as files
 from test_hostile_more import sample  # noqa: F401
-from test_hostile_sweep import warning_lines, wrap_argv
+from test_hostile_sweep import error_line, warning_lines, wrap_argv
 
 
 # -- a given unit the data contradict -------------------------------------------------------
@@ -88,3 +107,97 @@ def test_a_batch_summary_says_each_jobs_units(sample, tmp_path, capsys):
         jobs = json.loads((tmp_path / "m.summary.json").read_text())["jobs"]
         assert [j["units"] for j in jobs] == ["mm", "cm"]
     capsys.readouterr()
+
+
+# -- a rig's expression scans: other units, another person, no expression, repeated -------
+def moved_copy(scan: Path, landmarks: Path, folder: Path, scale: float = 1.0,
+               angle: float = 0.0) -> tuple[Path, Path]:
+    """``scan`` and its landmark points turned by ``angle`` degrees about y, scaled
+    by ``scale`` and shifted: one more file of the same surface."""
+    a = np.radians(angle)
+    R = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    move = lambda P: scale * (np.asarray(P) @ R.T) + [3.0, -2.0, 1.0]   # noqa: E731
+    folder.mkdir(parents=True, exist_ok=True)
+    m = read_mesh(scan)
+    write_mesh(folder / "scan.obj", m.with_vertices(move(m.vertices)))
+    np.savetxt(folder / "scan_landmarks.txt", move(np.loadtxt(landmarks)))
+    return folder / "scan.obj", folder / "scan_landmarks.txt"
+
+
+@pytest.fixture(scope="module")
+def person(tmp_path_factory) -> dict:
+    """A person's neutral scan, a scan of their smile, a smile of another person
+    (each in a head pose of its own) and the neutral again, turned and moved."""
+    tpl = make_template(24)
+    d = tmp_path_factory.mktemp("sweep6_person")
+    scans = {name: write_sample(d / name, tpl, make_scan(
+        tpl, weights=w, identity_seed=who, resolution=40, texture_size=16, seed=seed))
+        for name, w, who, seed in [("neutral", {}, 1, 1), ("smile", {"smile": 1.0}, 1, 2),
+                                   ("other", {"smile": 1.0}, 7, 4)]}
+    n = scans["neutral"]
+    scans["again"] = dict(zip(("scan", "scan_landmarks"), moved_copy(
+        n["scan"], n["scan_landmarks"], d / "again", angle=12.0)))
+    return scans
+
+
+def rig_argv(person: dict, out: Path, names, *more) -> list:
+    n = person["neutral"]
+    return ["rig", n["scan"], *(person[k]["scan"] for k in names), "--template",
+            n["template"], "--blendshapes", n["blendshapes/smile"].parent,
+            "--template-landmarks", n["template_landmarks"], "--scan-landmarks",
+            n["scan_landmarks"], "--expression-landmarks",
+            *(person[k]["scan_landmarks"] for k in names), "-q", "-o", out, *more]
+
+
+def test_rig_refuses_an_expression_scan_in_other_units(person, tmp_path, capsys):
+    s = person["smile"]
+    for scale in (10.0, 0.001):
+        person["tenfold"] = dict(zip(("scan", "scan_landmarks"), moved_copy(
+            s["scan"], s["scan_landmarks"], tmp_path / f"x{scale:g}", scale=scale)))
+        rc = facewrap(*rig_argv(person, tmp_path / "rig", ["smile", "tenfold"]))
+        error_line(capsys, rc, str(person["tenfold"]["scan"]), "times the size of the one "
+                   f"in the neutral scan", "another unit?")
+        assert not (tmp_path / "rig").exists()
+
+
+def test_rig_says_expression_scans_that_cannot_teach_it(person, tmp_path, capsys):
+    rc = facewrap(*rig_argv(person, tmp_path / "rig", ["smile", "other", "again", "smile"]))
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0, err
+    said = {k: [ln for ln in err if str(person[k]["scan"]) in ln]
+            for k in ("smile", "other", "again")}
+    assert len(said["other"]) == 1 and "another person's scan?" in said["other"][0]
+    assert len(said["again"]) == 1 and "shows no expression" in said["again"][0]
+    # the smile's own scan is fine: only its second listing is said
+    assert len(said["smile"]) == 1 and said["smile"][0].startswith(
+        f"facewrap: warning: expression scan 4 ({person['smile']['scan']}): the same scan "
+        f"as expression scan 1")
+    report = json.loads((tmp_path / "rig" / "rig.json").read_text())
+    assert len(report["warnings"]) == 3
+
+
+def test_rig_says_the_neutral_given_again_as_an_expression(person, tmp_path, capsys):
+    person["copy"] = person["neutral"]
+    rc = facewrap(*rig_argv(person, tmp_path / "rig", ["copy"]))
+    hits = warning_lines(capsys, rc, str(person["neutral"]["scan"]))
+    assert any("the same scan as the neutral scan" in h for h in hits), hits
+    assert any("shows no expression" in h for h in hits), hits
+
+
+def test_track_says_a_repeated_frame_and_refuses_one_in_other_units(sample, tmp_path,
+                                                                    capsys):
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for k in range(3):
+        (seq / f"f{k}.obj").write_bytes(Path(sample["scan"]).read_bytes())
+    argv = ["track", sample["template"], seq, "--template-landmarks",
+            sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+            "--model", "rigid", "-q"]
+    hits = warning_lines(capsys, facewrap(*argv, "-o", tmp_path / "a"), "the same scan as")
+    assert [h.split(": ")[2] for h in hits] == ["frame 1 (" + str(seq / "f1.obj") + ")",
+                                              "frame 2 (" + str(seq / "f2.obj") + ")"]
+    moved_copy(sample["scan"], sample["scan_landmarks"], tmp_path / "m", scale=10.0)
+    (seq / "f2.obj").write_bytes((tmp_path / "m" / "scan.obj").read_bytes())
+    error_line(capsys, facewrap(*argv, "-o", tmp_path / "b"), str(seq / "f2.obj"),
+               "the head is 10 times the size of the one in frame 0")
+    assert not (tmp_path / "b").exists()

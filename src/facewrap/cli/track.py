@@ -31,7 +31,8 @@ from facewrap.io.files import folder_files
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
-from facewrap.jobs.input_checks import check_scan, check_template_landmarks
+from facewrap.jobs.input_checks import (check_scan, check_scan_sizes,
+                                        check_template_landmarks, repeated_scans)
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
@@ -139,7 +140,12 @@ def cmd_track(args) -> int:
         found = check_scan(mesh, own, scans[i], given[i] if own is not None else None,
                            survey=False, units=args.units)[3]
         checked += [f"frame {i} ({scans[i]}): {note}" for note in found]
-    # one sequence, one unit: a given one its first frame's size contradicts, once
+    # one sequence, one head, one unit: a frame in another is refused, a frame
+    # written twice said (the fit would show the face frozen for a frame)
+    labels = [f"frame {i} ({path})" for i, path in enumerate(scans)]
+    check_scan_sizes(meshes, scans, f"frame 0 ({scans[0]})")
+    checked += repeated_scans(meshes, labels)
+    # a given unit its first frame's size contradicts, once
     conflict = units_conflict(args.units, meshes[0].surface_points())
     checked += [f"frame 0 ({scans[0]}): {conflict}"] if conflict else []
     if detections and not args.quiet:

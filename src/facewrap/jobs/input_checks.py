@@ -12,10 +12,15 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 shapes or the model would drop), :func:`check_uv_layouts` (texture coordinates
 that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
-(and of each frame of a track) in one call.
+(and of each frame of a track) in one call.  Scans of one person or one sequence
+(a rig's neutral and expressions, a track's frames) are checked together:
+:func:`repeated_scans` (one scan given twice) and :func:`check_scan_sizes` (a scan
+in other units than the first).
 """
 
 from __future__ import annotations
+
+import hashlib
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,13 +35,19 @@ from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture.udim import triangle_tiles
-from facewrap.units import UNKNOWN, format_distance, resolve_units
+from facewrap.units import UNKNOWN, format_distance, head_size, resolve_units
 from facewrap.wrapping.models import model_spec
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
-           "check_uv_layouts", "check_model_settings"]
+           "check_uv_layouts", "check_model_settings", "repeated_scans",
+           "check_scan_sizes", "SCAN_SIZE_RATIO"]
+
+#: scans of one head (a rig's, a sequence's) whose sizes differ by more than this
+#: factor are not in one unit: a scan cropped to the face and one with the neck
+#: and shoulders differ by well under it, inches and centimetres by 2.54
+SCAN_SIZE_RATIO = 2.0
 
 
 def doubled_areas(mesh) -> np.ndarray:
@@ -417,3 +428,46 @@ def check_uv_layouts(template: Mesh, scan: Mesh, template_path, scan_path) -> li
                      "coordinates outside [0, 1] (beyond the image): they take the "
                      "colour of its border")
     return notes
+
+
+def repeated_scans(meshes, labels) -> list[str]:
+    """One line per scan that is, vertex for vertex and face for face, an earlier
+    one of ``meshes`` (a rig's neutral given again as an expression, a sequence's
+    frame written twice): it tells the fit nothing the first did not.
+
+    ``labels`` name the scans in the lines (a file, ``"frame 2 (f2.obj)"``).
+    """
+    seen: dict[bytes, str] = {}
+    out = []
+    for mesh, label in zip(meshes, labels):
+        digest = hashlib.blake2b(digest_size=16)
+        for a in (mesh.vertices, mesh.triangles):
+            digest.update(np.ascontiguousarray(a).tobytes())
+        key = digest.digest()
+        if key in seen:
+            out.append(f"{label}: the same scan as {seen[key]} (every vertex and face "
+                       "alike)")
+        else:
+            seen[key] = label
+    return out
+
+
+def check_scan_sizes(meshes, paths, first: str = "the first scan") -> None:
+    """Refuse a scan of one head (a rig's expression, a sequence's frame) whose size
+    is more than :data:`SCAN_SIZE_RATIO` times that of ``meshes[0]`` or less than
+    its inverse: another unit (a scan in metres among millimetres), which the wrap
+    would fit as a head ten or a thousand times the size, or not at all.
+
+    Raises
+    ------
+    InputError
+        Naming the scan's file (``paths[k]``), its size against ``first``'s.
+    """
+    ref = head_size(meshes[0].surface_points())
+    for mesh, path in zip(meshes[1:], paths[1:]):
+        size = head_size(mesh.surface_points())
+        ratio = size / ref if ref > 0 else 1.0
+        if not 1.0 / SCAN_SIZE_RATIO <= ratio <= SCAN_SIZE_RATIO:
+            raise InputError(f"the head is {ratio:.3g} times the size of the one in "
+                             f"{first} (another unit? the scans of one head must share "
+                             "one)", path)

@@ -50,6 +50,7 @@ from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.input_checks import check_scan_sizes, repeated_scans
 from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
@@ -424,6 +425,17 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
     return report
 
 
+def _check_expression_scans(job: RigJob, inputs: dict, expressions: list) -> None:
+    """The expression scans against the neutral, before any fit: one in another
+    unit is refused (its wrap would fit a head ten times the size, or fail naming
+    no file); one given twice, or the neutral given again, is a warning line."""
+    scans = [inputs["scan"]] + [e["scan"] for e in expressions]
+    check_scan_sizes(scans, [job.scan, *job.expression_scans], "the neutral scan")
+    inputs["warnings"] += repeated_scans(
+        scans, [f"the neutral scan ({job.scan})"] + [
+            f"expression scan {k + 1} ({p})" for k, p in enumerate(job.expression_scans)])
+
+
 def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
                 graph_cache: GraphCache | None = None) -> dict:
     """Build one person's rig and write it; returns the report as a dict.
@@ -467,6 +479,7 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
         inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
         expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
                        for k in range(len(job.expression_scans))]
+        _check_expression_scans(job, inputs, expressions)
         read_seconds = time.perf_counter() - t0
         if "scan" in inputs["detections"]:   # millimetres off: the surface leads
             settings = detected_landmark_settings(settings)
