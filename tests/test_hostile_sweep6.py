@@ -24,7 +24,11 @@ Classes:
   twice, a sequence's frame written twice for ``track``) was fitted as new data
   silently; it is now one warning line naming it and the scan it repeats
   (:func:`~facewrap.jobs.input_checks.repeated_scans`), and a ``track`` frame in
-  other units than the first is refused naming it, before any fit.
+  other units than the first is refused naming it, before any fit;
+- a ``track`` frame of another person (scanned in the sequence's frame) was tracked
+  as if it were an expression, silently; with shapes to tell the skull from the
+  face, it is now one warning line naming the frame
+  (:func:`~facewrap.jobs.input_checks.frames_of_another_head`, the rig's measure).
 
 Inputs are the built-in sample at its smallest.
 """
@@ -201,3 +205,21 @@ def test_track_says_a_repeated_frame_and_refuses_one_in_other_units(sample, tmp_
     error_line(capsys, facewrap(*argv, "-o", tmp_path / "b"), str(seq / "f2.obj"),
                "the head is 10 times the size of the one in frame 0")
     assert not (tmp_path / "b").exists()
+
+
+def test_track_says_a_frame_of_another_person(tmp_path, capsys):
+    tpl = make_template(24)
+    frames = [write_sample(tmp_path / f"f{k}", tpl, make_scan(
+        tpl, weights=w, identity_seed=who, resolution=40, texture_size=16, seed=20 + k,
+        transform=False))                       # one sequence: one frame of reference
+        for k, (w, who) in enumerate([({}, 1), ({"smile": 0.5}, 1), ({"smile": 1.0}, 7),
+                                      ({"smile": 1.0}, 1)])]
+    f0 = frames[0]
+    rc = facewrap("track", f0["template"], *(f["scan"] for f in frames),
+                  "--template-landmarks", f0["template_landmarks"], "--scan-landmarks",
+                  f0["scan_landmarks"], "--blendshapes", f0["blendshapes/smile"].parent,
+                  "-q", "-o", tmp_path / "out")
+    hits = warning_lines(capsys, rc, "another person's scan?")
+    assert len(hits) == 1 and f"frame 2 ({frames[2]['scan']}): " in hits[0], hits
+    report = json.loads((tmp_path / "out" / "track.json").read_text())
+    assert any("another person" in w for w in report["warnings"])

@@ -32,7 +32,8 @@ from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
 from facewrap.jobs.input_checks import (check_scan, check_scan_sizes,
-                                        check_template_landmarks, repeated_scans)
+                                        check_template_landmarks, frames_of_another_head,
+                                        repeated_scans)
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
@@ -190,7 +191,9 @@ def cmd_track(args) -> int:
             raise InputError(text if about in files else str(exc),
                              files.get(about, scans[exc.frame])) from None
     # after the run, as wrap does: a failed track is its one error line
-    notes = checked + frame_warnings(result, scans)
+    notes = checked + frame_warnings(result, scans) + [
+        f"frame {i} ({scans[i]}): {note.partition(': ')[2]}"
+        for i, note in frames_of_another_head(result.frames, template, shapes)]
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
     unit, source = units[0] if units else resolve_units(args.units, template.surface_points())

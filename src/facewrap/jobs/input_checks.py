@@ -34,6 +34,7 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
+from facewrap.rig.stabilise import least_moving, stabilise, unlike_neutral
 from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, head_size, resolve_units
 from facewrap.wrapping.models import model_spec
@@ -42,7 +43,7 @@ __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_sp
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
            "check_uv_layouts", "check_model_settings", "repeated_scans",
-           "check_scan_sizes", "SCAN_SIZE_RATIO"]
+           "check_scan_sizes", "frames_of_another_head", "SCAN_SIZE_RATIO"]
 
 #: scans of one head (a rig's, a sequence's) whose sizes differ by more than this
 #: factor are not in one unit: a scan cropped to the face and one with the neck
@@ -471,3 +472,29 @@ def check_scan_sizes(meshes, paths, first: str = "the first scan") -> None:
             raise InputError(f"the head is {ratio:.3g} times the size of the one in "
                              f"{first} (another unit? the scans of one head must share "
                              "one)", path)
+
+
+def frames_of_another_head(frames, template: Mesh, blendshapes: dict | None) -> list:
+    """``(frame, line)`` for each frame of a track whose fit, stabilised on the
+    skull (the template's vertices its shapes move least), is of another head than
+    frame 0's: a scan of another person in the sequence, fitted as if it were an
+    expression (:func:`~facewrap.rig.stabilise.unlike_neutral`; the fits unchanged).
+
+    Without shapes nothing tells the skull from the face: no line.
+    """
+    if not blendshapes or len(frames) < 2:
+        return []
+    first = frames[0]
+    seen0 = (np.ones(template.n_vertices, dtype=bool) if first.projection is None
+             else first.projection.projected)
+    rigid = least_moving(np.stack([np.asarray(v, np.float64) for v in blendshapes.values()]),
+                         template.vertices, among=seen0)
+    out = []
+    for i, f in enumerate(frames[1:], start=1):
+        seen = seen0 if f.projection is None else seen0 & f.projection.projected
+        ids = rigid[seen[rigid]]
+        moved = stabilise(f.vertices, first.vertices, ids if len(ids) >= 3 else rigid)
+        note = unlike_neutral(moved.vertices, first.vertices, rigid, seen,
+                              reference="frame 0's", still=True)
+        out += [(i, note)] if note else []
+    return out

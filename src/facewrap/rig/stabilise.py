@@ -90,7 +90,8 @@ OTHER_HEAD_SHAPE = 0.0015
 NO_EXPRESSION = 0.0005
 
 
-def unlike_neutral(expression, neutral, rigid, seen=None) -> str | None:
+def unlike_neutral(expression, neutral, rigid, seen=None, *,
+                   reference: str = "the neutral's", still: bool = False) -> str | None:
     """Why a stabilised expression cannot be the neutral's person making a face, or
     None: a skull of another shape (another person's scan), or no expression at all.
 
@@ -106,6 +107,10 @@ def unlike_neutral(expression, neutral, rigid, seen=None) -> str | None:
         The skull-rigid vertices.
     seen : (n,) bool, optional
         The vertices both scans saw (a wrap only follows elsewhere).
+    reference : str
+        What ``neutral`` is, in the line ("frame 0's" for a sequence).
+    still : bool
+        No expression is no oddity (a sequence's frames may hold still).
 
     Returns
     -------
@@ -123,10 +128,10 @@ def unlike_neutral(expression, neutral, rigid, seen=None) -> str | None:
     skull = float(np.median(d[ids if len(ids) else rigid])) / size
     if skull > OTHER_HEAD_SHAPE:
         return (f"scan: where the skull is rigid its fit lies {100 * skull:.2g} % of the "
-                f"face's size from the neutral's (one person's expressions: under "
+                f"face's size from {reference} (one person's expressions: under "
                 f"{100 * OTHER_HEAD_SHAPE:.2g} %): another person's scan?")
     most = float(np.percentile(d[seen], 99.5)) / size
-    if most < NO_EXPRESSION:
+    if not still and most < NO_EXPRESSION:
         return (f"scan: shows no expression (its fit is the neutral's within "
                 f"{100 * most:.2g} % of the face's size): the neutral scan again?")
     return None
