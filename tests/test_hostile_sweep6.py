@@ -28,7 +28,13 @@ Classes:
 - a ``track`` frame of another person (scanned in the sequence's frame) was tracked
   as if it were an expression, silently; with shapes to tell the skull from the
   face, it is now one warning line naming the frame
-  (:func:`~facewrap.jobs.input_checks.frames_of_another_head`, the rig's measure).
+  (:func:`~facewrap.jobs.input_checks.frames_of_another_head`, the rig's measure);
+- ``transfer`` markers mirrored for only some pairs (the left eye's paired with the
+  right eye's, the rest right) passed the whole-file mirror test and made a
+  correspondence that pairs one eye with the other, silently; markers that fit far
+  better exchanged are now one warning naming the marker file (the wrap's
+  :func:`~facewrap.wrapping.plausibility.swapped_pairs`; none on Sumner's
+  horse-camel and cat-lion markers or Onizuka's avatars).
 
 Inputs are the built-in sample at its smallest.
 """
@@ -223,3 +229,31 @@ def test_track_says_a_frame_of_another_person(tmp_path, capsys):
     assert len(hits) == 1 and f"frame 2 ({frames[2]['scan']}): " in hits[0], hits
     report = json.loads((tmp_path / "out" / "track.json").read_text())
     assert any("another person" in w for w in report["warnings"])
+
+
+#: iBUG-68 indices of the two eyes, right and left, in mirror order
+EYES = ((36, 45), (37, 44), (38, 43), (39, 42), (40, 47), (41, 46))
+
+
+def test_transfer_says_markers_of_one_eye_paired_with_the_other(sample, tmp_path, capsys):
+    fit = tmp_path / "fit.obj"
+    assert facewrap(*wrap_argv(sample, fit)) == 0
+    ids = [int(t) for t in Path(sample["template_landmarks"]).read_text().split()]
+    partner = list(range(len(ids)))
+    for a, b in EYES:
+        partner[a], partner[b] = b, a
+    markers = {"right": tmp_path / "right.txt", "eyes": tmp_path / "eyes.txt"}
+    markers["right"].write_text("".join(f"{i} {i}\n" for i in ids))
+    markers["eyes"].write_text("".join(f"{ids[k]} {ids[partner[k]]}\n"
+                                       for k in range(len(ids))))
+    capsys.readouterr()
+    for name, path in markers.items():
+        rc = facewrap("transfer", sample["template"], fit, "--source-shapes",
+                      Path(sample["blendshapes/smile"]).parent, "--markers", path,
+                      "-o", tmp_path / name, "-q")
+        if name == "right":
+            assert rc == 0 and "exchanged" not in capsys.readouterr().err
+        else:
+            hits = warning_lines(capsys, rc, str(path), "12 markers fit far better with "
+                                 "their targets exchanged")
+            assert len(hits) == 1
