@@ -34,7 +34,10 @@ Classes:
   correspondence that pairs one eye with the other, silently; markers that fit far
   better exchanged are now one warning naming the marker file (the wrap's
   :func:`~facewrap.wrapping.plausibility.swapped_pairs`; none on Sumner's
-  horse-camel and cat-lion markers or Onizuka's avatars).
+  horse-camel and cat-lion markers or Onizuka's avatars);
+- ``convert`` of an OBJ with materials or groups (a template's parts, a scan's
+  textured material) to PLY dropped them without a word; what is left out is now
+  one warning line naming the output (the mesh is written whole).
 
 Inputs are the built-in sample at its smallest.
 """
@@ -257,3 +260,15 @@ def test_transfer_says_markers_of_one_eye_paired_with_the_other(sample, tmp_path
             hits = warning_lines(capsys, rc, str(path), "12 markers fit far better with "
                                  "their targets exchanged")
             assert len(hits) == 1
+
+
+def test_convert_to_ply_says_the_materials_and_groups_it_drops(sample, tmp_path, capsys):
+    out = tmp_path / "template.ply"
+    hits = warning_lines(capsys, facewrap("convert", sample["template"], out), str(out),
+                         "PLY keeps no materials or groups", "3 groups ('face'")
+    assert len(hits) == 1 and out.is_file()
+    hits = warning_lines(capsys, facewrap("convert", sample["scan"], tmp_path / "s.ply"),
+                         "1 material ('skin')")
+    # nothing to drop: nothing said
+    assert facewrap("convert", out, tmp_path / "again.ply") == 0
+    assert capsys.readouterr().err == ""
