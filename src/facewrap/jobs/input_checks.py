@@ -34,7 +34,6 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
-from facewrap.rig.stabilise import least_moving, stabilise, unlike_neutral
 from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, head_size, resolve_units
 from facewrap.wrapping.models import model_spec
@@ -484,6 +483,8 @@ def frames_of_another_head(frames, template: Mesh, blendshapes: dict | None) -> 
     """
     if not blendshapes or len(frames) < 2:
         return []
+    # deferred: a wrap, which reads its inputs here too, does not load the rig
+    from facewrap.rig.stabilise import least_moving, stabilise, unlike_neutral
     first = frames[0]
     seen0 = (np.ones(template.n_vertices, dtype=bool) if first.projection is None
              else first.projection.projected)
