@@ -35,6 +35,11 @@ Classes:
   better exchanged are now one warning naming the marker file (the wrap's
   :func:`~facewrap.wrapping.plausibility.swapped_pairs`; none on Sumner's
   horse-camel and cat-lion markers or Onizuka's avatars);
+- a refusal of an expression scan's wrap (its landmark file mirrored, a scan the
+  fit finds nothing of) named no file ("facewrap: error: scan landmarks: they match
+  a mirror image ..."): the rig could not tell which scan it was about; each
+  expression's wrap now says which (:class:`~facewrap.wrapping.track.FrameError`,
+  as a track's frames do) and the line names its file;
 - ``convert`` of an OBJ with materials or groups (a template's parts, a scan's
   textured material) to PLY dropped them without a word; what is left out is now
   one warning line naming the output (the mesh is written whole).
@@ -272,3 +277,18 @@ def test_convert_to_ply_says_the_materials_and_groups_it_drops(sample, tmp_path,
     # nothing to drop: nothing said
     assert facewrap("convert", out, tmp_path / "again.ply") == 0
     assert capsys.readouterr().err == ""
+
+
+def test_rig_names_the_expression_landmark_file_its_wrap_refuses(person, tmp_path, capsys):
+    mirrored = tmp_path / "mirrored.txt"
+    L = np.loadtxt(person["smile"]["scan_landmarks"])
+    order = list(range(68))
+    for a, b in [(k, 16 - k) for k in range(8)] + [(17 + k, 26 - k) for k in range(5)] + [
+            (31, 35), (32, 34), *EYES, (48, 54), (49, 53), (50, 52), (55, 59), (56, 58),
+            (60, 64), (61, 63), (65, 67)]:
+        order[a], order[b] = b, a
+    np.savetxt(mirrored, L[order])
+    person["mirrored"] = {"scan": person["smile"]["scan"], "scan_landmarks": mirrored}
+    rc = facewrap(*rig_argv(person, tmp_path / "rig", ["smile", "mirrored"]))
+    error_line(capsys, rc, f"facewrap: error: {mirrored}: they match a mirror image")
+    assert not (tmp_path / "rig").exists()

@@ -60,6 +60,7 @@ from facewrap.rig.texture_flow import MIN_IMAGE_SIDE
 from facewrap.texture.tiles import file_textures, material_images
 from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
+from facewrap.wrapping.track import FrameError
 
 __all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
            "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL",
@@ -285,9 +286,15 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                                                           texture_size=job.texture_size),
                          **options)
     except ValueError as exc:
+        # an expression's wrap says which it is (FrameError); else it is the neutral's
         about, _, text = str(exc).partition(": ")
         files = _files(job.scan, job.scan_landmarks, job)
-        if about in files and not expressions:
+        if isinstance(exc, FrameError):
+            own = expression_wrap_job(job, exc.frame)
+            files = _files(own.scan, own.scan_landmarks, job)
+            if about not in files:   # a refusal about no file of its own: the scan's
+                about, text = "scan", str(exc)
+        if about in files:
             raise InputError(text, files[about]) from None
         raise
 

@@ -47,7 +47,7 @@ from facewrap.wrapping import WrapResult, WrapSettings, wrap
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.follow import follow_skin
 from facewrap.wrapping.roles import FITTED, PART
-from facewrap.wrapping.track import wrap_following
+from facewrap.wrapping.track import FrameError, wrap_following
 
 __all__ = ["Rig", "build_rig"]
 
@@ -150,8 +150,11 @@ def _expression_fits(template, result, template_landmarks, scans, landmarks, tre
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
         start = replace(result, transform=motion.compose(result.transform),
                         mesh=result.mesh.with_vertices(motion.apply(result.vertices)))
-        w = wrap_following(template, scan, template_landmarks, lm, start, settings,
-                           blendshapes=blendshapes, scan_tree=tree, **wrap_options)
+        try:
+            w = wrap_following(template, scan, template_landmarks, lm, start, settings,
+                               blendshapes=blendshapes, scan_tree=tree, **wrap_options)
+        except ValueError as exc:   # which scan it is about: the caller names its file
+            raise FrameError(k, str(exc)) from None
         pending.append(run_on(beside, refine, w, scan, k, tree))
         built.append(tree)
         geometric.append(w)
@@ -349,6 +352,14 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     Returns
     -------
     Rig
+
+    Raises
+    ------
+    ValueError
+        The neutral's wrap refused its inputs (the message starts with what it is
+        about: ``"scan landmarks: ..."``); a
+        :class:`~facewrap.wrapping.track.FrameError` when an expression scan's did,
+        its ``frame`` saying which (0-based).
 
     Examples
     --------
