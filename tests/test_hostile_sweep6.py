@@ -11,6 +11,11 @@ Classes:
 - a batch summary's distances (``fit_mean`` ... ``landmark_max``) carried no unit,
   and the jobs of one batch may be in different units; each row now says its
   ``units`` (CSV and JSON, and a resumed job's from its done-record);
+- a batch whose jobs nest one output inside another's output folder (a rig's
+  ``OUT`` set to another rig's ``OUT/shapes``) ran both: the shapes folder held the
+  other person's neutral, GLB and report, and the first job's done-record stopped
+  matching its folder, so every resumed run redid it; the manifest is now refused
+  naming both jobs, before any runs;
 - ``rig``'s expression scans were fitted whatever they showed: one in other units
   (ten times the neutral's size) failed after the neutral's fit with "no template
   vertex found a valid scan point" naming no file (in metres: fitted into garbage
@@ -292,3 +297,18 @@ def test_rig_names_the_expression_landmark_file_its_wrap_refuses(person, tmp_pat
     rc = facewrap(*rig_argv(person, tmp_path / "rig", ["smile", "mirrored"]))
     error_line(capsys, rc, f"facewrap: error: {mirrored}: they match a mirror image")
     assert not (tmp_path / "rig").exists()
+
+
+def test_a_batch_refuses_an_output_inside_another_jobs_output_folder(sample, tmp_path,
+                                                                     capsys):
+    (tmp_path / "shared.toml").write_text(
+        f'[inputs]\ntemplate = "{sample["template"]}"\n'
+        f'template_landmarks = "{sample["template_landmarks"]}"\n'
+        f'blendshapes = "{Path(sample["blendshapes/smile"]).parent}"\n[rig]\n')
+    row = f"{sample['scan']},{sample['scan_landmarks']}"
+    (tmp_path / "m.csv").write_text(f"scan,scan_landmarks,output\n{row},people/anna\n"
+                                    f"{row},people/anna/shapes\n")
+    rc = facewrap("batch", tmp_path / "m.csv", "--job", tmp_path / "shared.toml",
+                  "--workers", 1, "-q")
+    error_line(capsys, rc, "m.csv:3: job 2 writes", "an output folder of job 1 (line 2)")
+    assert not (tmp_path / "people").exists()
