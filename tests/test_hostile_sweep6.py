@@ -45,6 +45,9 @@ Classes:
   a mirror image ..."): the rig could not tell which scan it was about; each
   expression's wrap now says which (:class:`~facewrap.wrapping.track.FrameError`,
   as a track's frames do) and the line names its file;
+- ``report`` of a rig's ``rig.json`` failed with "the run's output 'OUT' is
+  missing" although the folder was there (it looked for a mesh); it now says it is a
+  rig's report and where its page is;
 - ``convert`` of an OBJ with materials or groups (a template's parts, a scan's
   textured material) to PLY dropped them without a word; what is left out is now
   one warning line naming the output (the mesh is written whole).
@@ -168,8 +171,9 @@ def rig_argv(person: dict, out: Path, names, *more) -> list:
     return ["rig", n["scan"], *(person[k]["scan"] for k in names), "--template",
             n["template"], "--blendshapes", n["blendshapes/smile"].parent,
             "--template-landmarks", n["template_landmarks"], "--scan-landmarks",
-            n["scan_landmarks"], "--expression-landmarks",
-            *(person[k]["scan_landmarks"] for k in names), "-q", "-o", out, *more]
+            n["scan_landmarks"],
+            *(["--expression-landmarks", *(person[k]["scan_landmarks"] for k in names)]
+              if names else []), "-q", "-o", out, *more]
 
 
 def test_rig_refuses_an_expression_scan_in_other_units(person, tmp_path, capsys):
@@ -312,3 +316,12 @@ def test_a_batch_refuses_an_output_inside_another_jobs_output_folder(sample, tmp
                   "--workers", 1, "-q")
     error_line(capsys, rc, "m.csv:3: job 2 writes", "an output folder of job 1 (line 2)")
     assert not (tmp_path / "people").exists()
+
+
+def test_report_of_a_rig_says_where_its_page_is(person, tmp_path, capsys):
+    out = tmp_path / "rig"
+    assert facewrap(*rig_argv(person, out, [])) == 0
+    rc = facewrap("report", out / "rig.json", "-o", tmp_path / "page")
+    error_line(capsys, rc, str(out / "rig.json"), "a rig's report, not a wrap run's: its "
+               "page is rig.html beside it")
+    assert (out / "rig.html").is_file() and not (tmp_path / "page").exists()

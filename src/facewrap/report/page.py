@@ -112,6 +112,10 @@ def load_run_report(report_path) -> dict:
         raise InputError(f"not a JSON report ({exc.problem})", report_path,
                          exc.line) from None
     job = run.get("job") if isinstance(run, dict) else None
+    if isinstance(job, dict) and "expression_scans" in job and "blendshapes" in job:
+        # its output is a folder: the wrap's page would look for a mesh there
+        raise InputError("a rig's report, not a wrap run's: its page is rig.html beside "
+                         "it ('facewrap rig' writes it)", report_path)
     if not isinstance(job, dict) or not all(k in job for k in ("template", "scan",
                                                                "output")):
         raise InputError("not a facewrap wrap report: 'job' with template, scan and "
