@@ -29,7 +29,9 @@ Classes:
   twice, a sequence's frame written twice for ``track``) was fitted as new data
   silently; it is now one warning line naming it and the scan it repeats
   (:func:`~facewrap.jobs.input_checks.repeated_scans`), and a ``track`` frame in
-  other units than the first is refused naming it, before any fit;
+  other units than the first is refused naming it, before any fit, and so is the
+  template itself among a track's frames (kept in the scans' folder, it was
+  tracked as a frame) or a rig's scans;
 - a ``track`` frame of another person (scanned in the sequence's frame) was tracked
   as if it were an expression, silently; with shapes to tell the skull from the
   face, it is now one warning line naming the frame
@@ -325,3 +327,16 @@ def test_report_of_a_rig_says_where_its_page_is(person, tmp_path, capsys):
     error_line(capsys, rc, str(out / "rig.json"), "a rig's report, not a wrap run's: its "
                "page is rig.html beside it")
     assert (out / "rig.html").is_file() and not (tmp_path / "page").exists()
+
+
+def test_track_refuses_the_template_among_its_frames(sample, tmp_path, capsys):
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    (seq / "a.obj").write_bytes(Path(sample["scan"]).read_bytes())
+    template = seq / "template.obj"          # kept beside the scans
+    template.write_bytes(Path(sample["template"]).read_bytes())
+    rc = facewrap("track", template, seq, "--template-landmarks",
+                  sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+                  "--model", "rigid", "-q", "-o", tmp_path / "out")
+    error_line(capsys, rc, f"{template}: is the template itself, not a scan")
+    assert not (tmp_path / "out").exists()

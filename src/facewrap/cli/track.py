@@ -31,7 +31,7 @@ from facewrap.io.files import folder_files
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
-from facewrap.jobs.input_checks import (check_scan, check_scan_sizes,
+from facewrap.jobs.input_checks import (check_not_template, check_scan, check_scan_sizes,
                                         check_template_landmarks, frames_of_another_head,
                                         repeated_scans)
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
@@ -130,6 +130,7 @@ def cmd_track(args) -> int:
                        inputs=[p for p in inputs if p])
     template = read_mesh(args.template)
     meshes = [read_mesh(p) for p in scans]
+    check_not_template(template, meshes, scans)   # kept in the scans' folder?
     tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
     # each frame through the wrap's refusals of a scan: a sphere, a scan in other
     # units or landmarks off the surface are refused here as `facewrap wrap` does

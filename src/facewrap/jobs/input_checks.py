@@ -42,7 +42,8 @@ __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_sp
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
            "check_uv_layouts", "check_model_settings", "repeated_scans",
-           "check_scan_sizes", "frames_of_another_head", "SCAN_SIZE_RATIO"]
+           "check_scan_sizes", "check_not_template", "frames_of_another_head",
+           "SCAN_SIZE_RATIO"]
 
 #: scans of one head (a rig's, a sequence's) whose sizes differ by more than this
 #: factor are not in one unit: a scan cropped to the face and one with the neck
@@ -440,16 +441,38 @@ def repeated_scans(meshes, labels) -> list[str]:
     seen: dict[bytes, str] = {}
     out = []
     for mesh, label in zip(meshes, labels):
-        digest = hashlib.blake2b(digest_size=16)
-        for a in (mesh.vertices, mesh.triangles):
-            digest.update(np.ascontiguousarray(a).tobytes())
-        key = digest.digest()
+        key = _content_key(mesh)
         if key in seen:
             out.append(f"{label}: the same scan as {seen[key]} (every vertex and face "
                        "alike)")
         else:
             seen[key] = label
     return out
+
+
+def _content_key(mesh: Mesh) -> bytes:
+    """A digest of ``mesh``'s vertices and triangles: equal for copies of one mesh."""
+    digest = hashlib.blake2b(digest_size=16)
+    for a in (mesh.vertices, mesh.triangles):
+        digest.update(np.ascontiguousarray(a).tobytes())
+    return digest.digest()
+
+
+def check_not_template(template: Mesh, meshes, paths) -> None:
+    """Refuse a scan (a track's frame, a rig's expression) that is the template
+    itself, vertex for vertex: the template kept in the scans' folder is taken for a
+    frame, and its fit is of another head than the person's.
+
+    Raises
+    ------
+    InputError
+        Naming the scan's file.
+    """
+    key = _content_key(template)
+    for mesh, path in zip(meshes, paths):
+        if _content_key(mesh) == key:
+            raise InputError("is the template itself, not a scan (the template kept "
+                             "among the scans?)", path)
 
 
 def check_scan_sizes(meshes, paths, first: str = "the first scan") -> None:

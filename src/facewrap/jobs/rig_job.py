@@ -50,7 +50,7 @@ from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
-from facewrap.jobs.input_checks import check_scan_sizes, repeated_scans
+from facewrap.jobs.input_checks import check_not_template, check_scan_sizes, repeated_scans
 from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
@@ -433,10 +433,11 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
 
 
 def _check_expression_scans(job: RigJob, inputs: dict, expressions: list) -> None:
-    """The expression scans against the neutral, before any fit: one in another
-    unit is refused (its wrap would fit a head ten times the size, or fail naming
+    """The scans against the template and the neutral, before any fit: the template
+    itself among them, or an expression in another unit, is refused (its wrap would fit a head ten times the size, or fail naming
     no file); one given twice, or the neutral given again, is a warning line."""
     scans = [inputs["scan"]] + [e["scan"] for e in expressions]
+    check_not_template(inputs["template"], scans, [job.scan, *job.expression_scans])
     check_scan_sizes(scans, [job.scan, *job.expression_scans], "the neutral scan")
     inputs["warnings"] += repeated_scans(
         scans, [f"the neutral scan ({job.scan})"] + [
