@@ -120,18 +120,9 @@ def _profile_landmarks(template_path):
     return (None, None) if landmarks is None else (landmarks, str(profile))
 
 
-def cmd_track(args) -> int:
-    """Track the template through the scans and write the sequence."""
-    scans = _scan_paths(args.scans)
-    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
-              *(args.scan_landmarks or ()), args.blendshapes, args.exclude]
-    # weights.csv is checked whether or not blend weights will be written
-    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
-                       inputs=[p for p in inputs if p])
-    template = read_mesh(args.template)
-    meshes = [read_mesh(p) for p in scans]
-    check_not_template(template, meshes, scans)   # kept in the scans' folder?
-    tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+def _checked_frames(args, meshes, scans, lms) -> list[str]:
+    """The frames' checks before any fit: refusals raised, warnings returned as
+    ``frame N (FILE): ...`` lines."""
     # each frame through the wrap's refusals of a scan: a sphere, a scan in other
     # units or landmarks off the surface are refused here as `facewrap wrap` does
     # (the mesh's oddities are the frames' own warnings, from the fit)
@@ -149,7 +140,22 @@ def cmd_track(args) -> int:
     checked += repeated_scans(meshes, labels)
     # a given unit its first frame's size contradicts, once
     conflict = units_conflict(args.units, meshes[0].surface_points())
-    checked += [f"frame 0 ({scans[0]}): {conflict}"] if conflict else []
+    return checked + ([f"frame 0 ({scans[0]}): {conflict}"] if conflict else [])
+
+
+def cmd_track(args) -> int:
+    """Track the template through the scans and write the sequence."""
+    scans = _scan_paths(args.scans)
+    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
+              *(args.scan_landmarks or ()), args.blendshapes, args.exclude]
+    # weights.csv is checked whether or not blend weights will be written
+    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
+                       inputs=[p for p in inputs if p])
+    template = read_mesh(args.template)
+    meshes = [read_mesh(p) for p in scans]
+    check_not_template(template, meshes, scans)   # kept in the scans' folder?
+    tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+    checked = _checked_frames(args, meshes, scans, lms)
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"
