@@ -50,6 +50,10 @@ Classes:
 - ``report`` of a rig's ``rig.json`` failed with "the run's output 'OUT' is
   missing" although the folder was there (it looked for a mesh); it now says it is a
   rig's report and where its page is;
+- ``demo --out DIR`` replaced whatever DIR held under the demo's names (a
+  project's ``input/scan.obj``, ``report.json``, ``wrapped.obj``) without a word;
+  a folder holding such a name that no demo wrote is now refused before any work
+  (a re-run into the demo's own folder still replaces its files);
 - ``convert`` of an OBJ with materials or groups (a template's parts, a scan's
   textured material) to PLY dropped them without a word; what is left out is now
   one warning line naming the output (the mesh is written whole).
@@ -340,3 +344,14 @@ def test_track_refuses_the_template_among_its_frames(sample, tmp_path, capsys):
                   "--model", "rigid", "-q", "-o", tmp_path / "out")
     error_line(capsys, rc, f"{template}: is the template itself, not a scan")
     assert not (tmp_path / "out").exists()
+
+
+def test_demo_refuses_a_folder_whose_files_it_would_replace(tmp_path, capsys):
+    (tmp_path / "input").mkdir()
+    mine = {tmp_path / "input" / "scan.obj": "v 0 0 0\n", tmp_path / "report.json": "{}"}
+    for path, text in mine.items():
+        path.write_text(text)
+    error_line(capsys, facewrap("demo", "--out", tmp_path, "-q"), str(tmp_path),
+               "holds 'input', a name the demo writes, and no demo wrote it")
+    assert all(p.read_text() == text for p, text in mine.items())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["input", "report.json"]
