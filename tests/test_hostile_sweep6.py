@@ -107,6 +107,13 @@ def test_info_evaluate_report_say_a_given_unit_the_head_contradicts(sample, tmp_
     assert "--units m makes the head" in (tmp_path / "page" / "index.html").read_text()
 
 
+def test_landmarks_says_a_given_unit_the_head_contradicts(sample, tmp_path, capsys):
+    pytest.importorskip("dlib", reason="the optional extra facewrap[landmarks] is absent")
+    rc = facewrap("landmarks", sample["scan"], "-o", tmp_path / "lm.json", "--units", "cm")
+    hits = warning_lines(capsys, rc, str(sample["scan"]), "--units cm makes the head")
+    assert len(hits) == 1
+
+
 def test_track_says_a_given_unit_once(sample, tmp_path, capsys):
     seq = tmp_path / "seq"
     seq.mkdir()
