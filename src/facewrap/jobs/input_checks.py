@@ -14,8 +14,9 @@ that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
 (and of each frame of a track) in one call.  Scans of one person or one sequence
 (a rig's neutral and expressions, a track's frames) are checked together:
-:func:`repeated_scans` (one scan given twice) and :func:`check_scan_sizes` (a scan
-in other units than the first).
+:func:`repeated_scans` (one scan given twice), :func:`check_scan_sizes` (a scan in
+other units than the first), :func:`check_not_template` (the template among them)
+and, after a track's fit, :func:`frames_of_another_head`.
 """
 
 from __future__ import annotations

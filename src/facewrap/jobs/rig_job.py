@@ -433,11 +433,12 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
 
 
 def _check_expression_scans(job: RigJob, inputs: dict, expressions: list) -> None:
-    """The scans against the template and the neutral, before any fit: the template
-    itself among them, or an expression in another unit, is refused (its wrap would fit a head ten times the size, or fail naming
+    """The expression scans against the template and the neutral, before any fit:
+    the template itself among them, or one in another unit, is refused (its wrap would fit a head ten times the size, or fail naming
     no file); one given twice, or the neutral given again, is a warning line."""
     scans = [inputs["scan"]] + [e["scan"] for e in expressions]
-    check_not_template(inputs["template"], scans, [job.scan, *job.expression_scans])
+    # (the neutral may be: a rig of the template itself is a smoke test)
+    check_not_template(inputs["template"], scans[1:], job.expression_scans)
     check_scan_sizes(scans, [job.scan, *job.expression_scans], "the neutral scan")
     inputs["warnings"] += repeated_scans(
         scans, [f"the neutral scan ({job.scan})"] + [
