@@ -44,7 +44,14 @@ __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_sp
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
            "check_uv_layouts", "check_model_settings", "repeated_scans",
            "check_scan_sizes", "check_not_template", "frames_of_another_head",
-           "SCAN_SIZE_RATIO"]
+           "SCAN_SIZE_RATIO", "TRACKED_HEAD_SHAPE"]
+
+#: :func:`frames_of_another_head`: a tracked frame's skull this far off frame 0's
+#: surface (fraction of the face's size; :func:`~facewrap.rig.stabilise.unlike_neutral`)
+#: is of another head.  Looser than a rig's: a frame without landmarks of its own
+#: follows the fit before it and drifts (the sample: one person's frames 0.06 and
+#: 0.10 %, another person's 0.31 %)
+TRACKED_HEAD_SHAPE = 0.002
 
 #: scans of one head (a rig's, a sequence's) whose sizes differ by more than this
 #: factor are not in one unit: a scan cropped to the face and one with the neck
@@ -519,7 +526,8 @@ def frames_of_another_head(frames, template: Mesh, blendshapes: dict | None) -> 
         seen = seen0 if f.projection is None else seen0 & f.projection.projected
         ids = rigid[seen[rigid]]
         moved = stabilise(f.vertices, first.vertices, ids if len(ids) >= 3 else rigid)
-        note = unlike_neutral(moved.vertices, first.vertices, rigid, seen,
-                              reference="frame 0's", still=True)
+        note = unlike_neutral(moved.vertices, first.vertices, first.mesh.triangles, rigid,
+                              seen, reference="frame 0's", still=True,
+                              limit=TRACKED_HEAD_SHAPE)
         out += [(i, note)] if note else []
     return out

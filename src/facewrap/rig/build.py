@@ -252,7 +252,7 @@ def _said_unlike(w: WrapResult, geometric: WrapResult, mask, neutral: WrapResult
         seen = mask if seen is None else seen & mask
     moved = stabilise(geometric.vertices, neutral.vertices,
                       _seen_rigid(rigid, neutral, mask)).vertices
-    note = unlike_neutral(moved, neutral.vertices, rigid, seen)
+    note = unlike_neutral(moved, neutral.vertices, neutral.mesh.triangles, rigid, seen)
     return w if note is None else replace(w, warnings=[*w.warnings, note])
 
 
