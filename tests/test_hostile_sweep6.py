@@ -47,6 +47,9 @@ Classes:
   a mirror image ..."): the rig could not tell which scan it was about; each
   expression's wrap now says which (:class:`~facewrap.wrapping.track.FrameError`,
   as a track's frames do) and the line names its file;
+- a rig of a head in no known unit (its size fits none of mm, cm, m) wrote
+  ``rig.glb``, metres by glTF's rule, with the coordinates unscaled (a head
+  kilometres across) without a word; it is now one warning naming the GLB;
 - ``report`` of a rig's ``rig.json`` failed with "the run's output 'OUT' is
   missing" although the folder was there (it looked for a mesh); it now says it is a
   rig's report and where its page is;
@@ -362,3 +365,22 @@ def test_demo_refuses_a_folder_whose_files_it_would_replace(tmp_path, capsys):
                "holds 'input', a name the demo writes, and no demo wrote it")
     assert all(p.read_text() == text for p, text in mine.items())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["input", "report.json"]
+
+
+def test_rig_says_its_glb_is_unscaled_when_the_unit_is_unknown(person, tmp_path, capsys):
+    n, big = person["neutral"], tmp_path / "big"
+    (big / "shapes").mkdir(parents=True)
+    files = {n["template"]: big / "template.obj", n["scan"]: big / "scan.obj"}
+    files.update({p: big / "shapes" / p.name for p in n["blendshapes/smile"].parent.iterdir()})
+    for src, dst in files.items():            # ten thousand times: no head's size
+        m = read_mesh(src)
+        write_mesh(dst, m.with_vertices(1e4 * m.vertices))
+    np.savetxt(big / "lm.txt", 1e4 * np.loadtxt(n["scan_landmarks"]))
+    out = tmp_path / "rig"
+    rc = facewrap("rig", big / "scan.obj", "--template", big / "template.obj",
+                  "--blendshapes", big / "shapes", "--template-landmarks",
+                  n["template_landmarks"], "--scan-landmarks", big / "lm.txt", "-q", "-o", out)
+    hits = warning_lines(capsys, rc, str(out / "rig.glb"), "unit is unknown", "unscaled")
+    assert len(hits) == 1
+    assert hits[0][len("facewrap: warning: "):] in json.loads(
+        (out / "rig.json").read_text())["warnings"]

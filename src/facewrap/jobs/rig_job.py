@@ -515,5 +515,12 @@ def _finish(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
     for note in notes:
         warnings.warn(note, InputWarning, stacklevel=3)
     report = _report(job, rig, inputs, expressions, read_seconds, notes)
+    if metres_per_unit(report["units"]) is None:
+        # glTF's unit is the metre: a head of unknown unit is written as it is
+        note = (f"{os.path.join(job.output, GLB)}: the data's unit is unknown, so the "
+                "GLB (in metres, by glTF's rule) holds the coordinates unscaled: "
+                "--units (the job key units) to set it")
+        warnings.warn(note, InputWarning, stacklevel=3)
+        report["warnings"].append(note)
     _write_rig_outputs(job, rig, inputs, report, [e["scan"] for e in expressions])
     return report
