@@ -31,7 +31,7 @@ Classes:
   (:func:`~facewrap.jobs.input_checks.repeated_scans`), and a ``track`` frame in
   other units than the first is refused naming it, before any fit, and so is the
   template itself among a track's frames (kept in the scans' folder, it was
-  tracked as a frame) or a rig's scans;
+  tracked as a frame) or among a rig's expression scans;
 - a ``track`` frame of another person (scanned in the sequence's frame) was tracked
   as if it were an expression, silently; with shapes to tell the skull from the
   face, it is now one warning line naming the frame
@@ -384,3 +384,13 @@ def test_rig_says_its_glb_is_unscaled_when_the_unit_is_unknown(person, tmp_path,
     assert len(hits) == 1
     assert hits[0][len("facewrap: warning: "):] in json.loads(
         (out / "rig.json").read_text())["warnings"]
+
+
+def test_rig_refuses_the_template_among_its_expression_scans(person, tmp_path, capsys):
+    n = person["neutral"]
+    ids = [int(t) for t in Path(n["template_landmarks"]).read_text().split()]
+    np.savetxt(tmp_path / "points.txt", read_mesh(n["template"]).vertices[ids])
+    person["tpl"] = {"scan": n["template"], "scan_landmarks": tmp_path / "points.txt"}
+    rc = facewrap(*rig_argv(person, tmp_path / "rig", ["smile", "tpl"]))
+    error_line(capsys, rc, f"{n['template']}: is the template itself, not a scan")
+    assert not (tmp_path / "rig").exists()
