@@ -49,7 +49,8 @@ Classes:
   as a track's frames do) and the line names its file;
 - a rig of a head in no known unit (its size fits none of mm, cm, m) wrote
   ``rig.glb``, metres by glTF's rule, with the coordinates unscaled (a head
-  kilometres across) without a word; it is now one warning naming the GLB;
+  kilometres across) without a word, and so did a wrap job's ``gltf`` (``run``,
+  ``batch``); each is now one warning naming the glTF file;
 - ``report`` of a rig's ``rig.json`` failed with "the run's output 'OUT' is
   missing" although the folder was there (it looked for a mesh); it now says it is a
   rig's report and where its page is;
@@ -384,6 +385,11 @@ def test_rig_says_its_glb_is_unscaled_when_the_unit_is_unknown(person, tmp_path,
     assert len(hits) == 1
     assert hits[0][len("facewrap: warning: "):] in json.loads(
         (out / "rig.json").read_text())["warnings"]
+    glb = tmp_path / "fit.glb"
+    rc = facewrap("wrap", big / "template.obj", big / "scan.obj", "--template-landmarks",
+                  n["template_landmarks"], "--scan-landmarks", big / "lm.txt", "--model",
+                  "rbf", "-q", "-o", tmp_path / "fit.obj", "--gltf", glb)
+    assert len(warning_lines(capsys, rc, str(glb), "unit is unknown", "unscaled")) == 1
 
 
 def test_rig_refuses_the_template_among_its_expression_scans(person, tmp_path, capsys):

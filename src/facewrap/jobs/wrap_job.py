@@ -585,6 +585,10 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                                         for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
                                                             result.mesh.surface_points())
+    if job.gltf and metres_per_unit(report["units"]) is None:   # glTF's unit: metres
+        notes.append(f"{job.gltf}: the data's unit is unknown, so the glTF (in metres) "
+                     "holds the coordinates unscaled: --units (the job key units) to set it")
+        warnings.warn(notes[-1], InputWarning, stacklevel=2)
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))
