@@ -78,6 +78,11 @@ def test_without_the_extra_the_demo_says_in_one_line_that_it_skips_that_part(tmp
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     stale = tmp_path / "demo" / "landmark_free"          # an earlier run's, with dlib
     stale.mkdir(parents=True)
+    # ... in that run's folder: its report names its input/template.obj
+    (tmp_path / "demo" / "input").mkdir()
+    (tmp_path / "demo" / "input" / "template.obj").write_text("v 0 0 0\n")
+    (tmp_path / "demo" / "report.json").write_text(
+        '{"job": {"template": "demo/input/template.obj"}}')
     (stale / "wrapped.obj").write_text("v 0 0 0\n")
     (stale / "report.json").write_text("{}")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -190,6 +190,8 @@ def test_warnings_come_first_and_not_among_the_tables(page):
     assert "1 warning: check the inputs" in text
 
 
+# inches given to a run in millimetres: shown as given, and warned about
+@pytest.mark.filterwarnings("ignore::facewrap.errors.InputWarning")
 def test_units_are_the_runs_or_given(run, tmp_path):
     report = dict(run["report"], units="cm", units_source="given")
     (run["dir"] / "cm.json").write_text(json.dumps(report))

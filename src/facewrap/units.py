@@ -35,8 +35,8 @@ import numpy as np
 
 __all__ = ["UNITS", "UNIT_NAMES", "UNIT_CHOICES", "UNKNOWN", "HEAD_SIZE_M",
            "metres_per_unit", "check_units_choice", "head_size", "infer_units",
-           "resolve_units", "describe_units", "units_note", "format_distance", "distance_decimals",
-           "resolution_decimals",
+           "resolve_units", "units_conflict", "describe_units", "units_note",
+           "format_distance", "distance_decimals", "resolution_decimals",
            "add_units_argument"]
 
 #: Metres per unit of each known unit of length.
@@ -125,6 +125,42 @@ def resolve_units(choice: str, points) -> tuple[str, str]:
     if choice != "auto":
         return choice, "given"
     return infer_units(points), "inferred"
+
+
+def units_conflict(choice: str, points) -> str | None:
+    """What is wrong with a *given* unit that the head's size contradicts, else None.
+
+    A unit is given (``--units``, the job key ``units``) to say what the numbers
+    are; one that makes the head of ``points`` (n, 3) a size no head has, where
+    another unit gives it a head's size (``--units m`` on a scan in millimetres:
+    a head 0.2 km across), is a slip, and every distance shown would be off by
+    its factor.  Inches, never inferred, are judged by the same range; a head
+    that fits no unit says nothing (the caller's other checks speak of it).
+
+    Returns
+    -------
+    str or None
+        Text naming the option, the size it gives and the unit the size says:
+        the caller puts the file in front.
+
+    Examples
+    --------
+    >>> head_mm = np.array([[0, 0, 0], [160.0, 230.0, 140.0]])
+    >>> units_conflict("m", head_mm)
+    '--units m makes the head 160 m across; its size says mm (a head is 0.08-0.8 m)'
+    >>> units_conflict("mm", head_mm) is None, units_conflict("auto", head_mm) is None
+    (True, True)
+    """
+    check_units_choice(choice)
+    if choice == "auto":
+        return None
+    inferred = infer_units(points)
+    size = head_size(points) * UNITS[choice]
+    lo, hi = HEAD_SIZE_M
+    if inferred == UNKNOWN or lo <= size < hi:
+        return None
+    return (f"--units {choice} makes the head {size:.3g} m across; its size says "
+            f"{inferred} (a head is {lo:g}-{hi:g} m)")
 
 
 def describe_units(unit: str, source: str) -> str:

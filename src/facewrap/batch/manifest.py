@@ -323,7 +323,8 @@ def read_manifest(path, job_file=None) -> list[BatchJob]:
 
 
 def _check_batch(jobs: list[BatchJob], path) -> None:
-    """No two jobs write one file; no job writes another's input; names unique."""
+    """No two jobs write one file, nor one inside the other's output folder; no job
+    writes another's input; names unique."""
     writers: dict[str, BatchJob] = {}
     for bj in jobs:
         for out in bj.kind.outputs(bj.job) + [done_record_path(bj.job)]:
@@ -333,6 +334,19 @@ def _check_batch(jobs: list[BatchJob], path) -> None:
                 raise InputError(f"jobs {other.index + 1} (line {other.line}) and "
                                  f"{bj.index + 1} both write {out!r}", path, bj.line)
             writers[key] = bj
+    for key, bj in writers.items():
+        # an output inside another job's output folder (a rig's shapes, a transfer's
+        # out): the two jobs' files mix, and each one's done-record stops matching
+        # its folder once the other writes there, so a resumed batch redoes it
+        parent = os.path.dirname(key)
+        while parent and parent != os.path.dirname(parent):
+            other = writers.get(parent)
+            if other is not None and other is not bj:
+                raise InputError(f"job {bj.index + 1} writes {key!r} inside {parent!r}, an "
+                                 f"output folder of job {other.index + 1} (line "
+                                 f"{other.line}); give the jobs folders apart", path,
+                                 bj.line)
+            parent = os.path.dirname(parent)
     outputs = list(writers)
     for bj in jobs:
         # one job's output is, or lies in, another job's input (file or folder)

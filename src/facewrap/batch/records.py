@@ -146,7 +146,8 @@ def write_done_record(job, fp: dict, report: dict, seconds: float) -> None:
            "metrics": scalar_metrics(report.get("metrics", {})),
            "model": report.get("settings", {}).get("model"),
            "warnings": report.get("warnings", []),
-           "scan_landmarks": report.get("scan_landmarks_source", "")}
+           "scan_landmarks": report.get("scan_landmarks_source", ""),
+           "units": report.get("units", "")}   # of the metrics' distances
     with atomic_write(done_record_path(job), "w", encoding="utf-8") as fh:
         json.dump(rec, fh, indent=1)
 

@@ -47,7 +47,8 @@ def skipped_row(bj: BatchJob, fp: dict | None = None) -> dict | None:
     return summary_row(bj, SKIPPED, seconds=rec.get("seconds", 0.0),
                        host=rec.get("host", ""), metrics=rec.get("metrics", {}),
                        warnings=rec.get("warnings", []),
-                       scan_landmarks=rec.get("scan_landmarks", ""))
+                       scan_landmarks=rec.get("scan_landmarks", ""),
+                       units=rec.get("units", ""))
 
 
 def _one_line_error(exc: BaseException) -> str:
@@ -93,7 +94,8 @@ def run_one(bj: BatchJob) -> dict:
         return summary_row(bj, DONE, seconds=seconds, host=worker_name(),
                            metrics=scalar_metrics(report.get("metrics", {})),
                            warnings=report.get("warnings", []),
-                           scan_landmarks=report.get("scan_landmarks_source", ""))
+                           scan_landmarks=report.get("scan_landmarks_source", ""),
+                           units=report.get("units", ""))
     except Exception as exc:  # noqa: BLE001 - one job's failure must not stop a batch
         return summary_row(bj, FAILED, seconds=time.perf_counter() - t0,
                            host=worker_name(), error=_one_line_error(exc))

@@ -2,7 +2,7 @@
 
 Every job ends as one summary row (:func:`summary_row`): its status ("done",
 "skipped", "failed" or "pending"), main output, seconds, one-line error, input
-warnings, worker and scalar metrics.  :func:`write_summary` writes the rows
+warnings, worker, the unit of its distances and scalar metrics.  :func:`write_summary` writes the rows
 atomically as ``<stem>.csv`` (for spreadsheets) and ``<stem>.json`` (everything).
 """
 
@@ -27,8 +27,9 @@ DONE, SKIPPED, FAILED, PENDING = "done", "skipped", "failed", "pending"
 STATUSES = (DONE, SKIPPED, FAILED, PENDING)
 #: Columns of the CSV summary (then one per metric of :data:`METRIC_COLUMNS`).
 SUMMARY_COLUMNS = ("index", "name", "status", "output", "seconds", "error", "warnings",
-                   "host", "scan_landmarks")
-#: Metrics of a wrap report shown as CSV columns.
+                   "host", "scan_landmarks", "units")
+#: Metrics of a wrap report shown as CSV columns (distances in the row's ``units``;
+#: jobs of one batch may be in different units, so the unit is a column, not a name).
 METRIC_COLUMNS = ("fit_mean", "fit_p95", "fit_max", "fit_coverage", "landmark_mean",
                   "landmark_max")
 
@@ -61,11 +62,11 @@ class BatchResult:
 def summary_row(bj: BatchJob, status: str, **values) -> dict:
     """The summary row of a job: ``index``, ``name``, ``status``, ``output``,
     ``seconds``, ``error``, ``warnings``, ``host``, ``scan_landmarks`` (a wrap's
-    ``"file"`` or ``"detected"``), ``metrics`` (``values`` override the empty
-    defaults)."""
+    ``"file"`` or ``"detected"``), ``units`` (of the distances among ``metrics``:
+    the job report's), ``metrics`` (``values`` override the empty defaults)."""
     row = {"index": bj.index, "name": bj.name, "status": status,
            "output": getattr(bj.job, bj.kind.main_output), "seconds": 0.0, "error": "",
-           "warnings": [], "host": "", "scan_landmarks": "", "metrics": {}}
+           "warnings": [], "host": "", "scan_landmarks": "", "units": "", "metrics": {}}
     row.update(values)
     return row
 
@@ -77,7 +78,7 @@ def _csv_text(rows: list[dict]) -> str:
     for r in rows:
         writer.writerow([r["index"], r["name"], r["status"], r["output"],
                          f"{r['seconds']:.3f}", r["error"], len(r["warnings"]), r["host"],
-                         r.get("scan_landmarks", ""),
+                         r.get("scan_landmarks", ""), r.get("units", ""),
                          *(("" if r["metrics"].get(m) is None else repr(r["metrics"][m]))
                            for m in METRIC_COLUMNS)])
     return buf.getvalue()

@@ -4,12 +4,14 @@ An OBJ output names a material library only when one is written beside it:
 ``OUT.mtl`` with the input's materials (texture paths rebased onto the output's
 folder) or, for a PLY with one ``TextureFile``, a material showing that image
 (:func:`facewrap.io.mtl.library_beside`).  Mesh and library are staged and moved
-into place together.
+into place together.  A PLY output keeps no materials or groups (the format has
+none): what is left out is said in one warning line naming the output.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 
 from facewrap.errors import InputError
 from facewrap.io import read_mesh, write_mesh
@@ -41,8 +43,26 @@ def cmd_convert(args) -> int:
             if library is not None:
                 write_mtl(stage.file(_library_path(args.output)), library)
         write_mesh(stage.file(args.output), mesh)
+    if not is_obj:
+        dropped = _dropped_by_ply(mesh)
+        if dropped:   # written all the same: the geometry and UVs are whole
+            print(f"facewrap: warning: {args.output}: PLY keeps no materials or groups: "
+                  f"{dropped} left out (convert to .obj to keep them)", file=sys.stderr)
     print(args.output)
     return 0
+
+
+def _dropped_by_ply(mesh) -> str:
+    """What a PLY of ``mesh`` leaves out, as text ("" for nothing): its materials
+    and groups, by name (a few, then a count)."""
+    parts = []
+    for what, names in (("material", list(mesh.materials)), ("group", list(mesh.groups))):
+        if names:
+            shown = ", ".join(repr(n) for n in names[:3])
+            more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+            parts.append(f"{len(names)} {what}{'s' if len(names) > 1 else ''} "
+                         f"({shown}{more})")
+    return " and ".join(parts)
 
 
 def register(subparsers, summary: str) -> None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -29,13 +30,16 @@ from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
 from facewrap.io.landmarks import write_vertex_indices
-from facewrap.io.paths import check_writable
+from facewrap.errors import InputError
+from facewrap.io.files import read_json
+from facewrap.io.paths import check_writable, real_path
 from facewrap.jobs import WrapJob
 from facewrap.landmarks import Landmarks
 from facewrap.units import format_distance
 from facewrap.wrapping import WrapSettings
 
-__all__ = ["register", "cmd_demo", "run_demo", "LANDMARK_FREE"]
+__all__ = ["register", "cmd_demo", "run_demo", "check_demo_folder", "DEMO_NAMES",
+           "LANDMARK_FREE"]
 
 #: Sub-folder of the demo's output with the wrap from detected landmarks.
 LANDMARK_FREE = "landmark_free"
@@ -67,6 +71,38 @@ def _distance_stats(d) -> dict:
             "p95": float(np.percentile(d, 95)), "max": float(d.max())}
 
 
+#: What the demo writes at the top of its folder (files and folders).
+DEMO_NAMES = ("input", "wrapped.obj", "wrapped.mtl", "wrapped.png", "report.json",
+              "report", "error_heatmap.png", "scan_and_result.png", LANDMARK_FREE)
+
+
+def check_demo_folder(out: Path) -> None:
+    """Refuse a folder that holds a file or folder of a name the demo writes,
+    unless a demo wrote it (its ``report.json`` names its ``input/template.obj``):
+    ``facewrap demo --out .`` in a project must not replace its ``input/scan.obj``
+    or ``report.json``; a re-run of the demo into its own folder replaces its own.
+
+    Raises
+    ------
+    InputError
+        Naming the folder and the first name in the way.
+    """
+    taken = [n for n in DEMO_NAMES if os.path.lexists(out / n)]
+    if not taken:
+        return
+    try:
+        template = Path(read_json(out / "report.json")["job"]["template"])
+        # written relative to where the demo ran: its last two parts, or all of it
+        if (template.parts[-2:] == ("input", "template.obj")
+                and (out / "input" / "template.obj").is_file()) \
+                or real_path(template) == real_path(out / "input" / "template.obj"):
+            return   # the demo's own folder: a re-run
+    except (InputError, KeyError, TypeError, OSError):
+        pass
+    raise InputError(f"holds {taken[0]!r}, a name the demo writes, and no demo wrote "
+                     "it: give a new or empty folder (--out)", out)
+
+
 def run_demo(out: Path, verbose: bool = True) -> int:
     """Run the demo into folder ``out``; returns the exit status (0)."""
     # deferred: the other commands (and `facewrap --help`) do not pay for this import
@@ -74,6 +110,7 @@ def run_demo(out: Path, verbose: bool = True) -> int:
     from facewrap.sample import make_scan, make_template, write_sample
     out = Path(out)
     check_writable(folders=[out, out / "input", out / "report", out / LANDMARK_FREE])
+    check_demo_folder(out)
     out.mkdir(parents=True, exist_ok=True)
     template = make_template()
     scan = make_scan(template)

@@ -21,7 +21,7 @@ from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file, rea
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
-                            infer_units, resolve_units, units_note)
+                            infer_units, resolve_units, units_conflict, units_note)
 
 __all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "landmarks_mispaired",
            "ground_truth_unlike", "TRUTH_SIZE_LIMIT", "TRUTH_SHIFT_LIMIT", "TRUTH_TURN_LIMIT",
@@ -380,6 +380,8 @@ def cmd_evaluate(args) -> int:
         unit, source = run_units
     else:
         unit, source = resolve_units(args.units, result.surface_points())
+        conflict = units_conflict(args.units, result.surface_points())
+        odd += [f"{args.result}: {conflict}"] if conflict else []
     summary = {"result": str(args.result), "scan": str(args.scan), "units": unit,
                "units_source": source, **ev.summary(),
                "fit_vertices": int(np.count_nonzero(ev.result_to_scan.eligible)),

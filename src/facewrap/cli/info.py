@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 
 from facewrap.io import read_mesh
-from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
+from facewrap.units import (add_units_argument, format_distance, resolve_units,
+                            units_conflict, units_note)
 
 __all__ = ["register", "cmd_info"]
 
@@ -35,6 +37,9 @@ def cmd_info(args) -> int:
         "diagonal": mesh.scale(),
     }
     unit, source = resolve_units(args.units, mesh.surface_points())
+    conflict = units_conflict(args.units, mesh.surface_points())
+    if conflict:   # shown as given, but never as if it were fine
+        print(f"facewrap: warning: {args.mesh}: {conflict}", file=sys.stderr)
     if args.json:
         print(json.dumps({**info, "units": unit, "units_source": source}, indent=1))
         return 0

@@ -9,12 +9,15 @@ The output is checked against the inputs before any work and staged.
 
 from __future__ import annotations
 
+import sys
+
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.images import load_image
 from facewrap.io.landmarks import write_landmarks_json
 from facewrap.io.paths import check_output_paths, staged_outputs
-from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
+from facewrap.units import (add_units_argument, format_distance, resolve_units,
+                            units_conflict, units_note)
 
 __all__ = ["register", "cmd_landmarks", "detection_summary"]
 
@@ -43,6 +46,9 @@ def cmd_landmarks(args) -> int:
     mesh = read_mesh(args.mesh)
     if len(mesh.triangles) == 0:
         raise InputError("has no faces; landmarks are found on a surface", args.mesh)
+    conflict = units_conflict(args.units, mesh.surface_points())
+    if conflict:   # the eye distance is said in it all the same
+        print(f"facewrap: warning: {args.mesh}: {conflict}", file=sys.stderr)
     if args.shaded:
         image = None
     elif args.texture:

@@ -31,11 +31,14 @@ from facewrap.io.files import folder_files
 from facewrap.io.paths import check_output_paths
 from facewrap.io.landmarks import read_vertex_indices
 from facewrap.io.profile import find_template_profile, read_template_profile
-from facewrap.jobs.input_checks import check_scan, check_template_landmarks
+from facewrap.jobs.input_checks import (check_not_template, check_scan, check_scan_sizes,
+                                        check_template_landmarks, frames_of_another_head,
+                                        repeated_scans)
 from facewrap.jobs.wrap_job import (detect_mesh_landmarks, detected_scan_landmarks,
                                     detection_entry, read_mesh_landmarks)
 from facewrap.progress import progress
-from facewrap.units import add_units_argument, format_distance, resolve_units, units_note
+from facewrap.units import (add_units_argument, format_distance, resolve_units,
+                            units_conflict, units_note)
 from facewrap.wrapping import track, write_track_outputs
 from facewrap.wrapping.track import FrameError, track_output_files
 
@@ -117,17 +120,9 @@ def _profile_landmarks(template_path):
     return (None, None) if landmarks is None else (landmarks, str(profile))
 
 
-def cmd_track(args) -> int:
-    """Track the template through the scans and write the sequence."""
-    scans = _scan_paths(args.scans)
-    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
-              *(args.scan_landmarks or ()), args.blendshapes, args.exclude]
-    # weights.csv is checked whether or not blend weights will be written
-    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
-                       inputs=[p for p in inputs if p])
-    template = read_mesh(args.template)
-    meshes = [read_mesh(p) for p in scans]
-    tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+def _checked_frames(args, meshes, scans, lms) -> list[str]:
+    """The frames' checks before any fit: refusals raised, warnings returned as
+    ``frame N (FILE): ...`` lines."""
     # each frame through the wrap's refusals of a scan: a sphere, a scan in other
     # units or landmarks off the surface are refused here as `facewrap wrap` does
     # (the mesh's oddities are the frames' own warnings, from the fit)
@@ -138,6 +133,29 @@ def cmd_track(args) -> int:
         found = check_scan(mesh, own, scans[i], given[i] if own is not None else None,
                            survey=False, units=args.units)[3]
         checked += [f"frame {i} ({scans[i]}): {note}" for note in found]
+    # one sequence, one head, one unit: a frame in another is refused, a frame
+    # written twice said (the fit would show the face frozen for a frame)
+    labels = [f"frame {i} ({path})" for i, path in enumerate(scans)]
+    check_scan_sizes(meshes, scans, f"frame 0 ({scans[0]})")
+    checked += repeated_scans(meshes, labels)
+    # a given unit its first frame's size contradicts, once
+    conflict = units_conflict(args.units, meshes[0].surface_points())
+    return checked + ([f"frame 0 ({scans[0]}): {conflict}"] if conflict else [])
+
+
+def cmd_track(args) -> int:
+    """Track the template through the scans and write the sequence."""
+    scans = _scan_paths(args.scans)
+    inputs = [args.template, *args.scans, *scans, args.template_landmarks,
+              *(args.scan_landmarks or ()), args.blendshapes, args.exclude]
+    # weights.csv is checked whether or not blend weights will be written
+    check_output_paths(files=track_output_files(args.out, len(scans)), folders=[args.out],
+                       inputs=[p for p in inputs if p])
+    template = read_mesh(args.template)
+    meshes = [read_mesh(p) for p in scans]
+    check_not_template(template, meshes, scans)   # kept in the scans' folder?
+    tl, lms, detections = _scan_landmarks(args, template, meshes, scans)
+    checked = _checked_frames(args, meshes, scans, lms)
     if detections and not args.quiet:
         for what, found in detections.items():
             where = args.template if what == "template" else f"frame 0 ({scans[0]})"
@@ -180,7 +198,9 @@ def cmd_track(args) -> int:
             raise InputError(text if about in files else str(exc),
                              files.get(about, scans[exc.frame])) from None
     # after the run, as wrap does: a failed track is its one error line
-    notes = checked + frame_warnings(result, scans)
+    notes = checked + frame_warnings(result, scans) + [
+        f"frame {i} ({scans[i]}): {note.partition(': ')[2]}"
+        for i, note in frames_of_another_head(result.frames, template, shapes)]
     for note in notes:
         print(f"facewrap: warning: {note}", file=sys.stderr)
     unit, source = units[0] if units else resolve_units(args.units, template.surface_points())

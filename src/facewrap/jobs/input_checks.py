@@ -12,10 +12,16 @@ seams split by an exporter do not read as holes), :func:`check_landmark_spread`,
 shapes or the model would drop), :func:`check_uv_layouts` (texture coordinates
 that nothing can be baked from or into),
 :func:`check_landmarks_on_scan`; :func:`check_scan` runs the scan's checks of a wrap
-(and of each frame of a track) in one call.
+(and of each frame of a track) in one call.  Scans of one person or one sequence
+(a rig's neutral and expressions, a track's frames) are checked together:
+:func:`repeated_scans` (one scan given twice), :func:`check_scan_sizes` (a scan in
+other units than the first), :func:`check_not_template` (the template among them)
+and, after a track's fit, :func:`frames_of_another_head`.
 """
 
 from __future__ import annotations
+
+import hashlib
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,13 +36,27 @@ from facewrap.geometry.normals import trusted_face_areas
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.texture.udim import triangle_tiles
-from facewrap.units import UNKNOWN, format_distance, resolve_units
+from facewrap.units import UNKNOWN, format_distance, head_size, resolve_units
 from facewrap.wrapping.models import model_spec
 
 __all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
-           "check_uv_layouts", "check_model_settings"]
+           "check_uv_layouts", "check_model_settings", "repeated_scans",
+           "check_scan_sizes", "check_not_template", "frames_of_another_head",
+           "SCAN_SIZE_RATIO", "TRACKED_HEAD_SHAPE"]
+
+#: :func:`frames_of_another_head`: a tracked frame's skull this far off frame 0's
+#: surface (fraction of the face's size; :func:`~facewrap.rig.stabilise.unlike_neutral`)
+#: is of another head.  Looser than a rig's: a frame without landmarks of its own
+#: follows the fit before it and drifts (the sample: one person's frames 0.06 and
+#: 0.10 %, another person's 0.31 %)
+TRACKED_HEAD_SHAPE = 0.002
+
+#: scans of one head (a rig's, a sequence's) whose sizes differ by more than this
+#: factor are not in one unit: a scan cropped to the face and one with the neck
+#: and shoulders differ by well under it, inches and centimetres by 2.54
+SCAN_SIZE_RATIO = 2.0
 
 
 def doubled_areas(mesh) -> np.ndarray:
@@ -417,3 +437,97 @@ def check_uv_layouts(template: Mesh, scan: Mesh, template_path, scan_path) -> li
                      "coordinates outside [0, 1] (beyond the image): they take the "
                      "colour of its border")
     return notes
+
+
+def repeated_scans(meshes, labels) -> list[str]:
+    """One line per scan that is, vertex for vertex and face for face, an earlier
+    one of ``meshes`` (a rig's neutral given again as an expression, a sequence's
+    frame written twice): it tells the fit nothing the first did not.
+
+    ``labels`` name the scans in the lines (a file, ``"frame 2 (f2.obj)"``).
+    """
+    seen: dict[bytes, str] = {}
+    out = []
+    for mesh, label in zip(meshes, labels):
+        key = _content_key(mesh)
+        if key in seen:
+            out.append(f"{label}: the same scan as {seen[key]} (every vertex and face "
+                       "alike)")
+        else:
+            seen[key] = label
+    return out
+
+
+def _content_key(mesh: Mesh) -> bytes:
+    """A digest of ``mesh``'s vertices and triangles: equal for copies of one mesh."""
+    digest = hashlib.blake2b(digest_size=16)
+    for a in (mesh.vertices, mesh.triangles):
+        digest.update(np.ascontiguousarray(a).tobytes())
+    return digest.digest()
+
+
+def check_not_template(template: Mesh, meshes, paths) -> None:
+    """Refuse a scan (a track's frame, a rig's expression) that is the template
+    itself, vertex for vertex: the template kept in the scans' folder is taken for a
+    frame, and its fit is of another head than the person's.
+
+    Raises
+    ------
+    InputError
+        Naming the scan's file.
+    """
+    key = _content_key(template)
+    for mesh, path in zip(meshes, paths):
+        if _content_key(mesh) == key:
+            raise InputError("is the template itself, not a scan (the template kept "
+                             "among the scans?)", path)
+
+
+def check_scan_sizes(meshes, paths, first: str = "the first scan") -> None:
+    """Refuse a scan of one head (a rig's expression, a sequence's frame) whose size
+    is more than :data:`SCAN_SIZE_RATIO` times that of ``meshes[0]`` or less than
+    its inverse: another unit (a scan in metres among millimetres), which the wrap
+    would fit as a head ten or a thousand times the size, or not at all.
+
+    Raises
+    ------
+    InputError
+        Naming the scan's file (``paths[k]``), its size against ``first``'s.
+    """
+    ref = head_size(meshes[0].surface_points())
+    for mesh, path in zip(meshes[1:], paths[1:]):
+        size = head_size(mesh.surface_points())
+        ratio = size / ref if ref > 0 else 1.0
+        if not 1.0 / SCAN_SIZE_RATIO <= ratio <= SCAN_SIZE_RATIO:
+            raise InputError(f"the head is {ratio:.3g} times the size of the one in "
+                             f"{first} (another unit? the scans of one head must share "
+                             "one)", path)
+
+
+def frames_of_another_head(frames, template: Mesh, blendshapes: dict | None) -> list:
+    """``(frame, line)`` for each frame of a track whose fit, stabilised on the
+    skull (the template's vertices its shapes move least), is of another head than
+    frame 0's: a scan of another person in the sequence, fitted as if it were an
+    expression (:func:`~facewrap.rig.stabilise.unlike_neutral`; the fits unchanged).
+
+    Without shapes nothing tells the skull from the face: no line.
+    """
+    if not blendshapes or len(frames) < 2:
+        return []
+    # deferred: a wrap, which reads its inputs here too, does not load the rig
+    from facewrap.rig.stabilise import least_moving, stabilise, unlike_neutral
+    first = frames[0]
+    seen0 = (np.ones(template.n_vertices, dtype=bool) if first.projection is None
+             else first.projection.projected)
+    rigid = least_moving(np.stack([np.asarray(v, np.float64) for v in blendshapes.values()]),
+                         template.vertices, among=seen0)
+    out = []
+    for i, f in enumerate(frames[1:], start=1):
+        seen = seen0 if f.projection is None else seen0 & f.projection.projected
+        ids = rigid[seen[rigid]]
+        moved = stabilise(f.vertices, first.vertices, ids if len(ids) >= 3 else rigid)
+        note = unlike_neutral(moved.vertices, first.vertices, first.mesh.triangles, rigid,
+                              seen, reference="frame 0's", still=True,
+                              limit=TRACKED_HEAD_SHAPE)
+        out += [(i, note)] if note else []
+    return out

@@ -50,6 +50,7 @@ from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.input_checks import check_not_template, check_scan_sizes, repeated_scans
 from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
@@ -59,6 +60,7 @@ from facewrap.rig.texture_flow import MIN_IMAGE_SIDE
 from facewrap.texture.tiles import file_textures, material_images
 from facewrap.units import metres_per_unit, resolve_units
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges
+from facewrap.wrapping.track import FrameError
 
 __all__ = ["RigJob", "run_rig_job", "rig_job_inputs", "rig_job_outputs",
            "check_rig_job_paths", "neutral_wrap_job", "expression_wrap_job", "NEUTRAL",
@@ -284,9 +286,15 @@ def _build(job: RigJob, settings: WrapSettings, inputs: dict, expressions: list,
                                                           texture_size=job.texture_size),
                          **options)
     except ValueError as exc:
+        # an expression's wrap says which it is (FrameError); else it is the neutral's
         about, _, text = str(exc).partition(": ")
         files = _files(job.scan, job.scan_landmarks, job)
-        if about in files and not expressions:
+        if isinstance(exc, FrameError):
+            own = expression_wrap_job(job, exc.frame)
+            files = _files(own.scan, own.scan_landmarks, job)
+            if about not in files:   # a refusal about no file of its own: the scan's
+                about, text = "scan", str(exc)
+        if about in files:
             raise InputError(text, files[about]) from None
         raise
 
@@ -424,6 +432,19 @@ def _report(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
     return report
 
 
+def _check_expression_scans(job: RigJob, inputs: dict, expressions: list) -> None:
+    """The expression scans against the template and the neutral, before any fit:
+    the template itself among them, or one in another unit, is refused (its wrap would fit a head ten times the size, or fail naming
+    no file); one given twice, or the neutral given again, is a warning line."""
+    scans = [inputs["scan"]] + [e["scan"] for e in expressions]
+    # (the neutral may be: a rig of the template itself is a smoke test)
+    check_not_template(inputs["template"], scans[1:], job.expression_scans)
+    check_scan_sizes(scans, [job.scan, *job.expression_scans], "the neutral scan")
+    inputs["warnings"] += repeated_scans(
+        scans, [f"the neutral scan ({job.scan})"] + [
+            f"expression scan {k + 1} ({p})" for k, p in enumerate(job.expression_scans)])
+
+
 def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
                 graph_cache: GraphCache | None = None) -> dict:
     """Build one person's rig and write it; returns the report as a dict.
@@ -467,6 +488,7 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
         inputs = load_wrap_inputs(neutral_wrap_job(job), settings)
         expressions = [load_wrap_inputs(expression_wrap_job(job, k), settings)
                        for k in range(len(job.expression_scans))]
+        _check_expression_scans(job, inputs, expressions)
         read_seconds = time.perf_counter() - t0
         if "scan" in inputs["detections"]:   # millimetres off: the surface leads
             settings = detected_landmark_settings(settings)
@@ -493,5 +515,12 @@ def _finish(job: RigJob, rig, inputs: dict, expressions: list, read_seconds: flo
     for note in notes:
         warnings.warn(note, InputWarning, stacklevel=3)
     report = _report(job, rig, inputs, expressions, read_seconds, notes)
+    if metres_per_unit(report["units"]) is None:
+        # glTF's unit is the metre: a head of unknown unit is written as it is
+        note = (f"{os.path.join(job.output, GLB)}: the data's unit is unknown, so the "
+                "GLB (in metres, by glTF's rule) holds the coordinates unscaled: "
+                "--units (the job key units) to set it")
+        warnings.warn(note, InputWarning, stacklevel=3)
+        report["warnings"].append(note)
     _write_rig_outputs(job, rig, inputs, report, [e["scan"] for e in expressions])
     return report

@@ -52,7 +52,8 @@ from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
 from facewrap.texture.udim import FIRST_TILE
-from facewrap.units import check_units_choice, metres_per_unit, resolve_units
+from facewrap.units import (check_units_choice, metres_per_unit, resolve_units,
+                            units_conflict)
 from facewrap.wrapping import GraphCache, WrapSettings, role_ranges, wrap
 
 log = logging.getLogger(__name__)
@@ -335,6 +336,9 @@ def load_wrap_inputs(job: WrapJob, settings: WrapSettings | None = None) -> dict
     scan, sl, tree, scan_notes = check_scan(scan, sl, job.scan, job.scan_landmarks,
                                             units=job.units)
     notes += scan_notes
+    # a given unit off by a decade or more would mislabel every distance reported
+    conflict = units_conflict(job.units, scan.surface_points())
+    notes += [f"{job.scan}: {conflict}"] if conflict else []
 
     n = template.n_vertices
     exclude, fit_mask, pinned = (
@@ -581,6 +585,10 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
                                         for k, v in inputs["detections"].items()}
     report["units"], report["units_source"] = resolve_units(job.units,
                                                             result.mesh.surface_points())
+    if job.gltf and metres_per_unit(report["units"]) is None:   # glTF's unit: metres
+        notes.append(f"{job.gltf}: the data's unit is unknown, so the glTF (in metres) "
+                     "holds the coordinates unscaled: --units (the job key units) to set it")
+        warnings.warn(notes[-1], InputWarning, stacklevel=2)
     if result.weights is not None:
         report["blend_weights"] = dict(zip(result.shape_names,
                                            np.round(result.weights, 6).tolist()))

@@ -34,6 +34,7 @@ current folder.  A report without ``vertex_roles`` (older runs) counts the job's
 from __future__ import annotations
 
 import logging
+import warnings
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -41,7 +42,7 @@ import numpy as np
 
 from facewrap.datasets import load_shape_folder
 from facewrap.detection.for_wrap import confident_landmarks
-from facewrap.errors import InputError
+from facewrap.errors import InputError, InputWarning
 from facewrap.evaluate import VERTEX_ROLE_NAMES, role_codes
 from facewrap.geometry import ClosestPointTree
 from facewrap.io import read_mesh
@@ -57,7 +58,7 @@ from facewrap.report.cameras import frame_from_axes
 from facewrap.report.figures import side_by_side
 from facewrap.report.landmark_figure import landmark_picture
 from facewrap.report.run_tables import landmark_source, run_summary
-from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units
+from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units, units_conflict
 
 __all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
            "WORST_LANDMARKS_LABELLED"]
@@ -111,6 +112,10 @@ def load_run_report(report_path) -> dict:
         raise InputError(f"not a JSON report ({exc.problem})", report_path,
                          exc.line) from None
     job = run.get("job") if isinstance(run, dict) else None
+    if isinstance(job, dict) and "expression_scans" in job and "blendshapes" in job:
+        # its output is a folder: the wrap's page would look for a mesh there
+        raise InputError("a rig's report, not a wrap run's: its page is rig.html beside "
+                         "it ('facewrap rig' writes it)", report_path)
     if not isinstance(job, dict) or not all(k in job for k in ("template", "scan",
                                                                "output")):
         raise InputError("not a facewrap wrap report: 'job' with template, scan and "
@@ -451,6 +456,10 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     template, scan, result = run_meshes(job, report_path)
     codes = run_vertex_roles(run, report_path, result.n_vertices)
     unit, source = _run_units(run, units, result)
+    conflict = units_conflict(units, result.surface_points())
+    odd = [f"{job.get('output', report_path)}: {conflict}"] if conflict else []
+    for note in odd:   # the page shows every distance in it all the same
+        warnings.warn(note, InputWarning, stacklevel=2)
     truth = _ground_truth_values(ground_truth, result, codes)
     to_scan, to_result = _distances(scan, result, codes)
     profile = run.get("template_profile", {}).get("path")
@@ -471,7 +480,7 @@ def build_report_page(report_path, out_dir, *, images=(), units: str = "auto",
     return write_html_report(
         out_dir, title=title or f"Wrap of {Path(job['scan']).name}",
         subtitle=f"report {report_path}", summary=summary,
-        warnings=run["warnings"] if isinstance(run.get("warnings"), list) else (),
+        warnings=odd + (run["warnings"] if isinstance(run.get("warnings"), list) else []),
         images=pictures,
         meshes={"template (aligned)": (template.vertices @ A.T + t, template.triangles),
                 "scan": scan, **layers},

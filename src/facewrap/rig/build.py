@@ -38,7 +38,8 @@ from facewrap.mesh import Mesh
 from facewrap.parallel import run_on, usable_threads
 from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples, fit_weights
 from facewrap.rig.personalise import personalise_shapes
-from facewrap.rig.stabilise import Stabilised, least_moving, refine_pose, stabilise
+from facewrap.rig.stabilise import (Stabilised, least_moving, refine_pose, stabilise,
+                                    unlike_neutral)
 from facewrap.rig.texture_flow import TextureFlowSettings, flow_available, refine_by_texture
 from facewrap.texture.tiles import TiledBake, bake_tiles
 from facewrap.texture.udim import FIRST_TILE
@@ -46,7 +47,7 @@ from facewrap.wrapping import WrapResult, WrapSettings, wrap
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.follow import follow_skin
 from facewrap.wrapping.roles import FITTED, PART
-from facewrap.wrapping.track import wrap_following
+from facewrap.wrapping.track import FrameError, wrap_following
 
 __all__ = ["Rig", "build_rig"]
 
@@ -139,21 +140,26 @@ def _expression_fits(template, result, template_landmarks, scans, landmarks, tre
     returns the wrap and its :class:`TextureRefinement` or None) on the executor
     ``beside`` (None: here, one after the other).
 
-    Returns the wraps, their refinements and the scans' closest-point trees
-    (``trees``' own where given, else built here once: the stabilisation uses them).
+    Returns the wraps, their refinements, the scans' closest-point trees
+    (``trees``' own where given, else built here once: the stabilisation uses them)
+    and the wraps before their refinements (by geometry alone).
     """
-    built, pending = [], []
+    built, pending, geometric = [], [], []
     for k, (scan, lm, tree) in enumerate(zip(scans, landmarks, trees)):
         tree = tree or ClosestPointTree(scan.vertices, scan.triangles)
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
         start = replace(result, transform=motion.compose(result.transform),
                         mesh=result.mesh.with_vertices(motion.apply(result.vertices)))
-        w = wrap_following(template, scan, template_landmarks, lm, start, settings,
-                           blendshapes=blendshapes, scan_tree=tree, **wrap_options)
+        try:
+            w = wrap_following(template, scan, template_landmarks, lm, start, settings,
+                               blendshapes=blendshapes, scan_tree=tree, **wrap_options)
+        except ValueError as exc:   # which scan it is about: the caller names its file
+            raise FrameError(k, str(exc)) from None
         pending.append(run_on(beside, refine, w, scan, k, tree))
         built.append(tree)
+        geometric.append(w)
     done = [p.result() for p in pending]
-    return [d[0] for d in done], [d[1] for d in done], built
+    return [d[0] for d in done], [d[1] for d in done], built, geometric
 
 
 def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
@@ -232,6 +238,22 @@ def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, wei
                                np.flatnonzero(both), np.linalg.norm(moved, axis=1))
         out.append(Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual))
     return out
+
+
+def _said_unlike(w: WrapResult, geometric: WrapResult, mask, neutral: WrapResult,
+                 rigid) -> WrapResult:
+    """``w`` with :func:`~facewrap.rig.stabilise.unlike_neutral`'s line among its
+    warnings when there is one; nothing else changes.  Judged on the wrap by
+    geometry (``geometric``), stabilised on the skull alone: a texture refinement
+    slides skin along the surface (on the sample's 16-pixel textures, skull-rigid
+    vertices by 0.8 % of the face's size), which says nothing of whose head it is."""
+    seen = None if neutral.projection is None else neutral.projection.projected
+    if mask is not None:
+        seen = mask if seen is None else seen & mask
+    moved = stabilise(geometric.vertices, neutral.vertices,
+                      _seen_rigid(rigid, neutral, mask)).vertices
+    note = unlike_neutral(moved, neutral.vertices, neutral.mesh.triangles, rigid, seen)
+    return w if note is None else replace(w, warnings=[*w.warnings, note])
 
 
 def _seen_rigid(rigid: np.ndarray, neutral: WrapResult, seen) -> np.ndarray:
@@ -331,6 +353,14 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     -------
     Rig
 
+    Raises
+    ------
+    ValueError
+        The neutral's wrap refused its inputs (the message starts with what it is
+        about: ``"scan landmarks: ..."``); a
+        :class:`~facewrap.wrapping.track.FrameError` when an expression scan's did,
+        its ``frame`` saying which (0-based).
+
     Examples
     --------
     >>> from facewrap.sample import make_scan, make_template
@@ -398,7 +428,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     with threadpool_limits(limits=1, user_api="blas"):
         try:
             baking = run_on(beside, bake) if wanted else None
-            wraps, refinements, trees = _expression_fits(
+            wraps, refinements, trees, geometric = _expression_fits(
                 template, result, template_landmarks, scans, exp_landmarks, exp_trees,
                 rigid, blendshapes, settings, wrap_options,
                 _texture_refiner(template, baking, exp_textures, texture_flow), beside)
@@ -414,6 +444,8 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
                              exp_weights, example_settings.weight_prior)
         t4 = time.perf_counter()
+        # a scan of someone else, or of no expression, is said on its wrap's warnings
+        wraps = [_said_unlike(*a, result, rigid) for a in zip(wraps, geometric, masks)]
         fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
                            masks=masks, weights=exp_weights, rigid=rigid,
                            settings=example_settings)

@@ -38,7 +38,8 @@ from facewrap.geometry.normals import vertex_normals
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.wrapping.align import rigid_icp
 
-__all__ = ["least_moving", "stabilise", "refine_pose", "Stabilised", "ROBUST_SCALE",
+__all__ = ["least_moving", "stabilise", "refine_pose", "Stabilised", "unlike_neutral",
+           "OTHER_HEAD_SHAPE", "NO_EXPRESSION", "ROBUST_SCALE",
            "ROBUST_ITERATIONS", "REFINE_STILL_ERROR", "REFINE_MOTION_ERROR",
            "REFINE_DISTANCE", "REFINE_POINTS", "REFINE_TOLERANCE"]
 
@@ -74,6 +75,79 @@ REFINE_POINTS = 3000
 #: pose must reach; rigid ICP's own default (1e-7) took twice the steps for the
 #: same pose to four decimals (bench_rig, ICT identity 004's six examples)
 REFINE_TOLERANCE = 1e-5
+
+
+#: :func:`unlike_neutral`: an expression's wrap whose skull-rigid vertices lie
+#: farther than this fraction of the face's size from the neutral's, along the
+#: neutral's normals (median, after a robust rigid fit on them alone,
+#: :func:`stabilise`), is of another head.  Along the normals: a wrap slides along
+#: the skin (ICT-FaceKit: 0.15-0.5 mm), which says nothing of the skull's shape and
+#: put the plain distances of one person's expressions within 1.5 times of another
+#: person's.  The sample: one person's expressions and a re-scan of the neutral
+#: 0.04-0.06 %, two other identities 0.18 and 0.33 %; ICT-FaceKit (bench_rig's
+#: example scans): identity 004's expressions 0.05 %, identity 005's 0.12 %
+OTHER_HEAD_SHAPE = 0.0009
+#: ... and one whose every seen vertex (99.5th percentile) stays within this fraction
+#: of the neutral's shows no expression: the neutral given again, moved or
+#: re-exported (the same file: 0.002 %; a re-scan of the neutral, which no measure
+#: tells from an expression at 15 % of its strength, 0.4 %)
+NO_EXPRESSION = 0.0005
+
+
+def unlike_neutral(expression, neutral, triangles, rigid, seen=None, *,
+                   reference: str = "the neutral's", still: bool = False,
+                   limit: float = OTHER_HEAD_SHAPE) -> str | None:
+    """Why a stabilised expression cannot be the neutral's person making a face, or
+    None: a skull of another shape (another person's scan), or no expression at all.
+
+    Judged after the fit (the wraps and the stabilisation are what tell the skull
+    from the face); nothing is changed.
+
+    Parameters
+    ----------
+    expression, neutral : (n, 3) float
+        The stabilised expression's vertices (:attr:`Stabilised.vertices`) and the
+        neutral's, in one topology.
+    triangles : (t, 3) int
+        The topology's triangles (the neutral's normals are measured along).
+    rigid : (r,) int
+        The skull-rigid vertices.
+    seen : (n,) bool, optional
+        The vertices both scans saw (a wrap only follows elsewhere).
+    reference : str
+        What ``neutral`` is, in the line ("frame 0's" for a sequence).
+    still : bool
+        No expression is no oddity (a sequence's frames may hold still).
+    limit : float
+        The skull's distance (fraction of the face's size) beyond which it is of
+        another head: :data:`OTHER_HEAD_SHAPE` for wraps with landmarks of their own.
+
+    Returns
+    -------
+    str or None
+        One line beginning ``"scan: "`` (the file is named by the caller), sizes as
+        fractions of the face's (no unit needed).
+    """
+    X, V = np.asarray(expression, np.float64), np.asarray(neutral, np.float64)
+    seen = np.ones(len(V), dtype=bool) if seen is None else np.asarray(seen, bool)
+    if seen.sum() < 4:
+        return None
+    size = float(np.linalg.norm(V[seen].max(axis=0) - V[seen].min(axis=0)))
+    d = np.linalg.norm(X - V, axis=1)
+    ids = np.asarray(rigid)[seen[rigid]]
+    ids = ids if len(ids) else np.asarray(rigid)
+    normals = vertex_normals(V, triangles)
+    across = np.abs(np.einsum("ij,ij->i", X[ids] - V[ids], normals[ids]))
+    skull = float(np.median(across)) / size
+    if skull > limit:
+        return (f"scan: where the skull is rigid its fit lies {100 * skull:.2g} % of the "
+                f"face's size off {reference} surface (one person's expressions: under "
+                f"{100 * limit:.2g} %): another person's scan?")
+    most = float(np.percentile(d[seen], 99.5)) / size
+    if not still and most < NO_EXPRESSION:
+        return (f"scan: shows no expression (its fit is the neutral's within "
+                f"{100 * most:.2g} % of the face's size): the neutral scan again?")
+    return None
 
 
 def least_moving(poses, rest, fraction: float = 0.1, among=None) -> np.ndarray:

@@ -15,6 +15,7 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.geometry import connected_components
 from facewrap.geometry.similarity import MIRROR_RATIO, mirror_fit, similarity_transform
+from facewrap.wrapping.plausibility import landmark_spread, robust_similarity, swapped_pairs
 
 __all__ = ["check_markers", "marker_placement", "untethered_vertices", "TETHER_WEIGHT",
            "SIZE_RATIO"]
@@ -75,8 +76,11 @@ def marker_placement(source_points, target_points) -> list[str]:
     (:func:`~facewrap.geometry.similarity.mirror_fit`) have left and right swapped,
     or one mesh is mirrored: the correspondence would pair a left eye with a right
     one.  A similarity that scales by more than :data:`SIZE_RATIO` up or down says
-    the meshes are in other units.  Fewer than three pairs place nothing: the
-    meshes are taken where they are.
+    the meshes are in other units.  Markers some of which fit far better with their
+    targets exchanged (:func:`~facewrap.wrapping.plausibility.swapped_pairs`: the left
+    eye's markers paired with the right eye's, the rest right) are said too; shapes
+    as unlike as a horse and a camel, or a face and Mario's, exchange none.  Fewer
+    than three pairs place nothing: the meshes are taken where they are.
 
     Parameters
     ----------
@@ -109,11 +113,27 @@ def marker_placement(source_points, target_points) -> list[str]:
         out.append(f"they match a mirror image of the source: residual {mirrored:.3g} "
                    f"mirrored against {proper:.3g} not, in target units (left and right "
                    "swapped in the marker file, or a mirrored mesh?)")
+    else:
+        out += _exchanged(X, Y)
     size = similarity_transform(X, Y).scale
     if not 1.0 / SIZE_RATIO <= size <= SIZE_RATIO:
         out.append(f"they put the target at {size:.3g} times the source's size (more than "
                    f"{SIZE_RATIO:g} times up or down): are both meshes in the same units?")
     return out
+
+
+def _exchanged(X: np.ndarray, Y: np.ndarray) -> list[str]:
+    """One line when some marker pairs fit far better with their targets exchanged
+    (part of the file's left and right swapped), else none."""
+    similarity, _ = robust_similarity(X, Y)
+    pairs = swapped_pairs(similarity.apply(X), Y,
+                          similarity.scale * landmark_spread(X))
+    if not len(pairs):
+        return []
+    i, j = pairs[0]
+    return [f"{len(np.unique(pairs))} markers fit far better with their targets "
+            f"exchanged (markers {i} and {j}, 0-based, among them): left and right "
+            "swapped for some of them, or the pairs out of order?"]
 
 
 def untethered_vertices(T, n: int, fixed_ids) -> np.ndarray:
