@@ -43,7 +43,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, solve_triangular
-from scipy.optimize import lsq_linear
 
 from facewrap.mesh import Mesh
 from facewrap.params import Interval, validate
@@ -174,6 +173,9 @@ def fit_weights(displacements, targets, *, prior=None, gamma: float = 0.0) -> np
     L, _ = cho_factor(C, lower=True)
     L = np.tril(L)
     rhs = solve_triangular(L, B, lower=True)                   # (s, k)
+    # loaded here: scipy.optimize is 0.16 s of the `facewrap rig` command's start-up,
+    # and only a rig with expression scans fits weights
+    from scipy.optimize import lsq_linear
     out = np.empty((E.shape[1], D.shape[1]))
     for j in range(E.shape[1]):       # a few examples: one small bounded solve each
         out[j] = lsq_linear(L.T, rhs[:, j], bounds=(0.0, 1.0), method="bvls").x
