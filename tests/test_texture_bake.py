@@ -219,3 +219,74 @@ def test_bake_real_textured_scan_onto_itself(data_dir):
     got = res.image[r.pixels[:, 0], r.pixels[:, 1]].astype(float)
     covered = res.coverage[r.pixels[:, 0], r.pixels[:, 1]]
     assert np.abs(got - expected)[covered].mean() < 2
+
+
+def _box_raster(mesh, S, tile):
+    """Reference rasteriser: every texel of each triangle's box tested, the owner the
+    deepest inside, then the lowest triangle (what rasterize_uv must find, by any
+    enumeration)."""
+    from facewrap.texture.udim import tile_origin, triangle_tiles
+    u0, v0 = tile_origin(tile)
+    uv = mesh.uvs[mesh.triangle_uvs]
+    X, Y = (uv[:, :, 0] - u0) * S - 0.5, (1.0 - (uv[:, :, 1] - v0)) * S - 0.5
+    best = {}
+    for t in np.flatnonzero(triangle_tiles(mesh) == tile):
+        (x0, x1, x2), (y0, y1, y2) = X[t], Y[t]
+        det = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+        if det == 0:
+            continue
+        cols = np.arange(max(np.ceil(X[t].min() - 1e-6), 0), min(np.floor(X[t].max() + 1e-6),
+                                                                   S - 1) + 1)
+        rows = np.arange(max(np.ceil(Y[t].min() - 1e-6), 0), min(np.floor(Y[t].max() + 1e-6),
+                                                                   S - 1) + 1)
+        col, row = np.meshgrid(cols, rows)
+        dx, dy = col - x0, row - y0
+        l1 = (dx * (y2 - y0) - dy * (x2 - x0)) / det
+        l2 = ((x1 - x0) * dy - (y1 - y0) * dx) / det
+        score = np.minimum(np.minimum(1 - l1 - l2, l1), l2)
+        for r, c, sc in zip(row[score >= -1e-7], col[score >= -1e-7], score[score >= -1e-7]):
+            key = (int(r), int(c))
+            if key not in best or sc > best[key][0]:
+                best[key] = (sc, t)
+    return best
+
+
+def test_rasterize_finds_the_owners_a_box_by_box_test_finds():
+    # a soup of overlapping triangles, needles and slivers among them, over two tiles
+    rng = np.random.default_rng(3)
+    n = 60
+    uvs = rng.uniform(0.02, 0.98, (3 * n, 2))
+    uvs[: 3 * n // 2: 3, 0] += 1.0                      # some triangles in tile 1002
+    k = np.arange(0, 30, 3)                             # needles: third corner on the line
+    uvs[k + 2] = uvs[k] + 0.37 * (uvs[k + 1] - uvs[k]) + [0, 1e-4]
+    V = np.column_stack([uvs, np.zeros(3 * n)])
+    F = np.arange(3 * n).reshape(n, 3)
+    mesh = Mesh(V, F, uvs=uvs, face_uvs=F)
+    from facewrap.texture.udim import triangle_tiles
+    for tile in np.unique(triangle_tiles(mesh)):
+        r = rasterize_uv(mesh, 48, int(tile))
+        got = {(int(a), int(b)): int(t) for (a, b), t in zip(r.pixels, r.triangles)}
+        want = {key: int(t) for key, (_, t) in _box_raster(mesh, 48, int(tile)).items()}
+        assert len(got) > 100 and got == want
+
+
+def test_padding_takes_a_nearest_covered_colour_with_islands_at_the_borders():
+    from facewrap.texture.bake import pad_texture
+    rng = np.random.default_rng(5)
+    S, pad = 40, 4
+    image = rng.integers(0, 256, (S, S, 3), dtype=np.uint8)
+    for cover in (np.zeros((S, S), bool), rng.uniform(size=(S, S)) < 0.02):
+        cover[0, 3] = cover[S - 1, S - 2] = cover[17, 0] = True     # islands on the edges
+        cover[20:23, 20:22] = True
+        out, padded = pad_texture(image, cover, pad)
+        d, _ = cKDTree(np.argwhere(cover)).query(np.argwhere(np.ones((S, S))))
+        np.testing.assert_array_equal(padded, ~cover & (d.reshape(S, S) <= pad))
+        np.testing.assert_array_equal(out[cover], image[cover])
+        # each padded texel: the colour of a covered texel at the least distance
+        covered = np.argwhere(cover)
+        for r, c in np.argwhere(padded):
+            dist = np.hypot(*(covered - [r, c]).T)
+            nearest = covered[np.isclose(dist, dist.min())]
+            assert any((out[r, c] == image[a, b]).all() for a, b in nearest)
+        rest = ~cover & ~padded
+        assert rest.any() and (out[rest] == np.rint(image[cover].mean(axis=0))).all()

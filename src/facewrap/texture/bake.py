@@ -20,19 +20,20 @@ import numpy as np
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.arrays import blocks_by_budget
+from facewrap.geometry.scanline import triangle_row_spans
 from facewrap.io.images import as_image, to_uint8
 from facewrap.mesh import Mesh
 from facewrap.texture.udim import FIRST_TILE, tile_origin, triangle_tiles
 from facewrap.texture.uvs import checked_uv_mesh, trusted_scan_uvs
 
 __all__ = ["BLOCK_TEXELS", "SEEN", "UVRaster", "rasterize_uv", "sample_image", "BakeResult",
-           "scan_visibility", "bake_texture", "interpolate_images"]
+           "scan_visibility", "bake_texture", "pad_texture", "interpolate_images"]
 
 # A texel centre counts as inside a UV triangle when its barycentric coordinates are
 # all >= -_INSIDE_TOL: texel centres exactly on a shared edge then belong to both
 # triangles despite rounding (no cracks), and one of them is chosen as the owner.
 _INSIDE_TOL = 1e-7
-#: Bounding-box texels enumerated at once while rasterising (bounds peak memory).
+#: Candidate texels enumerated at once while rasterising (bounds peak memory).
 BLOCK_TEXELS = 1 << 22
 
 
@@ -100,7 +101,8 @@ def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaste
     are rasterised, in the tile's own [0, 1] square; what of them lies outside it
     is clipped away, not wrapped.
 
-    Vectorised: the texels of every triangle's bounding box are enumerated at once
+    Vectorised: the texels each row of a triangle can reach
+    (:func:`~facewrap.geometry.scanline.triangle_row_spans`) are enumerated at once
     (``np.repeat`` / ``cumsum``), in chunks of a few million.
 
     Parameters
@@ -152,18 +154,14 @@ def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaste
     c1 = np.clip(np.floor(x.max(axis=1) + margin), -1, W - 1).astype(np.int64)
     r0 = np.clip(np.ceil(y.min(axis=1) - margin), 0, H).astype(np.int64)
     r1 = np.clip(np.floor(y.max(axis=1) + margin), -1, H - 1).astype(np.int64)
-    width = np.maximum(c1 - c0 + 1, 0)
-    counts = width * np.maximum(r1 - r0 + 1, 0)
-    counts[(det == 0) | skip] = 0                   # no area in UV space, not asked for
+    asked = np.flatnonzero((det != 0) & ~skip)      # with area in UV space, asked for
+    # only the columns each row of a triangle can reach (a box holds 2-3 times more)
+    spans = triangle_row_spans(x[asked], y[asked], (c0[asked], c1[asked], r0[asked],
+                                                    r1[asked]), grow=_INSIDE_TOL)
     keys, tris, barys, scores = [], [], [], []
-    for sel in blocks_by_budget(counts, BLOCK_TEXELS):
-        cnt = counts[sel]
-        tri = np.repeat(sel, cnt)
-        start = np.cumsum(cnt) - cnt
-        local = np.arange(len(tri), dtype=np.int64) - np.repeat(start, cnt)
-        w = width[tri]
-        col = c0[tri] + local % w
-        row = r0[tri] + local // w
+    for sel in blocks_by_budget(spans.per_triangle(len(asked)), BLOCK_TEXELS):
+        tri, row, col = spans.pixels_of(sel)
+        tri = asked[tri]
         dx, dy = col - x[tri, 0], row - y[tri, 0]
         inv = 1.0 / det[tri]
         l1 = (dx * e2y[tri] - dy * e2x[tri]) * inv
@@ -452,7 +450,7 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     rows, cols = raster.pixels[near, 0], raster.pixels[near, 1]
     image[rows, cols] = to_uint8(colours)
     coverage[rows, cols] = True
-    image, padded = _pad(image, coverage, padding)
+    image, padded = pad_texture(image, coverage, padding)
     n_layout = len(raster)
     return BakeResult(image=image, coverage=coverage, padded=padded,
                       layout=raster.mask,
@@ -460,8 +458,36 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
                       tile=int(tile))
 
 
-def _pad(image: np.ndarray, coverage: np.ndarray, padding: int):
-    """Fill uncovered texels: nearest covered colour within ``padding``, else mean."""
+def pad_texture(image: np.ndarray, coverage: np.ndarray, padding: int):
+    """Fill a baked image's uncovered texels, so that filtering shows no seams.
+
+    Uncovered texels within ``padding`` pixels (Euclidean) of a covered texel take
+    the colour of a nearest covered texel (``scipy.ndimage.distance_transform_edt``);
+    the others take the mean colour of the covered ones.
+
+    Parameters
+    ----------
+    image : (H, W, C) uint8
+    coverage : (H, W) bool
+        Texels holding baked colours.
+    padding : int
+        Radius in pixels, >= 0.
+
+    Returns
+    -------
+    image : (H, W, C) uint8
+        A new image (the input itself when nothing or everything is covered).
+    padded : (H, W) bool
+        The texels given a nearest covered colour.
+
+    Examples
+    --------
+    >>> image = np.zeros((1, 5, 3), np.uint8)
+    >>> image[0, 0] = 200
+    >>> out, padded = pad_texture(image, np.array([[1, 0, 0, 0, 1]], bool), 1)
+    >>> out[0, :, 0].tolist(), padded.astype(int).tolist()
+    ([200, 200, 100, 0, 0], [[0, 1, 0, 1, 0]])
+    """
     padded = np.zeros_like(coverage)
     if not coverage.any():
         return image, padded
@@ -469,12 +495,18 @@ def _pad(image: np.ndarray, coverage: np.ndarray, padding: int):
         return image, padded
     # deferred: scipy.ndimage takes ~0.2 s to import and only baking pads a texture
     from scipy import ndimage
-    dist, (ri, ci) = ndimage.distance_transform_edt(~coverage, return_indices=True)
-    padded = ~coverage & (dist <= padding)
     out = image.copy()
-    out[padded] = image[ri[padded], ci[padded]]
-    rest = ~coverage & ~padded
-    out[rest] = to_uint8(image[coverage].mean(axis=0))
+    out[~coverage] = to_uint8(image[coverage].mean(axis=0))
+    # texels within `padding` of a covered one, and that covered one, lie in the
+    # covered texels' box grown by `padding`: the distance transform runs there only
+    # (an eye's image covers a corner of its tile)
+    rows, cols = np.flatnonzero(coverage.any(axis=1)), np.flatnonzero(coverage.any(axis=0))
+    box = (slice(max(rows[0] - padding, 0), rows[-1] + padding + 1),
+           slice(max(cols[0] - padding, 0), cols[-1] + padding + 1))
+    dist, (ri, ci) = ndimage.distance_transform_edt(~coverage[box], return_indices=True)
+    near = ~coverage[box] & (dist <= padding)
+    padded[box] = near
+    out[box][near] = image[box][ri[near], ci[near]]
     return out, padded
 
 
