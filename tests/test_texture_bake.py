@@ -195,14 +195,22 @@ def test_interpolate_images():
         interpolate_images(a, b, 1.5)
 
 
-def test_rasterize_in_small_chunks_gives_the_same_raster(monkeypatch):
+def test_rasterize_and_bake_in_small_chunks_give_the_same_results(monkeypatch):
     mesh = uv_plane(5, jitter=0.3)
+    scan = uv_plane(9, jitter=0.2, seed=4)
+    img = gradient_image(32)
     whole = rasterize_uv(mesh, 40)
+    baked = bake_texture(mesh, scan, img, size=(40, 36), padding=3)
+    # 7 texels a block: every band a row, every block a few runs
     monkeypatch.setattr(facewrap.texture.bake, "BLOCK_TEXELS", 7)
     parts = rasterize_uv(mesh, 40)
     np.testing.assert_array_equal(parts.pixels, whole.pixels)
     np.testing.assert_array_equal(parts.triangles, whole.triangles)
     np.testing.assert_allclose(parts.barycentric, whole.barycentric, atol=1e-15)
+    banded = bake_texture(mesh, scan, img, size=(40, 36), padding=3)
+    for name in ("image", "coverage", "padded", "layout"):
+        np.testing.assert_array_equal(getattr(banded, name), getattr(baked, name))
+    assert banded.filled_fraction == baked.filled_fraction > 0.9
 
 
 @pytest.mark.shared_data

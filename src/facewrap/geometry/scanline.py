@@ -40,26 +40,18 @@ class RowSpans:
     def __len__(self) -> int:
         return len(self.triangles)
 
-    def per_triangle(self, n_triangles: int) -> np.ndarray:
-        """(t,) int64: pixels of all runs of each triangle."""
-        return np.bincount(self.triangles, weights=self.widths,
-                           minlength=n_triangles).astype(np.int64)
+    def pixels_of(self, runs: np.ndarray):
+        """Every pixel of some runs, in their order, each run's columns in turn.
 
-    def pixels_of(self, triangles: np.ndarray):
-        """Every pixel of the runs of ``triangles``, in order of triangle, row,
-        column.
-
-        ``triangles`` are increasing and hold every triangle with runs between their
-        first and last (a block of :func:`~facewrap.geometry.arrays.blocks_by_budget`
-        over :meth:`per_triangle`).
+        Parameters
+        ----------
+        runs : (k,) int64
+            Indices of runs.
 
         Returns
         -------
-        triangle, row, column : (k,) int64 each
+        triangle, row, column : (m,) int64 each
         """
-        lo = np.searchsorted(self.triangles, triangles[0], side="left")
-        hi = np.searchsorted(self.triangles, triangles[-1], side="right")
-        runs = np.arange(lo, hi)
         width = self.widths[runs]
         run = np.repeat(runs, width)
         start = np.cumsum(width) - width
