@@ -50,7 +50,8 @@ from facewrap.jobs.input_checks import (check_model_settings, check_scan,
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
 from facewrap.texture import load_image, save_png
-from facewrap.texture.tiles import bake_tiles, file_layout, material_images, tile_image_paths
+from facewrap.texture.tiles import (bake_memory, bake_tiles, file_layout, material_images,
+                                    tile_image_paths)
 from facewrap.texture.udim import FIRST_TILE
 from facewrap.units import (check_units_choice, metres_per_unit, resolve_units,
                             units_conflict)
@@ -213,12 +214,6 @@ def job_outputs(job: WrapJob) -> list[str]:
     return out + images + mtl
 
 
-# Peak memory of a texture bake per texel of one image (rasterised UV triangles,
-# barycentrics, scan lookups): measured 330-380 bytes on the built-in sample
-# (facewrap sample) at 1024, 2048 and 4096.
-BAKE_BYTES_PER_TEXEL = 400
-
-
 def check_job_paths(job: WrapJob, source=None) -> None:
     """Check outputs before any work: formats known, apart from inputs, writable.
 
@@ -244,7 +239,7 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
         raise InputError(f"texture_size (--texture-size) must be an integer in [1, 16384],"
                          f" got {job.texture_size!r}", source)
-    need = job.texture_size ** 2 * BAKE_BYTES_PER_TEXEL
+    need = bake_memory(job.texture_size)
     if job.texture and need > memory_budget():
         raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "
                          f"about {need / 2 ** 30:.1f} GiB of memory, more than the "

@@ -106,7 +106,7 @@ def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaste
 
     Vectorised: the texels each row of a triangle can reach
     (:func:`~facewrap.geometry.scanline.triangle_row_spans`) are enumerated at once
-    (``np.repeat`` / ``cumsum``), in chunks of a few million.
+    (``np.repeat`` / ``cumsum``), band of rows by band of rows.
 
     Parameters
     ----------
@@ -152,6 +152,7 @@ def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaste
 
 
 def _checked_only(mesh: Mesh, only):
+    """``only`` (triangles to rasterise) checked: None or a bool array per triangle."""
     if only is None:
         return None
     only = np.asarray(only)
@@ -195,10 +196,12 @@ def _raster_bands(mesh: Mesh, H: int, W: int, tile: int, only):
     spans = triangle_row_spans(x[asked], y[asked], (c0[asked], c1[asked], r0[asked],
                                                     r1[asked]), grow=_INSIDE_TOL)
     band = max(1, BLOCK_TEXELS // W)
-    for top in range(0, H, band):
-        runs = np.flatnonzero((spans.rows >= top) & (spans.rows < top + band))
-        if not len(runs):
+    by_row = np.argsort(spans.rows, kind="stable")
+    bounds = np.searchsorted(spans.rows[by_row], np.arange(0, H + band, band))
+    for top, lo, hi in zip(range(0, H, band), bounds[:-1], bounds[1:]):
+        if lo == hi:
             continue
+        runs = np.sort(by_row[lo:hi])       # back in triangle order: the owner rule's
         keys, tris, barys, scores = [], [], [], []
         for sel in blocks_by_budget(spans.widths[runs], BLOCK_TEXELS):
             tri, row, col = spans.pixels_of(runs[sel])

@@ -32,7 +32,8 @@ from facewrap.texture.udim import (FIRST_TILE, triangle_materials, triangle_tile
                                    used_tiles)
 
 __all__ = ["PROBE_SIZE", "BAKED_MATERIAL", "TextureSet", "texture_sets", "tile_image_paths",
-           "file_layout", "TiledBake", "bake_tiles", "material_images", "file_textures"]
+           "file_layout", "TiledBake", "bake_memory", "bake_tiles", "material_images",
+           "file_textures"]
 
 #: Resolution at which :func:`texture_sets` looks for overlapping materials (the
 #: split must not depend on the output size, so outputs can be named before baking).
@@ -213,6 +214,25 @@ class TiledBake:
         laid = sum(int(r.layout.sum()) for r in self.images.values())
         covered = sum(int(r.coverage.sum()) for r in self.images.values())
         return covered / laid if laid else 0.0
+
+
+# Peak memory of a texture bake: the image and its masks, the padding's distance
+# transform and the PNG's encoding grow with the texels (48 bytes each, measured
+# from the peaks of whole wraps of ICT's face region at 2048 and 4096); the texels
+# in flight do not (the bake goes band by band: ~250 MB at any size).
+BAKE_BYTES_PER_TEXEL = 64
+BAKE_BAND_BYTES = 300 * 2 ** 20
+
+
+def bake_memory(texture_size: int) -> int:
+    """Bytes a bake of one ``texture_size`` square image may need at its peak.
+
+    Examples
+    --------
+    >>> round(bake_memory(8192) / 2 ** 30, 1)
+    4.3
+    """
+    return texture_size ** 2 * BAKE_BYTES_PER_TEXEL + BAKE_BAND_BYTES
 
 
 def bake_tiles(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int = 8,
