@@ -207,7 +207,9 @@ def test_rasterize_and_bake_in_small_chunks_give_the_same_results(monkeypatch):
     np.testing.assert_array_equal(parts.pixels, whole.pixels)
     np.testing.assert_array_equal(parts.triangles, whole.triangles)
     np.testing.assert_allclose(parts.barycentric, whole.barycentric, atol=1e-15)
-    banded = bake_texture(mesh, scan, img, size=(40, 36), padding=3)
+    shares = []
+    banded = bake_texture(mesh, scan, img, size=(40, 36), padding=3, advance=shares.append)
+    assert len(shares) == 40 and sum(shares) == pytest.approx(1.0)   # a row a band
     for name in ("image", "coverage", "padded", "layout"):
         np.testing.assert_array_equal(getattr(banded, name), getattr(baked, name))
     assert banded.filled_fraction == baked.filled_fraction > 0.9

@@ -138,7 +138,7 @@ def rasterize_uv(mesh: Mesh, size, tile: int = FIRST_TILE, only=None) -> UVRaste
     mesh = checked_uv_mesh(mesh, "mesh")
     H, W = _size(size)
     keys, tris, barys = [], [], []
-    for key, tri, bary in _raster_bands(mesh, H, W, tile, _checked_only(mesh, only)):
+    for _, key, tri, bary in _raster_bands(mesh, H, W, tile, _checked_only(mesh, only)):
         keys.append(key)
         tris.append(tri)
         barys.append(bary)
@@ -170,6 +170,8 @@ def _raster_bands(mesh: Mesh, H: int, W: int, tile: int, only):
 
     Yields
     ------
+    stop : int
+        The row after the band's last.
     key : (p,) int64
         ``row * W + col`` of each covered texel of the band, increasing.
     triangle : (p,) int64
@@ -231,7 +233,7 @@ def _raster_bands(mesh: Mesh, H: int, W: int, tile: int, only):
         bary = bary[own]
         np.maximum(bary, 0.0, out=bary)
         bary /= bary.sum(axis=1, keepdims=True)
-        yield key[own] + top * W, tri[own], bary
+        yield min(top + band, H), key[own] + top * W, tri[own], bary
 
 
 def sample_image(image, uvs) -> np.ndarray:
@@ -397,7 +399,8 @@ SEEN = 0.5
 
 def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int = 8,
                  tree=None, max_distance: float | None = None, *,
-                 tile: int = FIRST_TILE, only=None, visibility=None) -> BakeResult:
+                 tile: int = FIRST_TILE, only=None, visibility=None,
+                 advance=None) -> BakeResult:
     """Re-bake a scan's texture into one tile of a (fitted) template's UV layout.
 
     For each texel of the tile's layout (:func:`rasterize_uv`) the point with the
@@ -444,6 +447,9 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
         set, :func:`facewrap.texture.tiles.texture_sets`); the others are not laid out.
     visibility : (n,) float, optional
         :func:`scan_visibility` of ``template`` on ``tree``; computed here otherwise.
+    advance : callable, optional
+        Called as the bake goes, with the share of the image's rows each band
+        finished (they add up to 1): a progress bar's ``advance``.
 
     Returns
     -------
@@ -474,7 +480,9 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
     layout = np.zeros(H * W, dtype=bool)
     flat = image.reshape(-1, 3)
     # band by band of texel rows: a 4K or 8K layout in pieces of bounded memory
-    for key, tri, bary in _raster_bands(template, H, W, tile, _checked_only(template, only)):
+    done = 0
+    for stop, key, tri, bary in _raster_bands(template, H, W, tile,
+                                              _checked_only(template, only)):
         layout[key] = True
         corner_ids = template.triangles[tri]                                # (p, 3)
         seen = np.einsum("pc,pc->p", bary, visibility[corner_ids]) >= SEEN
@@ -486,6 +494,11 @@ def bake_texture(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int
         uv = trusted_scan_uvs(scan, cp.triangles[hit], cp.barycentric[hit])
         flat[near] = to_uint8(_bilinear(rgb, uv))
         coverage[near] = True
+        if advance is not None:
+            advance((stop - done) / H)
+            done = stop
+    if advance is not None and done < H:
+        advance((H - done) / H)
     coverage = coverage.reshape(H, W)
     image, padded = pad_texture(image, coverage, padding)
     n_layout = int(layout.sum())

@@ -27,6 +27,7 @@ from facewrap.io.files import read_file_head
 from facewrap.io.images import load_image
 from facewrap.io.mtl import read_libraries
 from facewrap.mesh import Mesh
+from facewrap.progress import progress
 from facewrap.texture.bake import bake_texture, rasterize_uv, scan_visibility
 from facewrap.texture.udim import (FIRST_TILE, triangle_materials, triangle_tiles,
                                    used_tiles)
@@ -280,13 +281,14 @@ def bake_tiles(template: Mesh, scan: Mesh, scan_image, size=1024, padding: int =
     visibility = scan_visibility(template, tree)
     materials, tiles = triangle_materials(template), triangle_tiles(template)
     images, seconds = {}, {}
-    for s in sets:
-        t = time.perf_counter()
-        only = (tiles == s.tile) & np.isin(materials, s.materials)
-        images[s] = bake_texture(template, scan, scan_image, size, padding, tree,
-                                 max_distance, tile=s.tile, only=only,
-                                 visibility=visibility)
-        seconds[s] = time.perf_counter() - t
+    with progress(len(sets), "baking the texture") as bar:   # on a terminal only
+        for s in sets:
+            t = time.perf_counter()
+            only = (tiles == s.tile) & np.isin(materials, s.materials)
+            images[s] = bake_texture(template, scan, scan_image, size, padding, tree,
+                                     max_distance, tile=s.tile, only=only,
+                                     visibility=visibility, advance=bar.advance)
+            seconds[s] = time.perf_counter() - t
     return TiledBake(images=images, seconds=seconds)
 
 
