@@ -84,7 +84,7 @@ def markdown(r: dict) -> str:
     if not r["rows"]:
         return "\n".join(lines + r["notes"]) + "\n"
     lines += ["| template | texture size (texels) | images | wall (s) | of it the bake (s) "
-              "| CPU (s) | peak (MB) |", "|---|---:|---:|---:|---:|---:|---:|"]
+              "| CPU (s) | peak (MiB) |", "|---|---:|---:|---:|---:|---:|---:|"]
     for row in r["rows"]:
         bake = "–" if row["bake"] is None else f"{row['bake']:.1f}"
         lines.append(f"| {row['template']} | {row['size']}² | {row['images']} | "

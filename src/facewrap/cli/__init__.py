@@ -108,7 +108,7 @@ def _memory_for_a_command() -> None:
     touches first is a page fault, cleared by the kernel: a 951k-triangle
     ``facewrap wrap`` on our 2-core CI machine spent 0.6-1.0 s of its 3.6 s in the
     kernel.  Two defaults made that cost (measured there, whole processes,
-    farm-bench's alternating pairs):
+    in alternating pairs):
 
     * numpy backs every large array with 2 MiB transparent huge pages
       (``NUMPY_MADVISE_HUGEPAGE``), each cleared (and, under the kernel's default
