@@ -46,3 +46,23 @@ def test_check_image_decodes_the_whole_file(tmp_path):
         check_image(p)
     with pytest.raises(InputError, match="is a folder"):
         check_image(tmp_path)
+
+
+def test_grey_images_of_every_depth_read_as_8_bit_levels(tmp_path):
+    from PIL import Image
+    ramp = np.linspace(0.0, 1.0, 64).reshape(8, 8)
+    want = np.rint(ramp * 255)
+    # 16-bit grey, 32-bit float grey in [0, 1] (a renderer's), 8-bit grey with alpha
+    Image.fromarray(np.rint(ramp * 65535).astype(np.uint16)).save(tmp_path / "g16.png")
+    Image.fromarray(ramp.astype(np.float32)).save(tmp_path / "f32.tif")
+    Image.fromarray(np.stack([want.astype(np.uint8), np.full((8, 8), 9, np.uint8)], -1),
+                    "LA").save(tmp_path / "la.png")
+    for name in ("g16.png", "f32.tif", "la.png"):
+        image = load_image(tmp_path / name)
+        assert image.shape == (8, 8, 3) and image.dtype == np.uint8
+        np.testing.assert_allclose(image[:, :, 1], want, atol=1, err_msg=name)
+    # float levels past 1 are 8-bit levels already; NaN is black
+    levels = np.full((2, 2), 200.0, np.float32)
+    levels[0, 0] = np.nan
+    Image.fromarray(levels).save(tmp_path / "f255.tif")
+    assert load_image(tmp_path / "f255.tif")[:, :, 0].tolist() == [[0, 200], [200, 200]]

@@ -115,7 +115,8 @@ def load_image(path) -> np.ndarray:
     """Read an image file (any format Pillow reads) as RGB.
 
     Grey and palette images are expanded to RGB, alpha is dropped, 16-bit grey is
-    scaled to 8 bits.  No EXIF orientation is applied (textures are stored as laid
+    scaled to 8 bits, 32-bit float grey in [0, 1] to [0, 255] (levels above 1 are
+    taken as 8-bit levels; NaN as 0).  No EXIF orientation is applied (textures are stored as laid
     out in UV space).
 
     Parameters
@@ -139,6 +140,10 @@ def load_image(path) -> np.ndarray:
             if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
                 grey = np.asarray(img).astype(np.float64)
                 grey = grey / 257.0 if grey.max(initial=0) > 255 else grey
+                return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
+            if img.mode == "F":      # 32-bit float grey: levels in [0, 1], as renderers
+                grey = np.nan_to_num(np.asarray(img, dtype=np.float64))   # write them
+                grey = grey * 255.0 if grey.max(initial=0) <= 1.0 else grey
                 return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
             return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
 
