@@ -10,6 +10,8 @@ are all among them, so a rasteriser that tests only these finds the same pixels.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = ["RowSpans", "triangle_row_spans"]
@@ -18,6 +20,7 @@ __all__ = ["RowSpans", "triangle_row_spans"]
 _MARGIN = 1e-6
 
 
+@dataclass(frozen=True, eq=False)
 class RowSpans:
     """Runs of pixel columns, one per (triangle, row), in order of triangle then row.
 
@@ -33,11 +36,13 @@ class RowSpans:
         Number of columns of each run (> 0).
     """
 
-    def __init__(self, triangles, rows, first_columns, widths):
-        self.triangles, self.rows = triangles, rows
-        self.first_columns, self.widths = first_columns, widths
+    triangles: np.ndarray
+    rows: np.ndarray
+    first_columns: np.ndarray
+    widths: np.ndarray
 
     def __len__(self) -> int:
+        """Number of runs."""
         return len(self.triangles)
 
     def pixels_of(self, runs: np.ndarray):
