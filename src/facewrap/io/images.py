@@ -140,12 +140,12 @@ def load_image(path) -> np.ndarray:
             if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
                 grey = np.asarray(img).astype(np.float64)
                 grey = grey / 257.0 if grey.max(initial=0) > 255 else grey
-                return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
-            if img.mode == "F":      # 32-bit float grey: levels in [0, 1], as renderers
+            elif img.mode == "F":    # 32-bit float grey: levels in [0, 1], as renderers
                 grey = np.nan_to_num(np.asarray(img, dtype=np.float64))   # write them
                 grey = grey * 255.0 if grey.max(initial=0) <= 1.0 else grey
-                return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
-            return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
+            else:
+                return np.asarray(img.convert("RGB"), dtype=np.uint8).copy()
+    return np.repeat(to_uint8(grey)[:, :, None], 3, axis=2)
 
 
 def check_image(path) -> tuple[int, int]:

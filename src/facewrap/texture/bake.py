@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from facewrap.geometry import ClosestPointTree
-from facewrap.geometry.arrays import blocks_by_budget
+from facewrap.geometry.arrays import blocks_by_budget, stable_sort_order
 from facewrap.geometry.scanline import triangle_row_spans
 from facewrap.io.images import as_image, to_uint8
 from facewrap.mesh import Mesh
@@ -198,8 +198,8 @@ def _raster_bands(mesh: Mesh, H: int, W: int, tile: int, only):
     spans = triangle_row_spans(x[asked], y[asked], (c0[asked], c1[asked], r0[asked],
                                                     r1[asked]), grow=_INSIDE_TOL)
     band = max(1, BLOCK_TEXELS // W)
-    by_row = np.argsort(spans.rows, kind="stable")
-    bounds = np.searchsorted(spans.rows[by_row], np.arange(0, H + band, band))
+    by_row, rows = stable_sort_order(spans.rows)
+    bounds = np.searchsorted(rows, np.arange(0, H + band, band))
     for top, lo, hi in zip(range(0, H, band), bounds[:-1], bounds[1:]):
         if lo == hi:
             continue
