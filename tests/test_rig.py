@@ -90,3 +90,34 @@ def test_an_unknown_method_is_refused(face):
     mesh, shapes = face
     with pytest.raises((InputError, ValueError), match="method"):
         personalise_shapes(mesh, shapes, mesh, Similarity(), method="blend")
+
+
+def test_a_neutral_rig_bakes_its_texture_beside_its_shapes(monkeypatch):
+    """Without expression scans the neutral's texture is baked too, on a thread
+    beside the shapes: the rig's texture is the bake of its neutral (what a rig job
+    writes), none without a texture, and a failing bake reaches the caller with no
+    thread of the rig left running."""
+    import threading
+
+    import facewrap.rig.build as build
+    from facewrap.rig import TextureFlowSettings, build_rig
+    from facewrap.texture.tiles import bake_tiles
+    tpl = make_template(20)
+    scan = make_scan(tpl, weights={}, resolution=30, texture_size=128, seed=3)
+    args = (tpl.mesh, scan.mesh, tpl.landmarks, scan.landmarks, tpl.blendshapes)
+    small = TextureFlowSettings(texture_size=64)
+    monkeypatch.setattr(build, "usable_threads", lambda: 2)
+    rig = build_rig(*args, texture=scan.texture, texture_flow=small)
+    expected = bake_tiles(rig.neutral, scan.mesh, scan.texture, size=64)
+    assert rig.examples is None and {"wrap", "shapes", "texture", "total"} <= set(rig.timings)
+    assert list(rig.texture.images) == list(expected.images)
+    for s, baked in expected.images.items():       # the same bake: the same bytes
+        np.testing.assert_array_equal(rig.texture.images[s].image, baked.image)
+    assert build_rig(*args, texture_flow=small).texture is None
+
+    def broken(*a, **k):
+        raise ValueError("no bake")
+    monkeypatch.setattr(build, "bake_tiles", broken)
+    with pytest.raises(ValueError, match="no bake"):
+        build_rig(*args, texture=scan.texture, texture_flow=small)
+    assert not [t for t in threading.enumerate() if t.name.startswith("facewrap-beside")]

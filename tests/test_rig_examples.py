@@ -256,6 +256,24 @@ def test_fit_weights_stays_in_bounds():
     assert held[0, 0] < 0.5
 
 
+@pytest.mark.parametrize("dropped", [5, 45])     # the Gram matrix less a few rows, or not
+def test_fit_weights_on_some_rows_is_the_fit_of_those_rows(dropped):
+    """A fit on the rows a scan saw, from the Gram matrix of all the rows, is the fit
+    of those rows alone; the rows dropped cannot pull, however wrong they are."""
+    rng = np.random.default_rng(2)
+    D = rng.normal(size=(60, 4))
+    E = D @ np.array([[0.3, 0.7, 0.1, 0.6], [0.9, 0.0, 0.4, 0.2]]).T
+    rows = np.ones(60, dtype=bool)
+    rows[rng.choice(60, dropped, replace=False)] = False
+    E[~rows] += 100.0
+    prior = np.array([[0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    alone = fit_weights(D[rows], E[rows], prior=prior, gamma=0.5)
+    for gram in (None, D.T @ D):
+        got = fit_weights(D, E, prior=prior, gamma=0.5, rows=rows, gram=gram)
+        np.testing.assert_allclose(got, alone, rtol=0, atol=1e-9)
+    assert np.abs(fit_weights(D, E) - alone).max() > 0.1     # the rows would pull
+
+
 def test_bad_inputs_are_refused(person):
     tpl = person.tpl
     _, scan, lm = person.truth_and_scan({})

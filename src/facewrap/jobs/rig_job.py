@@ -464,8 +464,9 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
         What ``OUT/rig.json`` holds: ``units``, ``timings`` (``read``, ``wrap``,
         ``shapes``, ``texture``, ``writing``, ``total`` and, with expression scans,
         ``expressions``, ``stabilise``, ``examples``, ``texture_flow``; seconds;
-        with textured expression scans, ``texture`` and ``texture_flow`` ran beside
-        the wraps and are part of ``expressions``, see :class:`~facewrap.rig.Rig`),
+        ``texture``, the neutral's bake, ran beside the shapes (and the expression
+        wraps), ``stabilise`` and ``texture_flow`` beside the wraps: part of those,
+        not added to them, see :class:`~facewrap.rig.Rig`),
         ``metrics`` (the neutral's fit, in ``units``), ``method``, ``shapes``
         (names), ``outputs``,
         ``warnings`` (each also issued as an :class:`InputWarning`) and, with

@@ -67,11 +67,13 @@ class Rig:
     method : str
         How the shapes were carried (:data:`~facewrap.rig.PERSONALISE_METHODS`).
     timings : dict
-        Seconds: ``wrap``, ``shapes``, ``total`` and, with expression scans,
-        ``expressions`` (their wraps and refinements), ``stabilise``, ``examples``
-        and, when textures refined them, ``texture`` (the neutral's bake) and
-        ``texture_flow`` (the refinements' own seconds): both run beside the
-        wraps, so they are part of ``expressions``, not added to it.
+        Seconds: ``wrap``, ``shapes``, ``total``; with a texture, ``texture``
+        (the neutral's bake); with expression scans, ``expressions`` (their wraps,
+        refinements and stabilisations), ``stabilise`` (the stabilisations' own
+        seconds), ``examples`` and, when textures refined them, ``texture_flow``
+        (the refinements' own seconds).  The bake runs beside the shapes and the
+        wraps, the refinements and stabilisations beside the wraps: their seconds
+        are part of the others', not added to them.
     examples : ExampleFit or None
         With expression scans: their weights, reconstruction errors and rigid
         poses (:class:`~facewrap.rig.ExampleFit`); ``shapes`` are then the
@@ -87,8 +89,8 @@ class Rig:
     texture : TiledBake or None
         The neutral scan's texture baked into the template's layout
         (:func:`facewrap.texture.tiles.bake_tiles`, one image per texture set, at
-        ``TextureFlowSettings.texture_size``) when the texture refinement needed
-        it; None otherwise.
+        ``TextureFlowSettings.texture_size``) when a texture is given and both
+        meshes have texture coordinates; None otherwise.
     """
 
     neutral: Mesh
@@ -133,18 +135,18 @@ def _head_motion(neutral: WrapResult, template_landmarks: Landmarks, scan: Mesh,
 
 
 def _expression_fits(template, result, template_landmarks, scans, landmarks, trees,
-                     rigid, blendshapes, settings, wrap_options, refine, beside):
+                     rigid, blendshapes, settings, wrap_options, finish, beside):
     """Each expression scan wrapped from the neutral's result, moved by the head's
     rough motion first (so the warm start begins where the head now is), then
-    passed through ``refine(wrap, scan, k, tree)`` (the texture refinement; it
-    returns the wrap and its :class:`TextureRefinement` or None) on the executor
-    ``beside`` (None: here, one after the other).
+    passed through ``finish(wrap, scan, k, tree)`` (its texture refinement and
+    stabilisation: it returns the wrap, its :class:`TextureRefinement` or None,
+    its :class:`~facewrap.rig.stabilise.Stabilised` and the seconds stabilising
+    took) on the executor ``beside`` (None: here, one after the other).
 
-    Returns the wraps, their refinements, the scans' closest-point trees
-    (``trees``' own where given, else built here once: the stabilisation uses them)
-    and the wraps before their refinements (by geometry alone).
+    Returns the lists of the wraps, their refinements, their stabilisations and
+    those seconds, and the wraps before their refinements (by geometry alone).
     """
-    built, pending, geometric = [], [], []
+    pending, geometric = [], []
     for k, (scan, lm, tree) in enumerate(zip(scans, landmarks, trees)):
         tree = tree or ClosestPointTree(scan.vertices, scan.triangles)
         motion = _head_motion(result, template_landmarks, scan, lm, tree, rigid)
@@ -155,11 +157,10 @@ def _expression_fits(template, result, template_landmarks, scans, landmarks, tre
                                blendshapes=blendshapes, scan_tree=tree, **wrap_options)
         except ValueError as exc:   # which scan it is about: the caller names its file
             raise FrameError(k, str(exc)) from None
-        pending.append(run_on(beside, refine, w, scan, k, tree))
-        built.append(tree)
+        pending.append(run_on(beside, finish, w, scan, k, tree))
         geometric.append(w)
     done = [p.result() for p in pending]
-    return [d[0] for d in done], [d[1] for d in done], built, geometric
+    return (*([d[i] for d in done] for i in range(4)), geometric)
 
 
 def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
@@ -206,38 +207,45 @@ def _texture_refiner(template: Mesh, baking, textures, settings: TextureFlowSett
     return refine
 
 
-#: rounds of (prior-rig weights, surface registration) in :func:`_stabilised`
+#: rounds of (prior-rig weights, surface registration) in :func:`_stabiliser`
 POSE_ROUNDS = 3
 
 
-def _stabilised(wraps, trees, result: WrapResult, rigid, prior: dict, masks, weights,
-                gamma: float) -> list[Stabilised]:
-    """Each expression wrap moved onto the neutral's head pose: a robust rigid fit on
-    the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds of the prior rig's
-    weights for it and :func:`~facewrap.rig.stabilise.refine_pose` of that
+def _stabiliser(result: WrapResult, rigid, prior: dict, weights, gamma: float):
+    """``stabilised(w, tree, k)``: expression ``k``'s wrap ``w`` moved onto the
+    neutral's head pose (a :class:`~facewrap.rig.stabilise.Stabilised`).
+
+    A robust rigid fit on the skull-rigid vertices, then :data:`POSE_ROUNDS` rounds
+    of the prior rig's weights for it (``weights[k]``, the expression meant, held
+    with ``gamma``) and :func:`~facewrap.rig.stabilise.refine_pose` of that
     prediction onto the scan (its vertices trusted less the more the prediction
-    moves them from the neutral).  ``weights`` and ``residual`` of each are the rigid
-    fit's (which rigid vertices the expression moved)."""
+    moves them from the neutral).  ``weights`` and ``residual`` of the result are
+    the rigid fit's (which rigid vertices the expression moved).  Each scan's is
+    its own: they run as the expressions' refinements end."""
     V = result.vertices
     names = list(prior)
     D = np.stack([np.asarray(prior[k]) - V for k in names], axis=2)      # (n, 3, s)
+    rows = D.reshape(-1, len(names))                                    # (3n, s)
+    gram = rows.T @ rows
     seen = (np.ones(len(V), dtype=bool) if result.projection is None
             else result.projection.projected)
-    out = []
-    for w, tree, mask, meant in zip(wraps, trees, masks, weights):
+
+    def stabilised(w: WrapResult, tree: ClosestPointTree, k: int) -> Stabilised:
+        mask = None if w.projection is None else w.projection.projected
         both = seen if mask is None else seen & mask
         first = stabilise(w.vertices, V, _seen_rigid(rigid, result, mask))
         pose = first.pose
-        target = None if meant is None else np.array([[meant.get(k, 0.0) for k in names]])
+        meant = weights[k]
+        target = None if meant is None else np.array([[meant.get(x, 0.0) for x in names]])
         for _ in range(POSE_ROUNDS):
-            alpha = fit_weights(D[both].reshape(-1, len(names)),
-                                (pose.apply(w.vertices) - V)[both].reshape(-1, 1),
-                                prior=target, gamma=gamma)[0]
+            alpha = fit_weights(rows, (pose.apply(w.vertices) - V).reshape(-1, 1),
+                                prior=target, gamma=gamma, rows=np.repeat(both, 3),
+                                gram=gram)[0]
             moved = D @ alpha                                           # (n, 3)
             pose = refine_pose(V + moved, result.mesh.triangles, tree, pose,
                                np.flatnonzero(both), np.linalg.norm(moved, axis=1))
-        out.append(Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual))
-    return out
+        return Stabilised(pose.apply(w.vertices), pose, first.weights, first.residual)
+    return stabilised
 
 
 def _said_unlike(w: WrapResult, geometric: WrapResult, mask, neutral: WrapResult,
@@ -334,7 +342,8 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         template's shapes, among the vertices the neutral scan saw.
     example_settings : ExampleSettings, optional
     texture : (H, W, 3) uint8, optional
-        The neutral scan's texture (``scan`` has texture coordinates into it).
+        The neutral scan's texture (``scan`` has texture coordinates into it),
+        baked into the template's layout (:attr:`Rig.texture`).
     expression_textures : sequence of ((h, w, 3) uint8 or None), optional
         One per expression scan, its texture.  Where the neutral's and an
         expression's are both given, the expression's wrap is refined by them
@@ -391,59 +400,71 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     result = wrap(template, scan, template_landmarks, scan_landmarks, settings,
                   blendshapes=blendshapes, scan_tree=scan_tree, **wrap_options)
     t1 = time.perf_counter()
-    shapes = personalise_shapes(template, blendshapes, result.mesh, result.transform,
-                                method=method,
-                                anchors=rigid_vertices if anchors is None else anchors)
-    t2 = time.perf_counter()
-    timings = {"wrap": t1 - t0, "shapes": t2 - t1}
-    if not scans:
-        timings["total"] = t2 - t0
-        return Rig(result.mesh, shapes.shapes, result, method, timings,
-                   prior=shapes.shapes)
-    seen = None if result.projection is None else result.projection.projected
-    rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
-                                    for v in blendshapes.values()]), template.vertices,
-                          among=seen)
-             if rigid_vertices is None else rigid_vertices)
-    wanted = _flow_wanted(texture_flow, template, scan, texture, scans, exp_textures)
+    timings = {"wrap": t1 - t0}
+    bakes = texture is not None and template.uvs is not None and scan.uvs is not None
+    wanted = bakes and bool(scans) and _flow_wanted(texture_flow, template, scan, texture,
+                                                     scans, exp_textures)
 
-    def bake():   # the refinements' reference and the rig's texture
+    def bake():   # the rig's texture and the refinements' reference
         t = time.perf_counter()
         baked = bake_tiles(result.mesh, scan, texture, size=texture_flow.texture_size,
                            tree=scan_tree)
         timings["texture"] = time.perf_counter() - t
         return baked
 
-    # the neutral's bake and each expression's refinement run on threads beside the
-    # expressions' wraps: the pictures, flows and texel work release the GIL where
-    # the fit holds it, and once the wraps are done the refinements share the cores
-    # (ICT face onto six 200k-triangle scans, bench_rig_speed: 22.4 s instead of
-    # 27.1 for the whole rig)
+    # the neutral's bake runs on a thread beside its shapes and the expressions'
+    # wraps, and so does each expression's refinement and stabilisation: the
+    # pictures, flows and texel work release the GIL where the fit holds it, and
+    # once the wraps are done the refinements share the cores (ICT face onto six
+    # 200k-triangle scans, bench_rig_speed: 22.4 s instead of 27.1 for the whole
+    # rig; the neutral alone: 0.9 s less)
     beside = (ThreadPoolExecutor(usable_threads(), "facewrap-beside")
-              if wanted and usable_threads() > 1 else None)
-    # BLAS one thread from here on: the views use the cores and the ICP does the
-    # same, so no result depends on the overlap; the stabilisation's and the example
-    # fit's small dense products (s x s normal matrices) only contend on a loaded
-    # machine, as in the ICP (a 3 ms product took up to 0.8 s)
-    with threadpool_limits(limits=1, user_api="blas"):
-        try:
-            baking = run_on(beside, bake) if wanted else None
-            wraps, refinements, trees, geometric = _expression_fits(
-                template, result, template_landmarks, scans, exp_landmarks, exp_trees,
-                rigid, blendshapes, settings, wrap_options,
-                _texture_refiner(template, baking, exp_textures, texture_flow), beside)
-        finally:
-            if beside is not None:   # a wrap that fails drops the refinements not begun
-                beside.shutdown(wait=True, cancel_futures=True)
-        baked = None if baking is None else baking.result()
-        if baked is not None:   # the refinements' own seconds, beside the wraps
-            timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
-        t3 = time.perf_counter()
-        masks = [None if w.projection is None else w.projection.projected for w in wraps]
+              if (bakes or scans) and usable_threads() > 1 else None)
+    try:
+        baking = run_on(beside, bake) if bakes else None
+        shapes = personalise_shapes(template, blendshapes, result.mesh, result.transform,
+                                    method=method,
+                                    anchors=rigid_vertices if anchors is None else anchors)
+        t2 = time.perf_counter()
+        timings["shapes"] = t2 - t1
+        if not scans:
+            baked = None if baking is None else baking.result()
+            timings["total"] = time.perf_counter() - t0
+            return Rig(result.mesh, shapes.shapes, result, method, timings,
+                       prior=shapes.shapes, texture=baked)
+        seen = None if result.projection is None else result.projection.projected
+        rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
+                                        for v in blendshapes.values()]),
+                              template.vertices, among=seen)
+                 if rigid_vertices is None else rigid_vertices)
+        # BLAS one thread from here on: the views use the cores and the ICP does the
+        # same, so no result depends on the overlap; the stabilisation's and the
+        # example fit's small dense products (s x s normal matrices) only contend on
+        # a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
         example_settings = example_settings or ExampleSettings()
-        stable = _stabilised(wraps, trees, result, rigid, shapes.shapes, masks,
-                             exp_weights, example_settings.weight_prior)
-        t4 = time.perf_counter()
+        refine = _texture_refiner(template, baking if wanted else None, exp_textures,
+                                  texture_flow)
+        stabilised = _stabiliser(result, rigid, shapes.shapes, exp_weights,
+                                 example_settings.weight_prior)
+
+        def finish(w, scan, k, tree):   # on the thread beside the next scan's wrap
+            w, refinement = refine(w, scan, k, tree)
+            t = time.perf_counter()
+            return w, refinement, stabilised(w, tree, k), time.perf_counter() - t
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            wraps, refinements, stable, seconds, geometric = _expression_fits(
+                template, result, template_landmarks, scans, exp_landmarks, exp_trees,
+                rigid, blendshapes, settings, wrap_options, finish, beside)
+    finally:
+        if beside is not None:   # a wrap that fails drops the refinements not begun
+            beside.shutdown(wait=True, cancel_futures=True)
+    baked = None if baking is None else baking.result()
+    if wanted:   # the refinements' own seconds, beside the wraps
+        timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
+    t3 = time.perf_counter()
+    with threadpool_limits(limits=1, user_api="blas"):
+        masks = [None if w.projection is None else w.projection.projected for w in wraps]
         # a scan of someone else, or of no expression, is said on its wrap's warnings
         wraps = [_said_unlike(*a, result, rigid) for a in zip(wraps, geometric, masks)]
         fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
@@ -451,7 +472,8 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                            settings=example_settings)
     fit = replace(fit, poses=[x.pose for x in stable])
     t5 = time.perf_counter()
-    timings.update(expressions=t3 - t2, stabilise=t4 - t3, examples=t5 - t4,
+    # the stabilisations ran beside the wraps too: their own seconds
+    timings.update(expressions=t3 - t2, stabilise=sum(seconds), examples=t5 - t3,
                    total=t5 - t0)
     return Rig(result.mesh, fit.shapes, result, method, timings, fit, wraps, shapes.shapes,
                refinements, baked)

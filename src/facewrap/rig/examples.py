@@ -126,11 +126,10 @@ class ExampleFit:
     timings: dict = field(default_factory=dict)
 
 
-def _least_squares_pieces(D: np.ndarray, E: np.ndarray, prior, gamma: float):
-    """Normal matrix and right-hand sides of the weight fit, the prior folded in."""
-    C = D.T @ D
+def _least_squares_pieces(C: np.ndarray, B: np.ndarray, prior, gamma: float):
+    """The weight fit's normal matrix ``C`` (s, s) and right-hand sides ``B`` (s, k),
+    the prior folded in."""
     scale = float(np.mean(np.diag(C))) or 1.0
-    B = D.T @ E                                                 # (s, k)
     reg = np.zeros(len(C))
     if prior is not None:
         reg[:] = gamma * scale
@@ -140,7 +139,23 @@ def _least_squares_pieces(D: np.ndarray, E: np.ndarray, prior, gamma: float):
     return C, B
 
 
-def fit_weights(displacements, targets, *, prior=None, gamma: float = 0.0) -> np.ndarray:
+def _kept_gram(D: np.ndarray, rows, gram) -> np.ndarray:
+    """``Dᵀ D`` over the ``rows`` (bool) of ``D``; from ``gram`` (over all rows, when
+    given) less the rows dropped when they are the fewer (what a scan did not
+    see: a 53-shape Gram matrix of 28k rows is then one small product, not one
+    copy and one large product per target)."""
+    if rows is None:
+        return D.T @ D if gram is None else gram
+    dropped = ~rows
+    if gram is not None and 2 * np.count_nonzero(dropped) < len(rows):
+        out = D[dropped]
+        return gram - out.T @ out
+    kept = D[rows]
+    return kept.T @ kept
+
+
+def fit_weights(displacements, targets, *, prior=None, gamma: float = 0.0, rows=None,
+                gram=None) -> np.ndarray:
     """Blend weights in [0, 1] that best reproduce each target (bounded least squares).
 
     Parameters
@@ -153,6 +168,11 @@ def fit_weights(displacements, targets, *, prior=None, gamma: float = 0.0) -> np
         Weights the targets are meant to have, held with ``gamma``.
     gamma : float
         Weight of the prior, relative to the shapes' mean squared motion.
+    rows : (m,) bool, optional
+        The rows that count (a scan's seen vertices); default all.
+    gram : (s, s) float, optional
+        ``displacementsᵀ displacements`` over all rows, when already at hand (fits
+        of many targets, each on its own rows, against the same shapes).
 
     Returns
     -------
@@ -163,11 +183,17 @@ def fit_weights(displacements, targets, *, prior=None, gamma: float = 0.0) -> np
     >>> D = np.eye(4)[:, :2]                       # two shapes of one unit each
     >>> fit_weights(D, np.array([[0.5, 2.0, 0, 0]]).T).round(6).tolist()
     [[0.5, 1.0]]
+    >>> fit_weights(D, np.array([[0.5, 2.0, 0, 0]]).T, gram=D.T @ D,
+    ...             rows=np.array([True, False, True, True])).round(6).tolist()
+    [[0.5, 0.0]]
     """
     D = np.asarray(displacements, dtype=np.float64)
     E = np.asarray(targets, dtype=np.float64)
     P = None if prior is None else np.asarray(prior, dtype=np.float64)
-    C, B = _least_squares_pieces(D, E, P, gamma)
+    if rows is not None:
+        rows = np.asarray(rows, dtype=bool)
+        E = np.where(rows[:, None], E, 0.0)       # the rows dropped add nothing to Dᵀ E
+    C, B = _least_squares_pieces(_kept_gram(D, rows, gram), D.T @ E, P, gamma)
     # ‖D α − e‖² + γ‖α − α*‖² = ‖Lᵀ α − L⁻¹ b‖² + const with C = L Lᵀ: an s × s
     # problem per target instead of one of the mesh's size
     L, _ = cho_factor(C, lower=True)
@@ -305,15 +331,15 @@ def _errors(neutral_v, shapes, alpha, E, trust) -> list[dict]:
 
 
 def _weights_of(neutral_v, shapes, E, trust, prior, gamma) -> np.ndarray:
-    """Every example's weights, each on its own trusted vertices."""
-    D = (shapes - neutral_v[None]).transpose(1, 2, 0)            # (n, 3, s)
+    """Every example's weights, each on its own trusted vertices (one Gram matrix of
+    the shapes for them all)."""
+    D = (shapes - neutral_v[None]).reshape(len(shapes), -1).T   # (3n, s)
+    gram = D.T @ D
     out = []
     for j in range(len(E)):
-        keep = trust[j]
-        out.append(fit_weights(D[keep].reshape(-1, D.shape[2]),
-                               (E[j] - neutral_v)[keep].reshape(-1, 1),
+        out.append(fit_weights(D, (E[j] - neutral_v).reshape(-1, 1),
                                prior=None if prior is None else prior[j:j + 1],
-                               gamma=gamma)[0])
+                               gamma=gamma, rows=np.repeat(trust[j], 3), gram=gram)[0])
     return np.array(out)
 
 

@@ -41,6 +41,7 @@ __all__ = ["TexturedSurface", "FlowMatches", "MatchRules", "face_cameras", "rend
 FLOW_METHODS = ("dis", "farneback")
 _LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
 _BORDER = 3              # pixels of the silhouette's rim that no match may touch
+_DIS_PATCH_STRIDE = 4    # pixels between DIS's patches (its medium preset: 3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -289,6 +290,10 @@ def dense_flow(a, b, method: str = "dis") -> np.ndarray:
     b8 = np.clip(np.rint(b), 0, 255).astype(np.uint8)
     if method == "dis":
         dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        # patches every 4 pixels, not the preset's 3: 36 instead of 50 ms of CPU a
+        # 640² flow, and the refinement's errors on bench_texture_flow's six
+        # expressions the same to 0.003 mm
+        dis.setPatchStride(_DIS_PATCH_STRIDE)
         return dis.calc(a8, b8, None)
     if method == "farneback":
         return cv2.calcOpticalFlowFarneback(a8, b8, None, 0.5, 5, 15, 5, 7, 1.5, 0)
