@@ -248,6 +248,41 @@ def _stabiliser(result: WrapResult, rigid, prior: dict, weights, gamma: float):
     return stabilised
 
 
+def _corrected(result: WrapResult, prior: dict, wraps, geometric, stable, rigid,
+               weights, settings: ExampleSettings) -> tuple[list, ExampleFit]:
+    """The expression wraps (with :func:`_said_unlike`'s warnings) and the shapes
+    corrected to reproduce their stabilised forms (:func:`fit_examples`, the poses
+    that stabilised them kept)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        masks = [None if w.projection is None else w.projection.projected for w in wraps]
+        # a scan of someone else, or of no expression, is said on its wrap's warnings
+        wraps = [_said_unlike(*a, result, rigid) for a in zip(wraps, geometric, masks)]
+        fit = fit_examples(result.mesh, prior, [x.vertices for x in stable],
+                           masks=masks, weights=weights, rigid=rigid, settings=settings)
+    return wraps, replace(fit, poses=[x.pose for x in stable])
+
+
+def _finisher(refine, stabilised):
+    """``finish(w, scan, k, tree)`` for :func:`_expression_fits`, on the thread
+    beside the next scan's wrap: expression ``k``'s wrap refined by
+    ``refine(w, scan, k, tree)`` (:func:`_texture_refiner`), then stabilised by
+    ``stabilised(w, tree, k)`` (:func:`_stabiliser`), with the seconds that took."""
+    def finish(w: WrapResult, scan: Mesh, k: int, tree: ClosestPointTree):
+        w, refinement = refine(w, scan, k, tree)
+        t = time.perf_counter()
+        return w, refinement, stabilised(w, tree, k), time.perf_counter() - t
+    return finish
+
+
+def _least_moving(blendshapes: dict, template: Mesh, neutral: WrapResult) -> np.ndarray:
+    """The skull-rigid vertices when none are given: those the shapes move least,
+    among the vertices the neutral scan saw."""
+    seen = None if neutral.projection is None else neutral.projection.projected
+    return least_moving(np.stack([np.asarray(v, dtype=np.float64)
+                                  for v in blendshapes.values()]), template.vertices,
+                        among=seen)
+
+
 def _said_unlike(w: WrapResult, geometric: WrapResult, mask, neutral: WrapResult,
                  rigid) -> WrapResult:
     """``w`` with :func:`~facewrap.rig.stabilise.unlike_neutral`'s line among its
@@ -432,26 +467,17 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
             timings["total"] = time.perf_counter() - t0
             return Rig(result.mesh, shapes.shapes, result, method, timings,
                        prior=shapes.shapes, texture=baked)
-        seen = None if result.projection is None else result.projection.projected
-        rigid = (least_moving(np.stack([np.asarray(v, dtype=np.float64)
-                                        for v in blendshapes.values()]),
-                              template.vertices, among=seen)
-                 if rigid_vertices is None else rigid_vertices)
+        rigid = (_least_moving(blendshapes, template, result) if rigid_vertices is None
+                 else rigid_vertices)
+        example_settings = example_settings or ExampleSettings()
+        finish = _finisher(_texture_refiner(template, baking if wanted else None,
+                                            exp_textures, texture_flow),
+                           _stabiliser(result, rigid, shapes.shapes, exp_weights,
+                                       example_settings.weight_prior))
         # BLAS one thread from here on: the views use the cores and the ICP does the
         # same, so no result depends on the overlap; the stabilisation's and the
         # example fit's small dense products (s x s normal matrices) only contend on
         # a loaded machine, as in the ICP (a 3 ms product took up to 0.8 s)
-        example_settings = example_settings or ExampleSettings()
-        refine = _texture_refiner(template, baking if wanted else None, exp_textures,
-                                  texture_flow)
-        stabilised = _stabiliser(result, rigid, shapes.shapes, exp_weights,
-                                 example_settings.weight_prior)
-
-        def finish(w, scan, k, tree):   # on the thread beside the next scan's wrap
-            w, refinement = refine(w, scan, k, tree)
-            t = time.perf_counter()
-            return w, refinement, stabilised(w, tree, k), time.perf_counter() - t
-
         with threadpool_limits(limits=1, user_api="blas"):
             wraps, refinements, stable, seconds, geometric = _expression_fits(
                 template, result, template_landmarks, scans, exp_landmarks, exp_trees,
@@ -463,14 +489,8 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     if wanted:   # the refinements' own seconds, beside the wraps
         timings["texture_flow"] = sum(r.seconds for r in refinements if r is not None)
     t3 = time.perf_counter()
-    with threadpool_limits(limits=1, user_api="blas"):
-        masks = [None if w.projection is None else w.projection.projected for w in wraps]
-        # a scan of someone else, or of no expression, is said on its wrap's warnings
-        wraps = [_said_unlike(*a, result, rigid) for a in zip(wraps, geometric, masks)]
-        fit = fit_examples(result.mesh, shapes.shapes, [x.vertices for x in stable],
-                           masks=masks, weights=exp_weights, rigid=rigid,
-                           settings=example_settings)
-    fit = replace(fit, poses=[x.pose for x in stable])
+    wraps, fit = _corrected(result, shapes.shapes, wraps, geometric, stable, rigid,
+                            exp_weights, example_settings)
     t5 = time.perf_counter()
     # the stabilisations ran beside the wraps too: their own seconds
     timings.update(expressions=t3 - t2, stabilise=sum(seconds), examples=t5 - t3,
