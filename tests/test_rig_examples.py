@@ -145,6 +145,30 @@ def test_head_motion_is_removed(built, person):
         assert off.mean() < 0.1, off.mean()
 
 
+def test_stabilisations_beside_the_wraps_give_the_rig_they_give_one_after_another(
+        person, monkeypatch):
+    """Untextured scans: each expression's stabilisation runs on a thread beside the
+    next scan's wrap, or here with one usable thread; the rig is the same."""
+    import facewrap.rig.build as build
+    tpl = person.tpl
+    _, neutral_scan, neutral_lm = person.truth_and_scan({})
+    scans = [person.truth_and_scan(w, m)
+             for w, m in zip(EXAMPLES, _head_motions(len(EXAMPLES)))]
+
+    def rig(threads):
+        monkeypatch.setattr(build, "usable_threads", lambda: threads)
+        return build_rig(tpl.mesh, neutral_scan, tpl.landmarks, neutral_lm,
+                         tpl.blendshapes, expression_scans=[s for _, s, _ in scans],
+                         expression_landmarks=[lm for _, _, lm in scans],
+                         expression_weights=EXAMPLES)
+    beside, alone = rig(2), rig(1)
+    for a, b in zip(beside.examples.poses, alone.examples.poses):
+        np.testing.assert_allclose(a.matrix, b.matrix, rtol=0, atol=1e-9)
+    for name in beside.shapes:
+        np.testing.assert_allclose(beside.shapes[name], alone.shapes[name], atol=1e-9)
+    assert beside.timings["stabilise"] > 0 and alone.timings["stabilise"] > 0
+
+
 def test_refine_pose_trusts_what_the_expression_moves_less(person):
     """The person's smile is 1.4 times stronger on their left than the rig predicts
     (up to 3 mm off at the mouth corner): weighing each vertex by how far the
