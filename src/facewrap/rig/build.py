@@ -163,13 +163,11 @@ def _expression_fits(template, result, template_landmarks, scans, landmarks, tre
     return (*([d[i] for d in done] for i in range(4)), geometric)
 
 
-def _flow_wanted(settings: TextureFlowSettings, template: Mesh, scan: Mesh, texture,
-                 scans, textures) -> bool:
-    """Whether the texture refines the expression wraps: on, both the neutral and
-    some expression scan textured (with texture coordinates), and OpenCV there
-    (else one warning naming the extra to install)."""
-    if not settings.enabled or texture is None or template.uvs is None \
-            or scan.uvs is None:
+def _flow_wanted(settings: TextureFlowSettings, scans, textures) -> bool:
+    """Whether the texture refines the expression wraps, the neutral's texture being
+    baked: on, some expression scan textured (with texture coordinates), and
+    OpenCV there (else one warning naming the extra to install)."""
+    if not settings.enabled:
         return False
     if not any(t is not None and s.uvs is not None for s, t in zip(scans, textures)):
         return False
@@ -437,8 +435,7 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     t1 = time.perf_counter()
     timings = {"wrap": t1 - t0}
     bakes = texture is not None and template.uvs is not None and scan.uvs is not None
-    wanted = bakes and bool(scans) and _flow_wanted(texture_flow, template, scan, texture,
-                                                     scans, exp_textures)
+    wanted = bakes and _flow_wanted(texture_flow, scans, exp_textures)
 
     def bake():   # the rig's texture and the refinements' reference
         t = time.perf_counter()
