@@ -4,7 +4,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from facewrap.errors import InputError
-from facewrap.io.obj import read_obj, read_obj_vertices, write_obj
+from facewrap.io.obj import read_obj, read_obj_vertices, write_obj, write_obj_series
 from facewrap.mesh import Mesh
 
 from conftest import needs_data, DATA
@@ -62,6 +62,35 @@ def test_vertex_colours_and_groups(tmp_path):
     assert m.materials == ("red", "blue") and m.face_materials.tolist() == [0, 1]
     write_obj(tmp_path / "c2.obj", m)
     assert_same_mesh(m, read_obj(tmp_path / "c2.obj"))
+
+
+def test_a_series_writes_what_write_obj_writes_of_each_vertex_set(tmp_path):
+    """Byte for byte, with UVs, normals (dropped with the old positions), colours,
+    groups, materials and a library, into a folder the series makes."""
+    p = tmp_path / "c.obj"
+    p.write_text("mtllib lib.mtl\no thing\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\n"
+                 "v 1 1 0 1 1 1\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\n"
+                 "usemtl red\nf 1/1/1 2/2/1 3/3/1\ng other\nusemtl blue\nf 3/3/1 2/2/1 4/1/1\n")
+    mesh = read_obj(p)
+    rng = np.random.default_rng(1)
+    sets = [mesh.vertices + rng.normal(size=mesh.vertices.shape) for _ in range(5)]
+    paths = [tmp_path / "new" / f"s{k}.obj" for k in range(5)]
+    write_obj_series(paths, mesh, sets)
+    for k, V in enumerate(sets):
+        write_obj(tmp_path / "one.obj", mesh.with_vertices(V))
+        assert paths[k].read_bytes() == (tmp_path / "one.obj").read_bytes()
+        assert np.array_equal(read_obj(paths[k]).vertices, V)
+    assert read_obj(paths[0]).normals is None
+
+
+def test_a_series_refuses_mismatched_inputs_before_writing(tmp_path, mixed_mesh):
+    with pytest.raises(ValueError, match="2 paths but 1 vertex sets"):
+        write_obj_series([tmp_path / "a.obj", tmp_path / "b.obj"], mixed_mesh,
+                         [mixed_mesh.vertices])
+    with pytest.raises(ValueError, match="vertices must have shape"):
+        write_obj_series([tmp_path / "a.obj", tmp_path / "b.obj"], mixed_mesh,
+                         [mixed_mesh.vertices, mixed_mesh.vertices[:-1]])
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_writer_is_atomic_and_leaves_no_temp(tmp_path, mixed_mesh):

@@ -6,7 +6,8 @@ Format modules: :mod:`.obj`, :mod:`.ply`, :mod:`.gltf`, :mod:`.landmarks`,
 read and write files with one clear error.
 """
 
-from facewrap.io.obj import read_obj, read_obj_vertices, write_obj
+from facewrap.io.obj import read_obj, read_obj_vertices, write_obj, write_obj_series
 from facewrap.io.dispatch import read_mesh, write_mesh
 
-__all__ = ["read_obj", "write_obj", "read_obj_vertices", "read_mesh", "write_mesh"]
+__all__ = ["read_obj", "write_obj", "write_obj_series", "read_obj_vertices", "read_mesh",
+           "write_mesh"]

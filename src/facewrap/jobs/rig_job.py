@@ -44,7 +44,7 @@ import numpy as np
 
 from facewrap.detection.for_wrap import detected_landmark_settings, detection_report
 from facewrap.errors import InputError
-from facewrap.io import write_mesh
+from facewrap.io import write_obj_series
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
@@ -330,11 +330,11 @@ def _flow_report(refinement) -> dict | None:
 def _write_shapes(folder: Path, rig, images: dict, library: bool) -> None:
     """One OBJ per shape, with the neutral's UVs and materials (``../neutral.mtl``)."""
     face_materials, materials, _ = material_images(rig.neutral, images)
-    for name in rig.shapes:
-        mesh = with_library(rig.shape_mesh(name),
-                            "../" + Path(NEUTRAL).with_suffix(".mtl").name if library
-                            else None, face_materials, materials)
-        write_mesh(folder / f"{name}.obj", mesh)
+    # every shape is the neutral's topology with its own vertices
+    topology = with_library(rig.neutral, "../" + Path(NEUTRAL).with_suffix(".mtl").name
+                            if library else None, face_materials, materials)
+    write_obj_series([folder / f"{name}.obj" for name in rig.shapes], topology,
+                     list(rig.shapes.values()))
 
 
 def _final(path, staged: Path, output: str) -> str:
