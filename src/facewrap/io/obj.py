@@ -606,7 +606,8 @@ def write_obj_series(paths, mesh: Mesh, positions, *,
     files, so the rest (UVs, faces, groups, materials: over half the text of a
     textured head) is laid out once, and the files are written on two threads (a
     file's write and ``fsync`` release the GIL while the next one's vertices are
-    formatted).  53 shapes of a 9,409-vertex head: 0.75 -> 0.2 s.
+    formatted).  53 shapes of a 9,409-vertex textured head: half the time of
+    :func:`write_obj` file by file (0.63-0.87 -> 0.35-0.42 s on a loaded machine).
 
     Parameters
     ----------
