@@ -259,6 +259,10 @@ def markdown(r: dict) -> str:
         for scan_name, x in h["rows"].items():
             L.append(f"| {h['name']} | {scan_name} | {_line(x)} |")
     L.append("")
+    crossed = [f"{h['name']} → {scan_name}: {x['through_by']}" for h in r["heads"]
+               for scan_name, x in h["rows"].items() if x.get("through_by")]
+    if crossed:
+        L += ["Parts through the skin, by part: " + "; ".join(crossed) + ".", ""]
     for h in r["heads"]:
         built = ", ".join(f"{k} {v}" for k, v in h["built"].items())
         L.append(f"- {h['name']}: {h['vertices']:,} v, {h['faces']:,} faces ({built}).")

@@ -29,9 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from facewrap.evaluate import VERTEX_ROLE_NAMES
-from facewrap.geometry import boundary_edges, boundary_loops, connected_components, face_areas
+from facewrap.geometry import boundary_edges, connected_components, face_areas
 from facewrap.geometry.checks import as_vertex_mask
-from facewrap.geometry.normals import vertex_normals
 from facewrap.geometry.visibility import outside_views
 from facewrap.io.cache import content_key, load_arrays, save_arrays
 
@@ -57,13 +56,9 @@ _VIEW_DIRECTIONS = 64
 #: the version whenever the result of the same template would change (the rules here
 #: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
 _CACHE_KIND = "hidden-surface"
-_CACHE_VERSION = 4
+_CACHE_VERSION = 3
 #: the RMS radius of the skin in the frame the lines are cast in (see :func:`_normalised`)
 _FRAME_RADIUS = 100.0
-#: a border loop of the skin at least this long, as a share of the skin's bounding-box
-#: diagonal, is an opening as large as the head (the open back of a face mask, a
-#: neck), closed for the line casting; eye openings, nostrils and lips stay open
-_CAPPED_LOOP_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -123,52 +118,14 @@ def _normalised(V, T, weights) -> np.ndarray:
     return (V - centre) * (_FRAME_RADIUS / radius)
 
 
-def _caps(V, T, skin_triangles) -> tuple[np.ndarray, np.ndarray]:
-    """Fans that close the skin's openings as large as the head: (c, 3) centres and
-    their (k, 3) triangles (ids past ``len(V)`` are the centres).
-
-    Through the open back of a face mask (or a neck) every camera behind the head
-    sees the inside of the face: a mouth bag, a socket joined to the lips, the
-    backs of the lids.  No scanner records those, so such an opening hides what
-    lies behind it, as the back of a whole head does; the fan from the loop's
-    centroid lies inside the head and hides nothing of its outside.
-
-    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.]])
-    >>> C, F = _caps(V, np.array([[0, 1, 2], [1, 3, 2]]), np.ones(2, bool))
-    >>> C.round(2).tolist(), len(F)
-    ([[0.5, 0.5, 0.0]], 4)
-    """
-    S = T[skin_triangles]
-    if len(S) == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    used = np.unique(S)
-    reach = _CAPPED_LOOP_SHARE * float(np.linalg.norm(np.ptp(V[used], axis=0)))
-    centres, fans = [], []
-    for loop in boundary_loops(S):
-        if len(loop) < 3 or np.linalg.norm(V[loop] - V[np.roll(loop, 1)],
-                                           axis=1).sum() < reach:
-            continue
-        centre = len(V) + len(centres)
-        centres.append(V[loop].mean(axis=0))
-        fans.append(np.c_[np.roll(loop, -1), loop, np.full(len(loop), centre)])
-    if not centres:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    return np.array(centres), np.vstack(fans)
-
-
 def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
     """Outside visibility of the candidate pieces' vertices, hidden by the
-    candidates, the closed pieces and the caps of the skin's largest openings."""
+    candidates and the closed pieces."""
     vertices = np.flatnonzero(candidate[labels])
     occluders = (candidate | closed)[labels[T[:, 0]]]
-    T = T if normals_out else T[:, ::-1]
-    centres, caps = _caps(V, T, candidate[labels[T[:, 0]]])
-    # the caps only hide: the vertices' normals are the template's own
-    normals = np.vstack([vertex_normals(V, T), np.zeros((len(centres), 3))])
-    return outside_views(np.vstack([V, centres]), np.vstack([T, caps]),
-                         vertices=vertices, normals=normals,
-                         occluders=np.r_[occluders, np.ones(len(caps), bool)],
-                         needed=_VIEWS_NEEDED, directions=_VIEW_DIRECTIONS)[:len(V)]
+    return outside_views(V, T if normals_out else T[:, ::-1], vertices=vertices,
+                         occluders=occluders, needed=_VIEWS_NEEDED,
+                         directions=_VIEW_DIRECTIONS)
 
 
 def find_hidden_surface(V, T) -> HiddenSurface:
@@ -177,9 +134,8 @@ def find_hidden_surface(V, T) -> HiddenSurface:
     The skin is the connected piece of largest area, and any other piece with at
     least a tenth of its area that is mostly seen from outside.  Every other piece
     is a *part*.  Skin vertices seen from fewer than two of 64 directions around the
-    head (:func:`facewrap.geometry.visibility.outside_views`, hidden by the skin, by
-    closed parts such as eyeballs and by the skin's openings as large as the head —
-    the back of a face mask, a neck — closed over) are *cavities*.  A template whose normals
+    head (:func:`facewrap.geometry.visibility.outside_views`, hidden by the skin and
+    by closed parts such as eyeballs) are *cavities*.  A template whose normals
     point inwards is read the other way round.
 
     Parameters
@@ -237,8 +193,7 @@ def _hidden_surface_key(V, T) -> str:
     the result depends on."""
     return content_key(np.ascontiguousarray(V, np.float64),
                        np.ascontiguousarray(T, np.int64), _SKIN_AREA_SHARE,
-                       _SKIN_SEEN_SHARE, _VIEWS_NEEDED, _VIEW_DIRECTIONS,
-                       _CAPPED_LOOP_SHARE)
+                       _SKIN_SEEN_SHARE, _VIEWS_NEEDED, _VIEW_DIRECTIONS)
 
 
 def _load_hidden_surface(key: str, n: int) -> HiddenSurface | None:
