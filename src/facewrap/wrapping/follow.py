@@ -72,6 +72,23 @@ def _on_border(C, I, V, T, border) -> np.ndarray:
     return out | ((low.sum(axis=1) >= 2) & vertices[corner])
 
 
+def _distinct(points, moves):
+    """``points`` (k, 3) one per position, with the mean of their ``moves`` (k, 3):
+    a skin may hold two vertices at one point (the lips of a closed mouth, a seam
+    the fit may have parted), which a warp cannot take as two anchors.
+
+    >>> P = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0.]])
+    >>> _distinct(P, np.array([[0, 0, 1], [0, 0, 0], [0, 0, 3.]]))[1].tolist()
+    [[0.0, 0.0, 2.0], [0.0, 0.0, 0.0]]
+    """
+    _, first, inverse = np.unique(points.round(12), axis=0, return_index=True,
+                                  return_inverse=True)
+    inverse = inverse.ravel()
+    mean = np.zeros((len(first), 3))
+    np.add.at(mean, inverse, moves)
+    return points[first], mean / np.bincount(inverse)[:, None]
+
+
 def _border(T, n):
     """Border edges of ``T`` as keys ``min * n + max`` and the (n,) border-vertex mask."""
     E = np.sort(boundary_edges(T), axis=1)
@@ -188,7 +205,7 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
         anchors = np.unique(near[mine].ravel())
         if len(anchors) > _MOST_ANCHORS:
             anchors = anchors[farthest_point_sampling(R[anchors], _MOST_ANCHORS)]
-        warp = RBFWarp().fit(R[anchors], X[anchors] - R[anchors])
+        warp = RBFWarp().fit(*_distinct(R[anchors], X[anchors] - R[anchors]))
         X[part[mine]] = warp.transform(R[part[mine]])
         if solid[piece]:
             rigid[mine] = similarity_transform(R[part[mine]], X[part[mine]],
