@@ -71,6 +71,46 @@ def test_hidden_surface_of_a_head_with_a_part_inside_and_a_pit():
     assert np.array_equal(flipped.cavity, h.cavity)
 
 
+def _cap(radius: float, polar_max: float, rings: int, segments: int):
+    """A spherical cap about +z (polar angle up to ``polar_max`` degrees), facing out."""
+    th = np.radians(np.linspace(0, polar_max, rings + 1)[1:])
+    ph = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    P = np.vstack([[0, 0, 1.0], np.stack([np.outer(np.sin(th), np.cos(ph)),
+                                          np.outer(np.sin(th), np.sin(ph)),
+                                          np.repeat(np.cos(th)[:, None], segments, 1)],
+                                         -1).reshape(-1, 3)])
+    j = np.arange(segments)
+    T = [np.c_[np.zeros(segments, int), 1 + j, 1 + (j + 1) % segments]]
+    for r in range(rings - 1):
+        a, b = 1 + r * segments + j, 1 + (r + 1) * segments + j
+        a1, b1 = 1 + r * segments + (j + 1) % segments, 1 + (r + 1) * segments + (j + 1) % segments
+        T += [np.c_[a, b, b1], np.c_[a, b1, a1]]
+    return P * radius, np.vstack(T)
+
+
+def test_a_mouth_bag_of_its_own_glimpsed_through_the_lips_is_a_part():
+    """A face mask with an open mouth and, behind it, a bag of its own as large as a
+    sixth of the face: seen from a few directions through the mouth only, it is a
+    part (it was taken for skin, and pulled onto the scan's lips); the two halves
+    of a face split down the middle stay skin."""
+    V1, T1 = _cap(60.0, 80, 30, 64)
+    C = V1[T1].mean(axis=1)
+    T1 = T1[~((np.abs(C[:, 0]) < 20) & (np.abs(C[:, 1] + 20) < 6) & (C[:, 2] > 0))]
+    V2, T2 = _cap(24.0, 100, 12, 32)
+    V2 = V2 * [1, 0.5, -1] + [0, -20, 40]      # opening toward the mouth, facing in
+    V, T = _with((V1, T1), (V2, T2))
+    h = find_hidden_surface(V, T)
+    assert h.part[len(V1):].all() and h.skin_pieces == 1
+    used = np.isin(np.arange(len(V1)), T1)
+    assert not h.part[:len(V1)][used].any()
+    # the mask cut in two along x = 0 (its vertices there split): two skin pieces
+    left = V1[T1].mean(axis=1)[:, 0] < 0
+    W = np.vstack([V1, V1])
+    halves = np.vstack([T1[left], T1[~left] + len(V1)])
+    split = find_hidden_surface(W, halves)
+    assert split.skin_pieces == 2
+
+
 def test_hidden_surface_of_the_sample_eyeballs_are_parts():
     t = make_template(resolution=40)
     h = find_hidden_surface(t.mesh.vertices, t.mesh.triangles)

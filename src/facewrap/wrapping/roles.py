@@ -51,12 +51,18 @@ _SKIN_SEEN_SHARE = 0.5
 #: a skin vertex is seen when this many of that many directions around the head see it
 _VIEWS_NEEDED = 2
 _VIEW_DIRECTIONS = 64
+#: a piece other than the largest is skin only when most of it is seen from this many
+#: directions: a skin piece is open to the outside (a face template split at the
+#: ears: its vertices seen from 9-31 of the 64), a mouth bag behind the lips is
+#: glimpsed through the opening (1-7; a face mask's bag was taken for skin and
+#: pulled onto the lips, benchmarks/bench_other_heads.py)
+_PIECE_VIEWS_NEEDED = 8
 
 #: the on-disk entries of :func:`find_hidden_surface` (:mod:`facewrap.io.cache`); bump
 #: the version whenever the result of the same template would change (the rules here
 #: or the line casting of :func:`facewrap.geometry.visibility.outside_views`)
 _CACHE_KIND = "hidden-surface"
-_CACHE_VERSION = 3
+_CACHE_VERSION = 4
 #: the RMS radius of the skin in the frame the lines are cast in (see :func:`_normalised`)
 _FRAME_RADIUS = 100.0
 
@@ -118,13 +124,14 @@ def _normalised(V, T, weights) -> np.ndarray:
     return (V - centre) * (_FRAME_RADIUS / radius)
 
 
-def _seen(V, T, labels, candidate, closed, normals_out: bool) -> np.ndarray:
-    """Outside visibility of the candidate pieces' vertices, hidden by the
-    candidates and the closed pieces."""
+def _seen(V, T, labels, candidate, closed, normals_out: bool,
+          needed: int = _VIEWS_NEEDED) -> np.ndarray:
+    """Outside visibility of the candidate pieces' vertices (from ``needed``
+    directions), hidden by the candidates and the closed pieces."""
     vertices = np.flatnonzero(candidate[labels])
     occluders = (candidate | closed)[labels[T[:, 0]]]
     return outside_views(V, T if normals_out else T[:, ::-1], vertices=vertices,
-                         occluders=occluders, needed=_VIEWS_NEEDED,
+                         occluders=occluders, needed=needed,
                          directions=_VIEW_DIRECTIONS)
 
 
@@ -132,7 +139,8 @@ def find_hidden_surface(V, T) -> HiddenSurface:
     """Find the pieces and cavities of a template that a scanner cannot see.
 
     The skin is the connected piece of largest area, and any other piece with at
-    least a tenth of its area that is mostly seen from outside.  Every other piece
+    least a tenth of its area that is mostly seen from outside (from 8 of 64
+    directions: a mouth bag glimpsed through the lips is not).  Every other piece
     is a *part*.  Skin vertices seen from fewer than two of 64 directions around the
     head (:func:`facewrap.geometry.visibility.outside_views`, hidden by the skin and
     by closed parts such as eyeballs) are *cavities*.  A template whose normals
@@ -173,15 +181,21 @@ def find_hidden_surface(V, T) -> HiddenSurface:
     closed = _closed_pieces(T, labels, pieces) & ~candidate
     tri_area = face_areas(V, T)
     V = _normalised(V, T, np.where(candidate[labels[T[:, 0]]], tri_area, 0.0))
+    outward = True
     seen = _seen(V, T, labels, candidate, closed, normals_out=True)
     cand_v = candidate[labels] & used
     if seen[cand_v].mean() < 0.25:       # normals point inwards: look the other way
         flipped = _seen(V, T, labels, candidate, closed, normals_out=False)
         if flipped[cand_v].sum() > seen[cand_v].sum():
-            seen = flipped
-    share = np.bincount(labels[seen], minlength=pieces) / np.maximum(
-        np.bincount(labels, minlength=pieces), 1)
-    skin = candidate & (share >= _SKIN_SEEN_SHARE)
+            seen, outward = flipped, False
+    skin = candidate.copy()
+    others = candidate.copy()
+    others[largest] = False
+    if others.any():   # is each other large piece skin, open to the outside?
+        well_seen = _seen(V, T, labels, candidate, closed, outward, _PIECE_VIEWS_NEEDED)
+        share = np.bincount(labels[well_seen], minlength=pieces) / np.maximum(
+            np.bincount(labels, minlength=pieces), 1)
+        skin &= share >= _SKIN_SEEN_SHARE
     skin[largest] = True
     skin_v = skin[labels] & used
     return HiddenSurface(part=~skin_v, cavity=skin_v & ~seen,
