@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
+__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons", "check_mesh"]
 
 
 def _indices(a, name: str) -> np.ndarray:
@@ -468,3 +468,39 @@ class Mesh:
             if len(sizes) == 1 else "mixed polygons"
         uv = f", {len(self.uvs)} uvs" if self.uvs is not None else ""
         return f"<Mesh {self.n_vertices} vertices, {self.n_faces} {kind}{uv}>"
+
+
+def check_mesh(mesh, name: str) -> None:
+    """Raise unless ``mesh`` is a :class:`~facewrap.mesh.Mesh` with finite vertices
+    and at least one face.
+
+    Parameters
+    ----------
+    mesh : object
+    name : str
+        What it is ("template", "scan"): errors start ``"{name}: "``, which a job
+        turns into its file's name.
+
+    Raises
+    ------
+    TypeError
+        Not a Mesh.
+    ValueError
+        A NaN or infinite coordinate, or no faces.
+
+    Examples
+    --------
+    >>> check_mesh(Mesh(np.eye(3), [[0, 1, 2]]), "scan")
+    >>> check_mesh(Mesh(np.eye(3), []), "scan")
+    Traceback (most recent call last):
+    ...
+    ValueError: scan: has no faces (3 vertices)
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"{name} must be a Mesh, got {type(mesh).__name__}")
+    bad = ~np.isfinite(mesh.vertices).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{name}: vertex {i} is not finite ({mesh.vertices[i].tolist()})")
+    if mesh.n_faces == 0:
+        raise ValueError(f"{name}: has no faces ({mesh.n_vertices} vertices)")

@@ -90,6 +90,43 @@ def as_whole_indices(a, name: str) -> np.ndarray:
     return arr.astype(np.int64, copy=False)
 
 
+def as_vertex_ids(ids, n: int, name: str, *, at_least: int = 1) -> np.ndarray:
+    """(k,) int64 ids of vertices of a mesh of ``n`` (whole numbers in ``[0, n)``).
+
+    Parameters
+    ----------
+    ids : (k,) int array_like
+    n : int
+        The mesh's vertex count.
+    name : str
+        The argument's name, for error messages.
+    at_least : int
+        Fewest ids allowed (an anchor set needs one, a rigid frame three).
+
+    Returns
+    -------
+    (k,) int64
+
+    Examples
+    --------
+    >>> as_vertex_ids([2, 0.0], 3, "anchors").tolist()
+    [2, 0]
+    >>> as_vertex_ids([3], 3, "anchors")
+    Traceback (most recent call last):
+    ...
+    ValueError: anchors holds vertex id 3, outside [0, 3)
+    """
+    out = as_whole_indices(ids, name)
+    if out.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional, got shape {out.shape}")
+    if len(out) < at_least:
+        raise ValueError(f"{name} needs at least {at_least} vertex id(s), got {len(out)}")
+    bad = (out < 0) | (out >= n)
+    if bad.any():
+        raise ValueError(f"{name} holds vertex id {out[bad][0]}, outside [0, {n})")
+    return out
+
+
 def as_shape_dict(shapes, n: int, name: str = "blendshapes") -> dict:
     """Blendshapes as ``{str: (n, 3) finite float64}``, new arrays in a new dict.
 
