@@ -26,8 +26,9 @@ Classes:
   a dict for ``WrapSettings`` or ``CorrespondenceSettings``, an array for a mesh or
   landmarks, a dict for a ``GraphCache``, a string for ``initial``, a job, a job's
   path field holding a number, one path where a list of them belongs (read as its
-  characters), ``DeformationTransfer.transfer`` before ``fit`` or with a dict of
-  shapes; each is now a ``TypeError`` naming the argument
+  characters, as were a single string for a Mesh's ``materials`` or ``groups`` and
+  for Landmarks' ``names``), ``DeformationTransfer.transfer`` before ``fit`` or
+  with a dict of shapes; each is now a ``TypeError`` naming the argument
   (:func:`~facewrap.params.expect_instance`);
 - inputs a wrap cannot fit named no argument: a NaN in the scan ("V must be
   finite"), a scan without faces ("T must hold at least one triangle"), a template
@@ -56,7 +57,7 @@ import threading
 import numpy as np
 import pytest
 
-from facewrap import InputError, Landmarks, Mesh, WrapSettings, wrap
+from facewrap import InputError, Landmarks, Mesh, WrapSettings, pair_landmarks, wrap
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.similarity import Similarity
 from facewrap.jobs import TransferJob, WrapJob, run_transfer_job, run_wrap_job
@@ -187,6 +188,15 @@ def test_arguments_of_the_wrong_kind_are_named(small, tmp_path):
             WrapJob("t.obj", "scan.obj", output=None), RBF)),
         ("source_shapes must be a list of paths", lambda: run_transfer_job(
             TransferJob("a.obj", "b.obj", "m.txt", "shapes", out=str(tmp_path / "s")))),
+    ]
+    V = np.eye(3)
+    cases += [   # one string where a list of them belongs: read as its letters
+        ("names must be a sequence of strings", lambda: Landmarks.from_vertices(
+            [0, 1, 2, 0], names="nose")),
+        ("materials must be a sequence of strings", lambda: Mesh(
+            V, [[0, 1, 2]], materials="skin", face_materials=[0])),
+        ("the scan landmarks must be a Landmarks", lambda: pair_landmarks(
+            tl, sl.points, ("template", "scan"))),
     ]
     for needle, call in cases:
         with pytest.raises(TypeError, match=needle):

@@ -140,6 +140,9 @@ class Landmarks:
         problem = barycentric_problem(barycentric[triangle >= 0])
         if problem:
             raise ValueError(f"barycentric coordinates {problem}")
+        if isinstance(names, (str, bytes)):   # "nose" would be four names, n, o, s, e
+            raise TypeError(f"names must be a sequence of strings, got one string "
+                            f"{names!r}")
         if names is not None:
             names = tuple(str(n) for n in names)
             if len(names) != k:
@@ -310,6 +313,10 @@ def pair_landmarks(a: Landmarks, b: Landmarks, what: tuple[str, str] = ("first",
     >>> [x.tolist() for x in pair_landmarks(a, b)]
     [[0, 2], [1, 0]]
     """
+    for name, given in zip(what, (a, b)):
+        if not isinstance(given, Landmarks):
+            raise TypeError(f"the {name} landmarks must be a Landmarks, got "
+                            f"{type(given).__name__}")
     if a.names is not None and b.names is not None:
         pos_b = {n: j for j, n in enumerate(b.names)}
         ia = [i for i, n in enumerate(a.names) if n in pos_b]

@@ -218,6 +218,11 @@ class Mesh:
         self.face_normals = self._corner_indices(face_normals, "face_normals", self.normals,
                                                  copy)
 
+        for what, names in (("materials", materials), ("groups", groups),
+                            ("mtllib", mtllib)):
+            if isinstance(names, (str, bytes)):   # "skin" would be four names
+                raise TypeError(f"{what} must be a sequence of strings, got one "
+                                f"string {names!r}")
         self.materials = tuple(materials)
         self.face_materials = self._per_face(face_materials, m, len(self.materials),
                                              "face_materials")
