@@ -12,6 +12,12 @@ Classes:
   ``stabilise``'s rigid vertices; whole floats (2.0, as a text table reads) are
   still taken, any other number is refused naming the argument
   (:func:`~facewrap.geometry.checks.as_whole_indices`);
+- geometry functions answered wrongly what they did not check: ``new_creases``
+  cast float triangles (no crease found) and met a vertex count not the
+  reference's with an ``IndexError``; ``turned_triangles`` took NaN positions as
+  upright; ``similarity_transform`` failed on a NaN with "SVD did not converge"
+  (NaN weights too); ``write_mesh`` of an array failed with ``AttributeError``;
+  each now names the argument;
 - surface landmarks with barycentric coordinates that are NaN, negative or do not
   sum to 1 gave NaN positions or points off the mesh, silently; the JSON reader
   refused them, the :class:`~facewrap.Landmarks` constructor now does too (one
@@ -58,7 +64,9 @@ import numpy as np
 import pytest
 
 from facewrap import InputError, Landmarks, Mesh, WrapSettings, pair_landmarks, wrap
-from facewrap.geometry import ClosestPointTree
+from facewrap.geometry import (ClosestPointTree, new_creases, similarity_transform,
+                               turned_triangles)
+from facewrap.io import read_mesh, write_mesh
 from facewrap.geometry.similarity import Similarity
 from facewrap.jobs import TransferJob, WrapJob, run_transfer_job, run_wrap_job
 from facewrap.parallel import thread_map
@@ -131,6 +139,25 @@ def test_fractional_indices_are_refused_whole_ones_taken(small):
         stabilise(face.vertices, face.vertices, [0.2, 1.5, 2.9, 30.1])
     with pytest.raises(ValueError, match="rigid must hold whole numbers"):
         fit_examples(face, shapes, [shapes["smile"]], rigid=[0.5])
+
+
+def test_geometry_refuses_what_it_would_answer_wrongly(small, tmp_path):
+    face = small["face"]
+    V, T = face.vertices, face.triangles
+    with pytest.raises(ValueError, match="triangles must hold integer indices"):
+        new_creases(V, V, T + 0.5)                    # cast to T: no crease, silently
+    with pytest.raises(ValueError, match="one topology"):
+        new_creases(V[:-5], V, T)                     # an IndexError
+    with pytest.raises(ValueError, match="vertices must be finite"):
+        turned_triangles(V * np.nan, V, T)            # NaN turns nowhere: "upright"
+    with pytest.raises(ValueError, match="source and target must be finite"):
+        similarity_transform(np.full((3, 3), np.nan), np.eye(3))   # SVD's LinAlgError
+    with pytest.raises(ValueError, match="weights must be"):
+        similarity_transform(np.eye(3), np.eye(3), weights=[1.0, np.nan, 1.0])
+    with pytest.raises(TypeError, match="mesh must be a Mesh"):
+        write_mesh(tmp_path / "out.obj", V)
+    with pytest.raises(TypeError, match="path must be a str or os.PathLike"):
+        read_mesh(None)
 
 
 # -- surface landmarks off their triangles ---------------------------------------------
