@@ -107,8 +107,10 @@ class Landmarks:
     Parameters
     ----------
     vertex : (k,) int, -1 where the landmark is not a vertex
+        Ids are whole numbers (2.0 is vertex 2; 2.5 is refused).
     triangle : (k,) int, -1 where the landmark is not a surface point
     barycentric : (k, 3) float, used where ``triangle >= 0``
+        Each row in [0, 1] and summing to 1 there (:func:`barycentric_problem`).
     points : (k, 3) float, NaN where the landmark is not a free point
     names : sequence of k str, optional
 

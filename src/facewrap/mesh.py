@@ -140,8 +140,9 @@ class Mesh:
     ----------
     vertices : (n, 3) float array_like
     faces : (m, k) int array_like, sequence of int sequences, or (offsets, indices)
-        Polygons as vertex indices (0-based).  A tuple of two 1-D arrays is taken as
-        flat ``(offsets, indices)``.
+        Polygons as vertex indices (0-based; whole floats such as 2.0 are taken,
+        2.5 is refused).  A tuple of two 1-D arrays is taken as flat
+        ``(offsets, indices)``.
     uvs : (u, 2) float array_like, optional
         Texture coordinates.
     face_uvs : same layout as ``faces``, optional
