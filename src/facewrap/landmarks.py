@@ -19,7 +19,43 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES"]
+__all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES",
+           "BARYCENTRIC_SLACK", "barycentric_problem"]
+
+#: How far barycentric coordinates (written with a few decimals) may stray from
+#: [0, 1] and from summing to 1.
+BARYCENTRIC_SLACK = 1e-3
+
+
+def barycentric_problem(bary) -> str | None:
+    """What is wrong with rows of barycentric coordinates, or None.
+
+    A point's coordinates in its triangle are each in [0, 1] and sum to 1
+    (within :data:`BARYCENTRIC_SLACK`); others put it off the surface, NaN
+    nowhere, and 1e300 overflows the alignment.
+
+    Parameters
+    ----------
+    bary : (k, 3) float
+
+    Returns
+    -------
+    str or None
+        ``"... got [...]"`` naming the first bad row, or None when all are good.
+
+    Examples
+    --------
+    >>> barycentric_problem([[0.2, 0.3, 0.5]]) is None
+    True
+    >>> barycentric_problem([[1.0, 1.0, 0.0]])
+    'must be 3 numbers in [0, 1] that sum to 1, got [1.0, 1.0, 0.0]'
+    """
+    b = np.asarray(bary, dtype=np.float64).reshape(-1, 3)
+    bad = (~np.isfinite(b).all(axis=1) | (b.min(axis=1, initial=0.0) < -BARYCENTRIC_SLACK)
+           | (np.abs(b.sum(axis=1) - 1.0) > BARYCENTRIC_SLACK))
+    if not bad.any():
+        return None
+    return f"must be 3 numbers in [0, 1] that sum to 1, got {b[bad][0].tolist()}"
 
 
 def _names(prefix, count):
@@ -41,6 +77,27 @@ def _ro(a):
     return a
 
 
+def _ids(values, name: str) -> np.ndarray:
+    """(k,) int64 ids from a 1-D sequence (a scalar is one id)."""
+    # imported here: a command's help reads landmarks' docs, not the geometry
+    from facewrap.geometry.checks import as_whole_indices
+    ids = as_whole_indices(values, f"landmark {name}")
+    if ids.ndim > 1:
+        raise ValueError(f"landmark {name} must be one-dimensional, got shape {ids.shape}")
+    return ids.reshape(-1)
+
+
+def _rows(values, k: int, name: str) -> np.ndarray:
+    """(k, 3) float64 rows, one per landmark."""
+    try:
+        arr = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"landmark {name} must be a ({k}, 3) float array: {exc}") from None
+    if arr.size != 3 * k:
+        raise ValueError(f"landmark {name} must have shape ({k}, 3), got {arr.shape}")
+    return arr.reshape(k, 3)
+
+
 class Landmarks:
     """An ordered, optionally named set of landmarks (see module docstring).
 
@@ -50,8 +107,10 @@ class Landmarks:
     Parameters
     ----------
     vertex : (k,) int, -1 where the landmark is not a vertex
+        Ids are whole numbers (2.0 is vertex 2; 2.5 is refused).
     triangle : (k,) int, -1 where the landmark is not a surface point
     barycentric : (k, 3) float, used where ``triangle >= 0``
+        Each row in [0, 1] and summing to 1 there (:func:`barycentric_problem`).
     points : (k, 3) float, NaN where the landmark is not a free point
     names : sequence of k str, optional
 
@@ -64,19 +123,28 @@ class Landmarks:
 
     def __init__(self, vertex, triangle, barycentric, points,
                  names: Sequence[str] | None = None):
-        vertex = np.asarray(vertex, dtype=np.int64).reshape(-1)
+        # ids 2.5 are no vertex: refused, not cast to vertex 2
+        vertex = _ids(vertex, "vertex")
         k = len(vertex)
-        triangle = np.asarray(triangle, dtype=np.int64).reshape(-1)
-        barycentric = np.asarray(barycentric, dtype=np.float64).reshape(k, 3)
-        points = np.asarray(points, dtype=np.float64).reshape(k, 3)
+        triangle = _ids(triangle, "triangle")
         if len(triangle) != k:
             raise ValueError("vertex and triangle must have the same length")
+        barycentric = _rows(barycentric, k, "barycentric")
+        points = _rows(points, k, "points")
         kinds = ((vertex >= 0).astype(int) + (triangle >= 0)
                  + np.isfinite(points).all(axis=1))
         if np.any(kinds != 1):
             i = int(np.argmax(kinds != 1))
             raise ValueError(f"landmark {i} must be exactly one of vertex, surface "
-                             "point or free point")
+                             "point or free point (vertex and triangle ids are >= 0, "
+                             f"-1 for none; got vertex {vertex[i]}, triangle "
+                             f"{triangle[i]})")
+        problem = barycentric_problem(barycentric[triangle >= 0])
+        if problem:
+            raise ValueError(f"barycentric coordinates {problem}")
+        if isinstance(names, (str, bytes)):   # "nose" would be four names, n, o, s, e
+            raise TypeError(f"names must be a sequence of strings, got one string "
+                            f"{names!r}")
         if names is not None:
             names = tuple(str(n) for n in names)
             if len(names) != k:
@@ -93,8 +161,8 @@ class Landmarks:
     # -- constructors ---------------------------------------------------------------
     @classmethod
     def from_vertices(cls, indices, names=None) -> "Landmarks":
-        """Landmarks at mesh vertices (0-based indices)."""
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        """Landmarks at mesh vertices (0-based indices), (k,) int."""
+        idx = _ids(indices, "indices")
         k = len(idx)
         return cls(idx, np.full(k, -1), np.zeros((k, 3)), np.full((k, 3), np.nan), names)
 
@@ -112,7 +180,7 @@ class Landmarks:
     @classmethod
     def from_barycentric(cls, triangles, barycentric, names=None) -> "Landmarks":
         """Points inside triangles: (k,) triangle ids and (k, 3) barycentric coords."""
-        tri = np.asarray(triangles, dtype=np.int64).reshape(-1)
+        tri = _ids(triangles, "triangles")
         k = len(tri)
         return cls(np.full(k, -1), tri, barycentric, np.full((k, 3), np.nan), names)
 
@@ -247,6 +315,10 @@ def pair_landmarks(a: Landmarks, b: Landmarks, what: tuple[str, str] = ("first",
     >>> [x.tolist() for x in pair_landmarks(a, b)]
     [[0, 2], [1, 0]]
     """
+    for name, given in zip(what, (a, b)):
+        if not isinstance(given, Landmarks):
+            raise TypeError(f"the {name} landmarks must be a Landmarks, got "
+                            f"{type(given).__name__}")
     if a.names is not None and b.names is not None:
         pos_b = {n: j for j, n in enumerate(b.names)}
         ia = [i for i, n in enumerate(a.names) if n in pos_b]

@@ -25,7 +25,15 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons"]
+__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons", "check_mesh"]
+
+
+def _indices(a, name: str) -> np.ndarray:
+    """:func:`facewrap.geometry.checks.as_whole_indices` (a face 2.5 is no vertex:
+    refused, not cast to vertex 2)."""
+    # imported here: a command's help reads meshes' docs, not the geometry
+    from facewrap.geometry.checks import as_whole_indices
+    return as_whole_indices(a, name)
 
 
 def _readonly(a, dtype, copy: bool = True):
@@ -43,13 +51,16 @@ def _used(ids: np.ndarray, n: int) -> np.ndarray:
     return np.flatnonzero(used)
 
 
-def polygons_from_list(faces) -> tuple[np.ndarray, np.ndarray]:
+def polygons_from_list(faces, name: str = "faces") -> tuple[np.ndarray, np.ndarray]:
     """Flatten polygons into ``(offsets, indices)``.
 
     Parameters
     ----------
     faces : (m, k) int array_like, or sequence of int sequences
-        Uniform polygons as a 2-D array, or polygons of mixed sizes.
+        Uniform polygons as a 2-D array, or polygons of mixed sizes.  Whole
+        floats (2.0) are taken as indices, other numbers are refused.
+    name : str
+        The argument's name, for error messages.
 
     Returns
     -------
@@ -65,15 +76,20 @@ def polygons_from_list(faces) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(faces, np.ndarray) and faces.ndim == 2:
         m, k = faces.shape
         return (np.arange(m + 1, dtype=np.int64) * k,
-                faces.astype(np.int64, copy=False).reshape(-1).copy())
+                _indices(faces, name).reshape(-1).copy())
+    if isinstance(faces, (str, bytes)) or not hasattr(faces, "__iter__"):
+        raise TypeError(f"{name} must be a sequence of polygons (vertex index "
+                        f"sequences), got {type(faces).__name__}")
     faces = list(faces)
+    if not all(hasattr(f, "__len__") and not isinstance(f, (str, bytes)) for f in faces):
+        raise TypeError(f"{name} must be a sequence of polygons, each a sequence of "
+                        "vertex indices")
     sizes = np.fromiter((len(f) for f in faces), dtype=np.int64, count=len(faces))
     offsets = np.zeros(len(faces) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])
     if len(faces) == 0:
         return offsets, np.zeros(0, dtype=np.int64)
-    indices = np.fromiter((i for f in faces for i in f), dtype=np.int64,
-                          count=int(offsets[-1]))
+    indices = _indices([i for f in faces for i in f], name)
     return offsets, indices
 
 
@@ -124,8 +140,9 @@ class Mesh:
     ----------
     vertices : (n, 3) float array_like
     faces : (m, k) int array_like, sequence of int sequences, or (offsets, indices)
-        Polygons as vertex indices (0-based).  A tuple of two 1-D arrays is taken as
-        flat ``(offsets, indices)``.
+        Polygons as vertex indices (0-based; whole floats such as 2.0 are taken,
+        2.5 is refused).  A tuple of two 1-D arrays is taken as flat
+        ``(offsets, indices)``.
     uvs : (u, 2) float array_like, optional
         Texture coordinates.
     face_uvs : same layout as ``faces``, optional
@@ -168,7 +185,11 @@ class Mesh:
                  face_groups=None, groups: Sequence[str] = (),
                  mtllib: Sequence[str] = (), vertex_colors=None,
                  texture: str | None = None, copy: bool = True):
-        vertices = np.asarray(vertices, dtype=np.float64)
+        try:
+            vertices = np.asarray(vertices, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"vertices must be a float array of shape (n, 3): "
+                             f"{exc}") from None
         if vertices.ndim != 2 or vertices.shape[1] != 3:
             raise ValueError(f"vertices must have shape (n, 3), got {vertices.shape}")
         self.vertices = _readonly(vertices, np.float64, copy)
@@ -198,6 +219,11 @@ class Mesh:
         self.face_normals = self._corner_indices(face_normals, "face_normals", self.normals,
                                                  copy)
 
+        for what, names in (("materials", materials), ("groups", groups),
+                            ("mtllib", mtllib)):
+            if isinstance(names, (str, bytes)):   # "skin" would be four names
+                raise TypeError(f"{what} must be a sequence of strings, got one "
+                                f"string {names!r}")
         self.materials = tuple(materials)
         self.face_materials = self._per_face(face_materials, m, len(self.materials),
                                              "face_materials")
@@ -216,13 +242,13 @@ class Mesh:
     def _flat(faces, name):
         if (isinstance(faces, tuple) and len(faces) == 2
                 and all(np.ndim(x) == 1 for x in faces)):
-            offsets = np.asarray(faces[0], dtype=np.int64)
-            indices = np.asarray(faces[1], dtype=np.int64)
-            if offsets[0] != 0 or offsets[-1] != len(indices) or np.any(np.diff(offsets) < 0):
+            offsets = _indices(faces[0], f"{name} offsets")
+            indices = _indices(faces[1], name)
+            if len(offsets) == 0 or offsets[0] != 0 or offsets[-1] != len(indices) or np.any(np.diff(offsets) < 0):
                 raise ValueError(f"{name}: offsets do not describe indices")
             return offsets, indices
         return polygons_from_list(faces if not hasattr(faces, "__array__")
-                                  else np.asarray(faces))
+                                  else np.asarray(faces), name)
 
     def _corner_indices(self, corner, name, table, copy: bool = True):
         if corner is None:
@@ -235,11 +261,11 @@ class Mesh:
                 raise ValueError(f"{name} must have the same polygon sizes as faces")
         else:
             corner = np.asarray(corner) if hasattr(corner, "__array__") else corner
-            offsets, idx = polygons_from_list(corner) if not (
+            offsets, idx = polygons_from_list(corner, name) if not (
                 isinstance(corner, np.ndarray) and corner.ndim == 1) else (None, corner)
             if offsets is not None and not np.array_equal(offsets, self.face_offsets):
                 raise ValueError(f"{name} must have the same polygon sizes as faces")
-        idx = np.asarray(idx, dtype=np.int64)
+        idx = _indices(idx, name)
         if len(idx) != len(self.face_indices):
             raise ValueError(f"{name} needs one index per face corner")
         if len(idx) and (idx.min() < 0 or idx.max() >= len(table)):
@@ -250,7 +276,7 @@ class Mesh:
     def _per_face(values, m, count, name):
         if values is None:
             return None
-        values = np.asarray(values, dtype=np.int64)
+        values = _indices(values, name)
         if values.shape != (m,):
             raise ValueError(f"{name} must have shape ({m},), got {values.shape}")
         if len(values) and (values.min() < -1 or values.max() >= count):
@@ -448,3 +474,39 @@ class Mesh:
             if len(sizes) == 1 else "mixed polygons"
         uv = f", {len(self.uvs)} uvs" if self.uvs is not None else ""
         return f"<Mesh {self.n_vertices} vertices, {self.n_faces} {kind}{uv}>"
+
+
+def check_mesh(mesh, name: str) -> None:
+    """Raise unless ``mesh`` is a :class:`~facewrap.mesh.Mesh` with finite vertices
+    and at least one face.
+
+    Parameters
+    ----------
+    mesh : object
+    name : str
+        What it is ("template", "scan"): errors start ``"{name}: "``, which a job
+        turns into its file's name.
+
+    Raises
+    ------
+    TypeError
+        Not a Mesh.
+    ValueError
+        A NaN or infinite coordinate, or no faces.
+
+    Examples
+    --------
+    >>> check_mesh(Mesh(np.eye(3), [[0, 1, 2]]), "scan")
+    >>> check_mesh(Mesh(np.eye(3), []), "scan")
+    Traceback (most recent call last):
+    ...
+    ValueError: scan: has no faces (3 vertices)
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"{name} must be a Mesh, got {type(mesh).__name__}")
+    bad = ~np.isfinite(mesh.vertices).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{name}: vertex {i} is not finite ({mesh.vertices[i].tolist()})")
+    if mesh.n_faces == 0:
+        raise ValueError(f"{name}: has no faces ({mesh.n_vertices} vertices)")

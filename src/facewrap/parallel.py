@@ -64,8 +64,9 @@ def _executor(size: int) -> ThreadPoolExecutor:
     global _pool, _pool_size
     with _lock:
         if _pool is None or _pool_size < size:
-            if _pool is not None:
-                _pool.shutdown(wait=False)
+            # the smaller pool is dropped, not shut down: another thread may still be
+            # submitting to it (a shut-down pool refuses new work); its threads end
+            # once nothing refers to it
             _pool = ThreadPoolExecutor(max_workers=size, thread_name_prefix="facewrap")
             _pool_size = size
         return _pool

@@ -39,7 +39,8 @@ from numbers import Integral, Real
 import numpy as np
 
 __all__ = ["Constraint", "Options", "Interval", "Flag", "NoneAllowed", "Empty", "Pair",
-           "Instances", "SettingsError", "validate", "choices_of", "invalid_examples"]
+           "Instances", "SettingsError", "validate", "choices_of", "invalid_examples",
+           "expect_instance"]
 
 
 class SettingsError(ValueError):
@@ -84,6 +85,8 @@ class Options(Constraint):
 
     >>> Options("welsch", "huber").holds("huber"), Options(1, 2).holds(7)
     (True, False)
+    >>> Options("welsch", "huber").holds(np.str_("huber")), Options(1, 2).holds(1.0)
+    (True, False)
     """
 
     values: tuple
@@ -94,8 +97,11 @@ class Options(Constraint):
     def holds(self, value) -> bool:
         if isinstance(value, bool) and not any(isinstance(v, bool) for v in self.values):
             return False
+        # numpy's scalars count as what they hold (np.str_("rbf") read from an
+        # array is "rbf"); 1.0 is still not the option 1
         return any(type(value) is type(v) or (isinstance(v, Integral)
                                                and isinstance(value, Integral))
+                   or (isinstance(v, str) and isinstance(value, str))
                    for v in self.values) and value in self.values
 
     def describe(self) -> str:
@@ -311,3 +317,39 @@ def invalid_examples(cls) -> list[tuple[str, object]]:
                 if not any(a.holds(value) for a in alts):
                     out.append((name, value))
     return out
+
+
+def expect_instance(value, kind: type, name: str, *, optional: bool = False):
+    """``value`` when it is a ``kind`` (or None, when ``optional``), else a
+    ``TypeError`` naming the argument: a dict or a string where a settings object
+    or a mesh belongs fails here, not as an ``AttributeError`` deep inside.
+
+    Parameters
+    ----------
+    value : object
+    kind : type
+    name : str
+        The argument's name, for the message.
+    optional : bool
+        Whether None is allowed.
+
+    Returns
+    -------
+    object
+        ``value`` itself.
+
+    Examples
+    --------
+    >>> expect_instance(None, dict, "settings", optional=True) is None
+    True
+    >>> expect_instance("graph", dict, "settings")
+    Traceback (most recent call last):
+    ...
+    TypeError: settings must be a dict, got str ('graph')
+    """
+    if isinstance(value, kind) or (optional and value is None):
+        return value
+    shown = repr(value)
+    shown = shown if len(shown) <= 40 else shown[:37] + "..."
+    allowed = f"a {kind.__name__}" + (" or None" if optional else "")
+    raise TypeError(f"{name} must be {allowed}, got {type(value).__name__} ({shown})")

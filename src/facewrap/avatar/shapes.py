@@ -39,8 +39,9 @@ import scipy.sparse as sp
 
 from facewrap.avatar.parts import IBUG51_PARTS, FacePart, check_parts, part_motions
 from facewrap.geometry import Similarity, similarity_transform, vertex_normals
-from facewrap.mesh import Mesh
-from facewrap.params import Constraint, Flag, Instances, Interval, NoneAllowed, validate
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import (Constraint, Flag, Instances, Interval, NoneAllowed,
+                             expect_instance, validate)
 from facewrap.solve import factorize
 from facewrap.transfer import (TETHER_WEIGHT, Correspondence, CorrespondenceSettings,
                                CorrespondenceStage, DeformationTransfer, FlipRepair,
@@ -197,6 +198,9 @@ class AvatarTransfer:
         -------
         self
         """
+        check_mesh(source, "source")
+        check_mesh(avatar, "avatar")
+        expect_instance(correspondence, Correspondence, "correspondence", optional=True)
         t0 = time.perf_counter()
         ls, la = check_markers((source_landmarks, avatar_landmarks), source.n_vertices,
                                avatar.n_vertices, landmarks_path)

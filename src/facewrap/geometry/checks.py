@@ -45,6 +45,135 @@ def as_index_array(T, columns: int, n: int | None, name: str) -> np.ndarray:
     return T
 
 
+def as_whole_indices(a, name: str) -> np.ndarray:
+    """``a`` as int64 indices of the same shape: integers as they are, floats only
+    when every one is whole.
+
+    A face or landmark table read as text is often float, and 2.0 is vertex 2;
+    2.5 is no vertex, and casting would quietly make it vertex 2.  Booleans,
+    strings and objects are refused too (True is no vertex id).
+
+    Parameters
+    ----------
+    a : array_like of int or whole float
+    name : str
+        The argument's name, for error messages.
+
+    Returns
+    -------
+    int64 array, ``a``'s shape
+
+    Examples
+    --------
+    >>> as_whole_indices([[0, 1.0, 2]], "faces").tolist()
+    [[0, 1, 2]]
+    >>> as_whole_indices([0.5], "faces")
+    Traceback (most recent call last):
+    ...
+    ValueError: faces must hold whole numbers (indices), got 0.5
+    """
+    try:
+        arr = np.asarray(a)
+    except (TypeError, ValueError) as exc:   # ragged nesting
+        raise ValueError(f"{name} must be an array of integer indices: {exc}") from None
+    if arr.size == 0:
+        return arr.astype(np.int64)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must hold integer indices, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f":
+        bad = ~np.isfinite(arr) | (arr != np.round(arr)) | (np.abs(arr) >= 2.0 ** 63)
+        if bad.any():
+            raise ValueError(f"{name} must hold whole numbers (indices), got "
+                             f"{arr[bad].flat[0].item()!r}")
+    elif arr.dtype.kind == "u" and arr.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} index {arr.max()} is too large")
+    return arr.astype(np.int64, copy=False)
+
+
+def as_vertex_ids(ids, n: int, name: str, *, at_least: int = 1) -> np.ndarray:
+    """(k,) int64 ids of vertices of a mesh of ``n`` (whole numbers in ``[0, n)``).
+
+    Parameters
+    ----------
+    ids : (k,) int array_like
+    n : int
+        The mesh's vertex count.
+    name : str
+        The argument's name, for error messages.
+    at_least : int
+        Fewest ids allowed (an anchor set needs one, a rigid frame three).
+
+    Returns
+    -------
+    (k,) int64
+
+    Examples
+    --------
+    >>> as_vertex_ids([2, 0.0], 3, "anchors").tolist()
+    [2, 0]
+    >>> as_vertex_ids([3], 3, "anchors")
+    Traceback (most recent call last):
+    ...
+    ValueError: anchors holds vertex id 3, outside [0, 3)
+    """
+    out = as_whole_indices(ids, name)
+    if out.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional, got shape {out.shape}")
+    if len(out) < at_least:
+        raise ValueError(f"{name} needs at least {at_least} vertex id(s), got {len(out)}")
+    bad = (out < 0) | (out >= n)
+    if bad.any():
+        raise ValueError(f"{name} holds vertex id {out[bad][0]}, outside [0, {n})")
+    return out
+
+
+def as_shape_dict(shapes, n: int, name: str = "blendshapes") -> dict:
+    """Blendshapes as ``{str: (n, 3) finite float64}``, new arrays in a new dict.
+
+    Parameters
+    ----------
+    shapes : dict of str to (n, 3) float array_like
+        Positions in one topology of ``n`` vertices.
+    n : int
+        That topology's vertex count.
+    name : str
+        The argument's name, for error messages.
+
+    Returns
+    -------
+    dict of str to (n, 3) float64
+        In ``shapes``' order; read-only copies, so nothing the caller holds changes
+        them and nothing done with them changes the caller's.
+
+    Examples
+    --------
+    >>> sorted(as_shape_dict({"a": np.zeros((2, 3))}, 2))
+    ['a']
+    >>> as_shape_dict({"a": np.zeros((3, 3))}, 2)
+    Traceback (most recent call last):
+    ...
+    ValueError: blendshapes['a'] must have shape (2, 3), got (3, 3)
+    """
+    if not isinstance(shapes, dict):
+        raise TypeError(f"{name} must be a dict of name to (n, 3) positions, got "
+                        f"{type(shapes).__name__}")
+    out = {}
+    for key, value in shapes.items():
+        where = f"{name}[{key!r}]"
+        try:
+            arr = np.array(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{where} must be a float array of shape ({n}, 3): "
+                             f"{exc}") from None
+        if arr.shape != (n, 3):
+            raise ValueError(f"{where} must have shape ({n}, 3), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{where} must be finite (found NaN or inf)")
+        arr.setflags(write=False)
+        out[key] = arr
+    return out
+
+
 def as_triangles(T, n: int | None = None, name: str = "T") -> np.ndarray:
     """(t, 3) int64 triangle indices, in ``[0, n)`` when ``n`` is given."""
     return as_index_array(T, 3, n, name)

@@ -101,6 +101,8 @@ def turned_triangles(vertices, reference, triangles, angle: float = 90.0) -> np.
     if P.ndim not in (2, 3) or P.shape[-2:] != V0.shape:
         raise ValueError(f"vertices must be {V0.shape} or (k, *{V0.shape}) like reference;"
                          f" got {P.shape}")
+    if not np.isfinite(P).all():   # a NaN normal turns nowhere: it would pass as upright
+        raise ValueError("vertices must be finite (found NaN or inf)")
     n0 = triangle_normals(V0, T)
     if P.ndim == 2:
         return turned(n0, triangle_normals(P, T), angle)
@@ -181,9 +183,14 @@ def new_creases(vertices, reference, triangles) -> np.ndarray:
     >>> new_creases(folded, V, T).tolist(), new_creases(V, folded, T).tolist()
     ([[0, 1]], [])
     """
-    T = np.asarray(triangles, dtype=np.int64)
+    V0 = as_vertices(reference, "reference")
+    V = as_vertices(vertices, "vertices")
+    if V.shape != V0.shape:
+        raise ValueError(f"vertices and reference must be one topology, got {V.shape} "
+                         f"and {V0.shape}")
+    T = as_triangles(triangles, len(V0), "triangles")
     pairs = adjacent_triangle_pairs(T)
-    return pairs[facing_apart(vertices, T, pairs) & ~facing_apart(reference, T, pairs)]
+    return pairs[facing_apart(V, T, pairs) & ~facing_apart(V0, T, pairs)]
 
 
 def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:

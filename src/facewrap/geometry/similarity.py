@@ -110,8 +110,10 @@ def similarity_transform(source, target, weights=None, scale: bool = True) -> Si
                          f"and {Y.shape}")
     if len(X) == 0:
         raise ValueError("need at least one point pair")
+    if not (np.isfinite(X).all() and np.isfinite(Y).all()):   # else "SVD did not converge"
+        raise ValueError("source and target must be finite (found NaN or inf)")
     w = np.ones(len(X)) if weights is None else np.asarray(weights, dtype=np.float64)
-    if w.shape != (len(X),) or np.any(w < 0) or w.sum() <= 0:
+    if w.shape != (len(X),) or not np.isfinite(w).all() or np.any(w < 0) or w.sum() <= 0:
         raise ValueError("weights must be (k,) non-negative with a positive sum")
     w = w / w.sum()
     mx, my = w @ X, w @ Y

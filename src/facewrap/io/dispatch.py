@@ -17,6 +17,7 @@ from facewrap.io.ply import read_ply, write_ply
 from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
                                          read_trimesh_format)
 from facewrap.mesh import Mesh
+from facewrap.params import expect_instance
 
 __all__ = ["read_mesh", "write_mesh", "read_mesh_texture", "MESH_READ_EXTENSIONS",
            "MESH_WRITE_EXTENSIONS"]
@@ -28,6 +29,8 @@ MESH_READ_EXTENSIONS = (*MESH_WRITE_EXTENSIONS, *TRIMESH_EXTENSIONS)
 
 
 def _ext(path) -> str:
+    if not isinstance(path, (str, os.PathLike)):   # else os's "expected str, bytes..."
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
     return os.path.splitext(os.fspath(path))[1].lower()
 
 
@@ -85,7 +88,17 @@ def read_mesh_texture(path):
 
 
 def write_mesh(path, mesh: Mesh) -> None:
-    """Write an OBJ or PLY mesh, chosen by extension (atomic)."""
+    """Write an OBJ or PLY mesh, chosen by extension (atomic).
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` is no :class:`~facewrap.mesh.Mesh` (an array of vertices, say), or
+        ``path`` no path.
+    InputError
+        An extension it cannot write.
+    """
+    expect_instance(mesh, Mesh, "mesh")
     ext = _ext(path)
     if ext not in MESH_WRITE_EXTENSIONS:
         raise _unknown(ext, MESH_WRITE_EXTENSIONS, path)

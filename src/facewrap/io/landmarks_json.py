@@ -23,14 +23,12 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io.atomic import atomic_write
 from facewrap.io.files import read_format_items, read_json
-from facewrap.landmarks import Landmarks
+from facewrap.landmarks import Landmarks, barycentric_problem
 
 __all__ = ["read_landmarks_json", "write_landmarks_json", "read_landmark_details"]
 
 #: Largest index a file may hold (int64); larger ones are errors, not overflows.
 _MAX_INDEX = 2**63 - 1
-#: How far barycentric coordinates written with a few decimals may stray.
-_BARY_SLACK = 1e-3
 
 
 def read_landmarks_json(path) -> Landmarks:
@@ -85,7 +83,7 @@ def _barycentric(value) -> np.ndarray:
     an unnamed numerical failure; rounding in a written file is allowed for.
     """
     b = _three_numbers(value, "barycentric")
-    if b.min() < -_BARY_SLACK or abs(b.sum() - 1.0) > _BARY_SLACK:
+    if barycentric_problem(b):   # the one rule, Landmarks' own
         raise ValueError("'barycentric' must be 3 numbers in [0, 1] that sum to 1, "
                          f"got {value}")
     return b

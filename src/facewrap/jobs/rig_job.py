@@ -49,11 +49,12 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.files import folder_files
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import check_output_paths, staged_outputs
-from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.fields import check_job_fields, input_field, output_field
 from facewrap.jobs.input_checks import check_not_template, check_scan_sizes, repeated_scans
 from facewrap.jobs.wrap_job import (InputWarning, WrapJob, check_job_paths, job_inputs,
                                     job_outputs, load_wrap_inputs, textureoutput_field,
                                     write_wrap_outputs)
+from facewrap.params import expect_instance
 from facewrap.progress import progress
 from facewrap.rig import PERSONALISE_METHODS, TextureFlowSettings, build_rig
 from facewrap.rig.texture_flow import MIN_IMAGE_SIDE
@@ -213,6 +214,7 @@ def check_rig_job_paths(job: RigJob, source=None) -> None:
     ------
     InputError
     """
+    check_job_fields(job, RigJob)
     if job.method not in PERSONALISE_METHODS:
         raise InputError(f"method must be one of {', '.join(PERSONALISE_METHODS)}; got "
                          f"{job.method!r}", source)
@@ -481,7 +483,7 @@ def run_rig_job(job: RigJob, settings: WrapSettings | None = None, *,
     InputError
         Naming the file, before anything is written.
     """
-    settings = settings or WrapSettings()
+    settings = expect_instance(settings, WrapSettings, "settings", optional=True) or WrapSettings()
     check_rig_job_paths(job)
     # on a terminal, one line that says which step runs (the wraps draw their own)
     with progress(3, "rig: reading the scans") as bar:

@@ -49,9 +49,9 @@ from facewrap.io.mtl import library_beside, write_mtl
 from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
-from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.fields import check_job_fields, input_field, output_field
 from facewrap.jobs.input_checks import oversized_shapes
-from facewrap.params import Flag, Interval, NoneAllowed, validate
+from facewrap.params import Flag, Interval, NoneAllowed, expect_instance, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
 from facewrap.transfer.constraints import marker_placement
@@ -176,6 +176,8 @@ def check_transfer_job_paths(job: TransferJob, source=None) -> None:
     ------
     InputError
     """
+    check_job_fields(job, TransferJob)
+    expect_instance(job.settings, TransferJobSettings, "TransferJob.settings")
     if not job.source_shapes:
         raise InputError("no source shapes given", source or job.source_neutral)
     if job.gltf:  # .glb or .gltf: refused before the fit, not after the shapes are written

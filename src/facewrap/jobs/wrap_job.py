@@ -42,13 +42,14 @@ from facewrap.io.gltf import gltf_format, write_gltf_morphs
 from facewrap.io.mtl import output_library, with_library, write_mtl
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.io.profile import find_template_profile, read_template_profile
-from facewrap.jobs.fields import input_field, output_field
+from facewrap.jobs.fields import check_job_fields, input_field, output_field
 from facewrap.jobs.input_checks import (check_model_settings, check_scan,
                                         check_template_landmarks, check_uv_layouts,
                                         nothing_to_fit, oversized_shapes, survey_mesh,
                                         unpaired_landmarks)
 from facewrap.mesh import Mesh
 from facewrap.parallel import in_background
+from facewrap.params import expect_instance
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import (bake_memory, bake_tiles, file_layout, material_images,
                                     tile_image_paths)
@@ -228,6 +229,7 @@ def check_job_paths(job: WrapJob, source=None) -> None:
     ------
     InputError
     """
+    check_job_fields(job, WrapJob)
     ext = os.path.splitext(job.output)[1].lower()
     if ext not in MESH_EXTENSIONS:
         # named as the job file's entry, or as the output path itself (said once)
@@ -529,7 +531,7 @@ def run_wrap_job(job: WrapJob, settings: WrapSettings | None = None, *,
     :class:`~facewrap.wrapping.GraphCache`; default: the process-wide one), so the
     jobs of a batch that share a template build its graphs once per worker.
     """
-    settings = settings or WrapSettings()
+    settings = expect_instance(settings, WrapSettings, "settings", optional=True) or WrapSettings()
     check_job_paths(job)
     t0 = time.perf_counter()
     inputs = load_wrap_inputs(job, settings)

@@ -44,7 +44,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, solve_triangular
 
-from facewrap.mesh import Mesh
+from facewrap.geometry.checks import as_points, as_shape_dict, as_vertex_ids
+from facewrap.mesh import Mesh, check_mesh
 from facewrap.params import Interval, validate
 from facewrap.solve.fixed import FixedSystem
 from facewrap.transfer.deformation import source_gradient_blocks
@@ -299,11 +300,17 @@ class _Poisson:
 
 
 def _checked(neutral: Mesh, shapes: dict, examples, masks, weights):
-    names = list(shapes)
+    check_mesh(neutral, "neutral")
     n = neutral.n_vertices
-    S = np.stack([np.asarray(shapes[k], dtype=np.float64) for k in names])
-    E = np.stack([np.asarray(e, dtype=np.float64) for e in examples])
-    if S.shape[1:] != (n, 3) or E.shape[1:] != (n, 3):
+    shapes = as_shape_dict(shapes, n, "shapes")
+    names = list(shapes)
+    examples = list(examples)
+    if not names or not examples:
+        raise ValueError(f"need shapes and examples, got {len(names)} shape(s) and "
+                         f"{len(examples)} example(s)")
+    S = np.stack([shapes[k] for k in names])
+    E = np.stack([as_points(e, f"examples[{j}]") for j, e in enumerate(examples)])
+    if E.shape[1:] != (n, 3):
         raise ValueError(f"shapes and examples must be ({n}, 3) each")
     k = len(E)
     trust = np.ones((k, n), dtype=bool)
@@ -388,7 +395,7 @@ def fit_examples(neutral: Mesh, shapes: dict, examples, *, masks=(), weights=(),
     t0 = time.perf_counter()
     names, S, E, trust, prior = _checked(neutral, shapes, examples, masks, weights)
     V0 = neutral.vertices
-    rigid = np.array([0]) if rigid is None else np.asarray(rigid, dtype=np.int64)
+    rigid = np.array([0]) if rigid is None else as_vertex_ids(rigid, len(V0), "rigid")
     poisson = _Poisson(neutral, int(rigid[0]))
     T = poisson.op.triangles
     prior_shapes = _ShapeGradients(poisson.op, S, settings)

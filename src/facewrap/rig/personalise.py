@@ -22,9 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from facewrap.geometry.checks import as_shape_dict, as_vertex_ids
 from facewrap.geometry.similarity import Similarity
-from facewrap.mesh import Mesh
-from facewrap.params import Options, validate
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import Options, expect_instance, validate
 from facewrap.rig.stabilise import least_moving
 from facewrap.transfer import Correspondence, DeformationTransfer
 
@@ -115,18 +116,24 @@ def personalise_shapes(template: Mesh, shapes: dict, person: Mesh, similarity: S
     True
     """
     _Method(method)
+    check_mesh(template, "template")
+    check_mesh(person, "person")
+    if person.n_vertices != template.n_vertices:
+        raise ValueError(f"person must be the template wrapped onto them ({template.n_vertices} "
+                         f"vertices), got {person.n_vertices} vertices")
+    shapes = as_shape_dict(shapes, template.n_vertices, "shapes")
+    expect_instance(similarity, Similarity, "similarity")
     t0 = time.perf_counter()
     names = list(shapes)
     aligned = similarity.apply(template.vertices)
-    poses = np.stack([similarity.apply(np.asarray(shapes[k], dtype=np.float64))
-                      for k in names]) if names else np.zeros((0, template.n_vertices, 3))
+    poses = np.stack([similarity.apply(shapes[k]) for k in names]) if names \
+        else np.zeros((0, template.n_vertices, 3))
     if method == "delta":
         out = person.vertices[None] + (poses - aligned[None])
         return PersonalisedShapes(dict(zip(names, out)), method,
                                   {"factor": 0.0, "shapes": time.perf_counter() - t0})
-    if anchors is None:
-        anchors = least_moving(poses, aligned)
-    anchors = np.asarray(anchors, dtype=np.int64)
+    anchors = (least_moving(poses, aligned) if anchors is None
+               else as_vertex_ids(anchors, template.n_vertices, "anchors"))
     source = template.with_vertices(aligned)
     # one anchor vertex fixes the solve's translation; the anchors' mean then sets it
     transfer = DeformationTransfer(anchor=int(anchors[0]), fix_flips=False).fit(

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from facewrap.geometry.checks import as_points, as_vertex_ids
 from facewrap.geometry.normals import vertex_normals
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.wrapping.align import rigid_icp
@@ -242,8 +243,14 @@ def stabilise(expression, neutral, rigid, *, iterations: int = ROBUST_ITERATIONS
     """
     X = np.asarray(expression, dtype=np.float64)
     Y = np.asarray(neutral, dtype=np.float64)
-    ids = np.asarray(rigid, dtype=np.int64)
-    P, Q = X[ids], Y[ids]
+    if X.shape != Y.shape or Y.ndim != 2 or Y.shape[1] != 3:
+        # two topologies: rows would pair unrelated vertices
+        raise ValueError(f"expression and neutral must be (n, 3), one topology, got "
+                         f"{X.shape} and {Y.shape}")
+    ids = as_vertex_ids(rigid, len(Y), "rigid", at_least=3)
+    # (only the rigid rows must be finite: the others, NaN where unknown, just move)
+    P, Q = as_points(X[ids], "expression's rigid vertices"), \
+        as_points(Y[ids], "neutral's rigid vertices")
     w = np.ones(len(ids))
     pose = similarity_transform(P, Q, scale=False)
     for _ in range(iterations):

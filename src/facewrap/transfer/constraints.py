@@ -14,6 +14,7 @@ import numpy as np
 
 from facewrap.errors import InputError
 from facewrap.geometry import connected_components
+from facewrap.geometry.checks import as_whole_indices
 from facewrap.geometry.similarity import MIRROR_RATIO, mirror_fit, similarity_transform
 from facewrap.wrapping.plausibility import landmark_spread, robust_similarity, swapped_pairs
 
@@ -51,13 +52,18 @@ def check_markers(markers, n_source: int, n_target: int, path=None
     InputError
         No markers, or an id out of range.
     """
-    if isinstance(markers, tuple) and len(markers) == 2:
-        src, tgt = (np.asarray(m, dtype=np.int64).reshape(-1) for m in markers)
+    pair = isinstance(markers, tuple) and len(markers) == 2
+    try:   # ids 2.5 are no vertex: refused, not cast to vertex 2
+        ids = ([as_whole_indices(m, "markers").reshape(-1) for m in markers] if pair
+               else as_whole_indices(markers, "markers"))
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None
+    if pair:
+        src, tgt = ids
+    elif ids.ndim != 2 or ids.shape[1] != 2:
+        raise InputError(f"markers must be (m, 2) pairs, got shape {ids.shape}", path)
     else:
-        arr = np.asarray(markers, dtype=np.int64)
-        if arr.ndim != 2 or arr.shape[1] != 2:
-            raise InputError(f"markers must be (m, 2) pairs, got shape {arr.shape}", path)
-        src, tgt = arr[:, 0], arr[:, 1]
+        src, tgt = ids[:, 0], ids[:, 1]
     if len(src) != len(tgt) or len(src) == 0:
         raise InputError("need at least one (source, target) marker pair", path)
     for name, ids, n in (("source", src, n_source), ("target", tgt, n_target)):

@@ -30,8 +30,8 @@ from facewrap.errors import InputError
 from facewrap.geometry.frames import NormalisedFrame
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.io.atomic import atomic_write
-from facewrap.mesh import Mesh
-from facewrap.params import Instances, Interval, NoneAllowed, Options, validate
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import Instances, Interval, NoneAllowed, Options, expect_instance, validate
 from facewrap.transfer.constraints import check_markers
 from facewrap.transfer.marker_deformation import (SUMNER_SCHEDULE, CorrespondenceStage,
                                                   deform_toward)
@@ -262,8 +262,13 @@ def find_correspondence(source: Mesh, target: Mesh, markers,
     ------
     InputError
         Marker ids out of range.
+    TypeError, ValueError
+        Not a Mesh, a mesh with a NaN or no faces, settings of another kind.
     """
-    settings = settings or CorrespondenceSettings()
+    check_mesh(source, "source")
+    check_mesh(target, "target")
+    settings = expect_instance(settings, CorrespondenceSettings, "settings",
+                               optional=True) or CorrespondenceSettings()
     src_ids, tgt_ids = check_markers(markers, source.n_vertices, target.n_vertices,
                                      markers_path)
     t0 = time.perf_counter()

@@ -34,8 +34,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from facewrap.mesh import Mesh
-from facewrap.params import Flag, Interval, Options, validate
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import Flag, Interval, Options, expect_instance, validate
 from facewrap.solve import FixedSystem
 from facewrap.transfer.constraints import TETHER_WEIGHT, untethered_vertices
 from facewrap.transfer.correspondence import Correspondence
@@ -56,8 +56,17 @@ def as_pose_stack(poses, n_vertices: int, name: str = "poses") -> tuple[np.ndarr
     ValueError
         Naming ``name``, when the vertex count or shape is wrong or values are
         not finite.
+    TypeError
+        Naming ``name``, for a dict or what is no array of numbers.
     """
-    P = np.asarray(poses, dtype=np.float64)
+    if isinstance(poses, dict):   # a shape set as read: say how to pass it
+        raise TypeError(f"{name} must be an array, not a dict: pass "
+                        "np.stack(list(shapes.values())) and zip the names back")
+    try:
+        P = np.asarray(poses, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a (k, {n_vertices}, 3) or ({n_vertices}, 3) "
+                        f"float array: {exc}") from None
     single = P.ndim == 2
     if single:
         P = P[None]
@@ -262,6 +271,9 @@ class DeformationTransfer:
         -------
         self
         """
+        check_mesh(source, "source")
+        check_mesh(target, "target")
+        expect_instance(correspondence, Correspondence, "correspondence")
         correspondence.check(source, target)
         t0 = time.perf_counter()
         anchor = self._anchor_vertex(correspondence, target.n_vertices)
@@ -345,7 +357,7 @@ class DeformationTransfer:
             Same leading shape as ``poses``.  With ``fix_flips``, poses with new
             flips are repaired (:attr:`repairs_` says which and how).
         """
-        P, single = as_pose_stack(poses, self.source_.n_vertices)
+        P, single = as_pose_stack(poses, self._fitted().source_.n_vertices)
         k = len(P)
         rhs = self._rhs_map @ extend_poses(self._source_op, P)
         rhs += np.tile(self._const_rhs, (1, k))
@@ -365,5 +377,12 @@ class DeformationTransfer:
 
     def transfer_meshes(self, poses) -> list[Mesh]:
         """:meth:`transfer` as meshes in the target's exact topology (quads, UVs)."""
-        X, single = as_pose_stack(poses, self.source_.n_vertices)
+        X, single = as_pose_stack(poses, self._fitted().source_.n_vertices)
         return [self.target_.with_vertices(v) for v in self.transfer(X)]
+
+    def _fitted(self) -> "DeformationTransfer":
+        """``self`` once :meth:`fit` has run, else an error that says to call it."""
+        if not hasattr(self, "source_"):
+            raise RuntimeError("DeformationTransfer is not fitted: call "
+                               "fit(source, target, correspondence) first")
+        return self

@@ -14,8 +14,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from facewrap.geometry import ClosestPointTree
+from facewrap.geometry.checks import as_shape_dict
 from facewrap.landmarks import Landmarks, pair_landmarks, snap_to_surface
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import expect_instance
 from facewrap.wrapping.likeness import check_likeness
 from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
@@ -25,7 +27,8 @@ from facewrap.wrapping.roles import (FITTED, cached_hidden_surface, landmarks_on
                                     vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
 
-__all__ = ["WrapProblem", "prepare_wrap", "alignment_weights", "SNAP_TOLERANCE"]
+__all__ = ["WrapProblem", "prepare_wrap", "alignment_weights", "SNAP_TOLERANCE",
+           "check_wrap_arguments"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +105,8 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
         ``exclude``, ``fit_mask`` or ``pinned``.
     """
     s = replace(settings or WrapSettings())
+    if s.stages is not None:   # the result's settings must not be the caller's stages
+        s.stages = [replace(stage) for stage in s.stages]
     spec = model_spec(s.model, has_blendshapes=bool(blendshapes))
     s.model = spec.name
     if spec.needs_blendshapes and not blendshapes:
@@ -150,6 +155,50 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                        blendshapes, s, spec,
                        DEFAULT_GRAPH_CACHE if graph_cache is None else graph_cache,
                        tuple(notes + scan_notes))
+
+
+def check_wrap_arguments(template, scan, template_landmarks, scan_landmarks, settings,
+                         *, blendshapes=None, scan_tree=None, graph_cache=None
+                         ) -> dict | None:
+    """Check the arguments of :func:`~facewrap.wrapping.wrap` at the door: their
+    types, finite meshes, landmark ids inside their meshes, a tree built on this
+    scan, and blendshapes of the template's size.
+
+    Parameters are those of :func:`~facewrap.wrapping.wrap`.
+
+    Returns
+    -------
+    dict of str to (n, 3) float64, or None
+        ``blendshapes`` checked, as read-only copies in a dict of their own.
+
+    Raises
+    ------
+    TypeError
+        An argument of the wrong kind (a dict for the settings, an array for a mesh).
+    ValueError
+        Starting with what it is about (``"scan: ..."``, ``"template landmarks:
+        ..."``), as the wrap's other refusals do.
+    """
+    check_mesh(template, "template")
+    check_mesh(scan, "scan")
+    expect_instance(settings, WrapSettings, "settings", optional=True)
+    expect_instance(graph_cache, GraphCache, "graph_cache", optional=True)
+    for what, mesh, landmarks in (("template", template, template_landmarks),
+                                  ("scan", scan, scan_landmarks)):
+        expect_instance(landmarks, Landmarks, f"{what}_landmarks")
+        try:
+            landmarks.check(mesh.n_vertices, len(mesh.triangles))
+        except ValueError as exc:
+            raise ValueError(f"{what} landmarks: {exc}") from None
+    if expect_instance(scan_tree, ClosestPointTree, "scan_tree", optional=True) is not None:
+        if not (np.array_equal(scan_tree.triangles, scan.triangles)
+                and np.array_equal(scan_tree.vertices, scan.vertices)):
+            raise ValueError(f"scan_tree was built on another mesh ({len(scan_tree.vertices)} "
+                             f"vertices, {len(scan_tree.triangles)} triangles) than the scan "
+                             f"({scan.n_vertices}, {len(scan.triangles)})")
+    if blendshapes is None:
+        return None
+    return as_shape_dict(blendshapes, template.n_vertices)
 
 
 #: template landmarks given as points may lie this far off the template's surface

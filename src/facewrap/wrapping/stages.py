@@ -31,13 +31,15 @@ from facewrap.geometry import ClosestPointTree, connected_components, turned_tri
 from facewrap.geometry.similarity import Similarity, similarity_transform
 from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
+from facewrap.params import expect_instance
 from facewrap.progress import progress
 from facewrap.wrapping.align import rigid_icp
 from facewrap.wrapping.coverage import landmarks_off_scan
 from facewrap.wrapping.finish import finish_fit, pin, project
 from facewrap.wrapping.model_fit import ModelFit, coarse_fit, icp_fit, icp_start
 from facewrap.wrapping.models.graph import GraphCache
-from facewrap.wrapping.problem import WrapProblem, alignment_weights, prepare_wrap
+from facewrap.wrapping.problem import (WrapProblem, alignment_weights, check_wrap_arguments,
+                                      prepare_wrap)
 from facewrap.wrapping.projection import Projection
 from facewrap.wrapping.roles import FITTED
 from facewrap.wrapping.seams import seam_weld
@@ -266,7 +268,22 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     Returns
     -------
     WrapResult
+
+    Raises
+    ------
+    TypeError
+        An argument of the wrong kind.
+    ValueError
+        Inputs that cannot be fitted; the message starts with what it is about
+        (``"scan: ..."``, ``"template landmarks: ..."``).
     """
+    blendshapes = check_wrap_arguments(template, scan, template_landmarks, scan_landmarks,
+                                       settings, blendshapes=blendshapes,
+                                       scan_tree=scan_tree, graph_cache=graph_cache)
+    if expect_instance(initial, WrapResult, "initial", optional=True) is not None \
+            and initial.mesh.n_vertices != template.n_vertices:
+        raise ValueError(f"initial is a result of another template ({initial.mesh.n_vertices} "
+                         f"vertices, the template has {template.n_vertices})")
     weld = seam_weld(template, blendshapes)
     if weld is not None:   # one surface where an exporter split the template (.seams)
         return weld.unweld(wrap(

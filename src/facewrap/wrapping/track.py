@@ -30,7 +30,8 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.mtl import with_library
 from facewrap.io.paths import staged_outputs
 from facewrap.landmarks import Landmarks
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_mesh
+from facewrap.params import expect_instance
 from facewrap.wrapping.icp.schedule import Stage
 from facewrap.wrapping.models import default_schedule, model_spec
 from facewrap.wrapping.models.graph import GraphCache
@@ -184,10 +185,12 @@ def track(template: Mesh, scans, template_landmarks: Landmarks, scan_landmarks,
     frames, given = [], []
     previous = None
     for i, scan in enumerate(scans):
-        tree = ClosestPointTree(scan.vertices, scan.triangles)
+        expect_instance(scan, Mesh, f"scans[{i}]")
         lm = scan_landmarks[i]
         given.append(lm is not None)
         try:
+            check_mesh(scan, "scan")   # before its tree, which would name no argument
+            tree = ClosestPointTree(scan.vertices, scan.triangles)
             if previous is None:
                 result = wrap(template, scan, template_landmarks, lm, first_settings or s0,
                               exclude=exclude, blendshapes=blendshapes, scan_tree=tree,

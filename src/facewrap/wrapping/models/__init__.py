@@ -116,7 +116,12 @@ def _unchanged(vertices, landmarks, targets, settings) -> np.ndarray:
 def _rbf_warp(vertices, landmarks, targets, settings) -> np.ndarray:
     """The "rbf" wrap: landmark displacements interpolated over the template."""
     warp = RBFWarp(kernel=settings.kernel, smoothing=settings.smoothing)
-    return warp.fit(landmarks, targets - landmarks).transform(vertices)
+    try:
+        warp.fit(landmarks, targets - landmarks)
+    except ValueError as exc:   # say what it is about, so a job can name the file
+        raise ValueError(f"template landmarks: {exc} (a vertex id listed twice?): the "
+                         "rbf model needs a place of its own for each") from None
+    return warp.transform(vertices)
 
 
 #: every model a wrap can use, by ``WrapSettings.model`` value (in the order the

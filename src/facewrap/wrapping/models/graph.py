@@ -26,6 +26,7 @@ hybrid model (:mod:`facewrap.wrapping.models.hybrid`) reuses them on blended pos
 from __future__ import annotations
 
 import hashlib
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -447,13 +448,19 @@ class GraphCache:
             raise ValueError(f"capacity must be at least 1, got {capacity!r}")
         self.capacity = int(capacity)
         self._graphs: OrderedDict[tuple, DeformationGraph] = OrderedDict()
+        # wraps on several threads share one cache: a lookup must not see a graph
+        # another thread is dropping (graphs are built outside it, so two threads
+        # may build one graph, never wait for each other's)
+        self._lock = threading.Lock()
 
     def __len__(self) -> int:
-        return len(self._graphs)
+        with self._lock:
+            return len(self._graphs)
 
     def clear(self) -> None:
         """Forget every graph (e.g. between batches of different templates)."""
-        self._graphs.clear()
+        with self._lock:
+            self._graphs.clear()
 
     def graph(self, vertices, triangles, spacing: float) -> DeformationGraph:
         """The graph of a template at a node spacing, built on first use.
@@ -475,9 +482,10 @@ class GraphCache:
         T = np.ascontiguousarray(triangles)
         key = (hashlib.sha1(V.tobytes() + T.tobytes()).hexdigest(), V.shape, T.shape,
                float(spacing))
-        if key in self._graphs:
-            self._graphs.move_to_end(key)
-            return self._graphs[key]
+        with self._lock:
+            if key in self._graphs:
+                self._graphs.move_to_end(key)
+                return self._graphs[key]
         # on disk too (facewrap.io.cache): a new process (every CLI run, every
         # batch worker) reads the graph of a template it has seen instead of
         # running the surface Dijkstra searches again
@@ -493,9 +501,11 @@ class GraphCache:
             graph = build_graph(frame.to_frame(V), T, spacing=spacing)
             save_arrays(_GRAPH_KIND, disk_key, {f: getattr(graph, f) for f in _GRAPH_FIELDS},
                         version=_GRAPH_VERSION)
-        self._graphs[key] = graph
-        while len(self._graphs) > self.capacity:
-            self._graphs.popitem(last=False)
+        with self._lock:
+            self._graphs[key] = graph
+            self._graphs.move_to_end(key)
+            while len(self._graphs) > self.capacity:
+                self._graphs.popitem(last=False)
         return graph
 
 
