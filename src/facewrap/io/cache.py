@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import threading
 import zipfile
 
 import numpy as np
@@ -32,6 +33,8 @@ __all__ = ["cache_dir", "content_key", "load_arrays", "save_arrays"]
 
 # bump when the layout of every entry changes; each kind carries its own version too
 _FORMAT = 1
+#: see :func:`load_arrays`
+_READING = threading.Lock()
 _META = "__facewrap_cache__"
 
 
@@ -132,7 +135,11 @@ def load_arrays(kind: str, key: str, names, *, version: int = 1) -> dict | None:
         return None
     path = _entry_path(folder, kind, key)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # one reader at a time: np.load parses each array's header with
+        # ast.literal_eval, which CPython 3.11 can fail on two threads at once
+        # ("SystemError: AST constructor recursion depth mismatch", CPython
+        # gh-106905); entries are small, the wait is short
+        with _READING, np.load(path, allow_pickle=False) as data:
             meta = data[_META]
             if meta.tolist() != [_FORMAT, int(version)]:
                 return None

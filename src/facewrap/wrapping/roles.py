@@ -23,6 +23,7 @@ True
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -233,26 +234,32 @@ class _HiddenSurfaceCache:
     def __init__(self, size: int = 4):
         self.size = size
         self._items: OrderedDict = OrderedDict()
+        # wraps on threads share it: a lookup and another's eviction must not
+        # interleave (found, then evicted: a KeyError); the search runs outside
+        self._lock = threading.Lock()
 
     def __call__(self, V, T) -> HiddenSurface:
         key = _hidden_surface_key(V, T)
-        if key in self._items:
-            self._items.move_to_end(key)
-            return self._items[key]
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
         found = _load_hidden_surface(key, len(V))
         if found is None:
             found = find_hidden_surface(V, T)
             save_arrays(_CACHE_KIND, key, {"part": found.part, "cavity": found.cavity,
                                            "skin_pieces": np.int64(found.skin_pieces)},
                         version=_CACHE_VERSION)
-        self._items[key] = found
-        while len(self._items) > self.size:
-            self._items.popitem(last=False)
+        with self._lock:
+            self._items[key] = found
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
         return found
 
     def clear(self) -> None:
         """Forget the hidden surfaces held in this process (those on disk stay)."""
-        self._items.clear()
+        with self._lock:
+            self._items.clear()
 
 
 #: the hidden surface of a template, from this process's last templates, the disk
