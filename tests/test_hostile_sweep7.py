@@ -302,7 +302,7 @@ def test_shared_caches_are_safe_on_threads(small, monkeypatch):
     finally:
         sys.setswitchinterval(switch)
     assert errors == []
-    # two wraps at once give what one after another give, bit for bit
+    # two wraps at once give what one after another give
     tpl, scan = small["tpl"], small["scan"]
     other = make_scan(tpl, resolution=40, texture_size=16, identity_seed=2)
     jobs = [(tpl.mesh, s.mesh, tpl.landmarks, s.landmarks) for s in (scan, other)]
@@ -316,5 +316,9 @@ def test_shared_caches_are_safe_on_threads(small, monkeypatch):
     threads = [threading.Thread(target=fit, args=(k,)) for k in range(2)]
     [t.start() for t in threads]
     [t.join() for t in threads]
-    assert all(np.array_equal(a, b) for a, b in zip(alone, together))
+    # the same to round-off: BLAS's thread count is process-wide, so the two wraps
+    # may sum in another order beside each other (2.8e-14 mm under numpy 1.26);
+    # a cache handing one wrap the other's state would move whole vertices
+    size = float(np.ptp(tpl.mesh.vertices, axis=0).max())
+    assert all(np.abs(a - b).max() <= 1e-9 * size for a, b in zip(alone, together))
 
