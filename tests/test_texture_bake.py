@@ -95,6 +95,14 @@ def test_bake_resamples_a_smooth_image_at_another_size():
     assert err.max() <= 1.0 and err.mean() < 0.5
 
 
+def test_bake_refuses_an_image_too_large_to_hold_before_allocating_it():
+    """``size=10**6`` failed as a bare MemoryError at allocation (a terabyte image)."""
+    mesh = uv_plane(2)
+    for bad in (10 ** 6, (64, 10 ** 5), 16385):
+        with pytest.raises(ValueError, match="at most 16384 pixels a side"):
+            bake_texture(mesh, mesh, gradient_image(8), size=bad)
+
+
 def test_bake_between_rotated_layouts_rotates_the_image():
     S = 96
     scan = uv_plane(6)                                              # uv = (x, y)

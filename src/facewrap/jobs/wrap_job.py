@@ -53,6 +53,7 @@ from facewrap.params import expect_instance
 from facewrap.texture import load_image, save_png
 from facewrap.texture.tiles import (bake_memory, bake_tiles, file_layout, material_images,
                                     tile_image_paths)
+from facewrap.texture.bake import MAX_SIDE
 from facewrap.texture.udim import FIRST_TILE
 from facewrap.units import (check_units_choice, metres_per_unit, resolve_units,
                             units_conflict)
@@ -238,9 +239,9 @@ def check_job_paths(job: WrapJob, source=None) -> None:
                          "use .obj or .ply", source or job.output)
     check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
     # a setting's problem: named with the job file, or alone (not as the output's)
-    if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= 16384:
-        raise InputError(f"texture_size (--texture-size) must be an integer in [1, 16384],"
-                         f" got {job.texture_size!r}", source)
+    if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= MAX_SIDE:
+        raise InputError(f"texture_size (--texture-size) must be an integer in [1, "
+                         f"{MAX_SIDE}], got {job.texture_size!r}", source)
     need = bake_memory(job.texture_size)
     if job.texture and need > memory_budget():
         raise InputError(f"texture_size (--texture-size) {job.texture_size}: baking needs "

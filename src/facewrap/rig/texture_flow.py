@@ -53,6 +53,7 @@ from facewrap.rig.flow_match import (FlowMatches, MatchRules, ScanViews,
                                      TexturedSurface, face_cameras, flow_matches,
                                      prefiltered)
 from facewrap.solve.factor import factorize
+from facewrap.texture.bake import MAX_SIDE
 
 __all__ = ["TextureFlowSettings", "TextureRefinement", "refine_by_texture",
            "flow_available", "FLOW_EXTRA"]
@@ -113,7 +114,7 @@ class TextureFlowSettings(MatchRules):
                    "views": Interval(int, 1, 5), "image_size": Interval(int, 64, 4096),
                    "smoothness": Interval(float, 0, None, closed="neither"),
                    "min_gain": Interval(float, 0, 1, closed="left"),
-                   "texture_size": Interval(int, 1, 16384)}
+                   "texture_size": Interval(int, 1, MAX_SIDE)}
 
 
 @dataclass(frozen=True)

@@ -26,8 +26,9 @@ from facewrap.mesh import Mesh
 from facewrap.texture.udim import FIRST_TILE, tile_origin, triangle_tiles
 from facewrap.texture.uvs import checked_uv_mesh, trusted_scan_uvs
 
-__all__ = ["BLOCK_TEXELS", "SEEN", "UVRaster", "rasterize_uv", "sample_image", "BakeResult",
-           "scan_visibility", "bake_texture", "pad_texture", "interpolate_images"]
+__all__ = ["BLOCK_TEXELS", "MAX_SIDE", "SEEN", "UVRaster", "rasterize_uv", "sample_image",
+           "BakeResult", "scan_visibility", "bake_texture", "pad_texture",
+           "interpolate_images"]
 
 # A texel centre counts as inside a UV triangle when its barycentric coordinates are
 # all >= -_INSIDE_TOL: texel centres exactly on a shared edge then belong to both
@@ -38,6 +39,8 @@ _INSIDE_TOL = 1e-7
 #: (~170 MB, where a whole 1024^2 layout at once took 550 MB and a 4096^2 one 6 GB),
 #: and the closest-point queries run faster in such bands (cache) than all at once.
 BLOCK_TEXELS = 1 << 18
+#: the largest side of a baked image, pixels (a bake keeps ~64 bytes a texel: 16 GiB)
+MAX_SIDE = 16384
 
 
 def _rgb(image: np.ndarray) -> np.ndarray:
@@ -48,13 +51,16 @@ def _rgb(image: np.ndarray) -> np.ndarray:
 
 
 def _size(size) -> tuple[int, int]:
-    """``size`` as ``(H, W)``: an int (square) or a pair of positive ints."""
+    """``size`` as ``(H, W)``: an int (square) or a pair of positive ints, each at
+    most :data:`MAX_SIDE` (a size of 10**6 failed as a bare ``MemoryError``)."""
     pair = (size, size) if np.ndim(size) == 0 else tuple(np.asarray(size).tolist())
     if (len(pair) != 2 or any(isinstance(s, (bool, np.bool_)) or
                               not isinstance(s, (int, np.integer)) or s <= 0
                               for s in pair)):
         raise ValueError(f"size must be a positive int or a pair (H, W) of them, "
                          f"got {size!r}")
+    if max(pair) > MAX_SIDE:
+        raise ValueError(f"size must be at most {MAX_SIDE} pixels a side, got {size!r}")
     return int(pair[0]), int(pair[1])
 
 
