@@ -19,6 +19,8 @@ from typing import Sequence
 
 import numpy as np
 
+from facewrap.params import not_one_string
+
 __all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES",
            "BARYCENTRIC_SLACK", "barycentric_problem"]
 
@@ -142,9 +144,7 @@ class Landmarks:
         problem = barycentric_problem(barycentric[triangle >= 0])
         if problem:
             raise ValueError(f"barycentric coordinates {problem}")
-        if isinstance(names, (str, bytes)):   # "nose" would be four names, n, o, s, e
-            raise TypeError(f"names must be a sequence of strings, got one string "
-                            f"{names!r}")
+        not_one_string(names, "names")
         if names is not None:
             names = tuple(str(n) for n in names)
             if len(names) != k:

@@ -25,6 +25,8 @@ from typing import Sequence
 
 import numpy as np
 
+from facewrap.params import not_one_string
+
 __all__ = ["Mesh", "polygons_from_list", "triangulate_polygons", "check_mesh"]
 
 
@@ -221,9 +223,7 @@ class Mesh:
 
         for what, names in (("materials", materials), ("groups", groups),
                             ("mtllib", mtllib)):
-            if isinstance(names, (str, bytes)):   # "skin" would be four names
-                raise TypeError(f"{what} must be a sequence of strings, got one "
-                                f"string {names!r}")
+            not_one_string(names, what)
         self.materials = tuple(materials)
         self.face_materials = self._per_face(face_materials, m, len(self.materials),
                                              "face_materials")

@@ -40,7 +40,7 @@ import numpy as np
 
 __all__ = ["Constraint", "Options", "Interval", "Flag", "NoneAllowed", "Empty", "Pair",
            "Instances", "SettingsError", "validate", "choices_of", "invalid_examples",
-           "expect_instance"]
+           "expect_instance", "not_one_string"]
 
 
 class SettingsError(ValueError):
@@ -353,3 +353,21 @@ def expect_instance(value, kind: type, name: str, *, optional: bool = False):
     shown = shown if len(shown) <= 40 else shown[:37] + "..."
     allowed = f"a {kind.__name__}" + (" or None" if optional else "")
     raise TypeError(f"{name} must be {allowed}, got {type(value).__name__} ({shown})")
+
+
+def not_one_string(value, name: str):
+    """``value`` unless it is one string where a sequence of names belongs (``"skin"``
+    would be read as the four names s, k, i, n), else a ``TypeError`` naming it.
+
+    Examples
+    --------
+    >>> not_one_string(["skin", "lips"], "materials")
+    ['skin', 'lips']
+    >>> not_one_string("skin", "materials")
+    Traceback (most recent call last):
+    ...
+    TypeError: materials must be a sequence of strings, got one string 'skin'
+    """
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a sequence of strings, got one string {value!r}")
+    return value

@@ -190,9 +190,7 @@ def find_hidden_surface(V, T) -> HiddenSurface:
         if flipped[cand_v].sum() > seen[cand_v].sum():
             seen, outward = flipped, False
     skin = candidate.copy()
-    others = candidate.copy()
-    others[largest] = False
-    if others.any():   # is each other large piece skin, open to the outside?
+    if candidate.sum() > 1:   # is each other large piece skin, open to the outside?
         well_seen = _seen(V, T, labels, candidate, closed, outward, _PIECE_VIEWS_NEEDED)
         share = np.bincount(labels[well_seen], minlength=pieces) / np.maximum(
             np.bincount(labels, minlength=pieces), 1)
