@@ -105,8 +105,12 @@ def grid(rows: int, cols: int, closed: bool) -> list:
     return F
 
 
-def _fan(ring, centre) -> list:
-    return [[ring[(j + 1) % len(ring)], ring[j], centre] for j in range(len(ring))]
+def _fan(ring, centre, first: bool) -> list:
+    """Triangles closing ``ring`` at ``centre``, oriented as :func:`grid`'s quads
+    when the ring is the grid's ``first`` row (else its last): one oriented surface,
+    so that a signed distance or a visibility test reads one side of it."""
+    F = [[ring[(j + 1) % len(ring)], ring[j], centre] for j in range(len(ring))]
+    return F if first else [f[::-1] for f in F]
 
 
 def sphere(centre, radii, frame: Frame, rings: int = 10, segments: int = 20):
@@ -118,8 +122,7 @@ def sphere(centre, radii, frame: Frame, rings: int = 10, segments: int = 20):
     local = np.vstack([local.reshape(-1, 3), [[0, 0, -1], [0, 0, 1]]]) * radii
     n = rings * segments
     F = grid(rings, segments, True)
-    F += [f[::-1] for f in _fan(np.arange(segments), n)]
-    F += _fan(np.arange(n - segments, n), n + 1)
+    F += _fan(np.arange(segments), n, True) + _fan(np.arange(n - segments, n), n + 1, False)
     return frame.at(centre, local), F
 
 
@@ -132,7 +135,7 @@ def cap(centre, radius, frame: Frame, angle: float, rings: int = 5, segments: in
     local = np.vstack([local.reshape(-1, 3), [[0, 0, 1]]]) * radius
     n = rings * segments
     return frame.at(centre, local), grid(rings, segments, True) + _fan(
-        np.arange(n - segments, n), n)
+        np.arange(n - segments, n), n, False)
 
 
 def arch(frame: Frame, depth: float, radius: float, span: float, low: float, high: float,
@@ -148,10 +151,11 @@ def arch(frame: Frame, depth: float, radius: float, span: float, low: float, hig
             r = radius - inset
             P.append([r * np.sin(a), h, r * np.cos(a) - radius - depth])
     P = np.array(P)
-    F = [f[::-1] for f in grid(steps, 4, True)]
     ends = np.array([P[:4].mean(axis=0), P[-4:].mean(axis=0)])
     n = len(P)
-    F += _fan(np.arange(4), n) + [f[::-1] for f in _fan(np.arange(n - 4, n), n + 1)]
+    F = grid(steps, 4, True) + _fan(np.arange(4), n, True) + _fan(np.arange(n - 4, n), n + 1,
+                                                                   False)
+    F = [f[::-1] for f in F]
     return frame.at(frame.mouth, np.vstack([P, ends])), F
 
 
@@ -237,6 +241,12 @@ def b_vertices(b: Built) -> np.ndarray:
     return np.vstack(b.V)
 
 
+#: the mouth bag's rings behind the lips: share of the ellipse (against the lips'
+#: loop), depth, half width and half height (of the mouth's width)
+_BAG_RINGS = ((0.5, 0.06, 0.5, 0.35), (1.0, 0.12, 0.55, 0.4), (1.0, 0.35, 0.55, 0.42),
+              (1.0, 0.65, 0.45, 0.35), (1.0, 0.85, 0.3, 0.2))
+
+
 def _mouth_parts(b: Built, frame: Frame, bag: str, rim) -> None:
     """Teeth rows with gums, a tongue, and a mouth bag from the lips' inner loop
     (``bag``: "welded" shares the loop's vertices, "separate" is its own piece,
@@ -255,19 +265,26 @@ def _mouth_parts(b: Built, frame: Frame, bag: str, rim) -> None:
         return
     P = b_vertices(b)
     lips = P[rim]
-    d = (lips - frame.mouth) @ frame.axes.T
-    theta = np.arctan2(d[:, 1] / max(np.ptp(d[:, 1]), 1e-9 * mw), d[:, 0] / np.ptp(d[:, 0]))
+    # angles along the lips' loop, in the mouth's frame (the parts are placed there)
+    d = (lips - frame.mouth) @ frame.axes.T / mw
+    theta = _loop_angles(d)
     rings = [lips if bag == "welded" else
              lips + 0.05 * (frame.mouth - lips) - z * 0.03 * mw]
-    for t in np.linspace(0, 1, 7)[1:]:
-        s = min(1.0, 2 * t)
-        shell = np.c_[0.5 * mw * np.cos(theta) * np.cos(t * np.pi / 2),
-                      0.3 * mw * np.sin(theta) * np.cos(t * np.pi / 2),
-                      np.full(len(theta), -0.9 * mw * np.sin(t * np.pi / 2) - 0.08 * mw)]
-        rings.append((1 - s) * rings[0] + s * frame.at(frame.mouth, shell))
-    V = np.vstack(rings + [frame.mouth - z * 0.98 * mw])
+    # rings behind the lips (:data:`_BAG_RINGS`): the first half the lips' loop, the
+    # rest ellipses about the mouth; the bag balloons at once behind the lips, as a
+    # mouth does, and holds the teeth, gums and tongue.  Depths count from the
+    # loop's deepest point (the corners, round the face), so no ring comes out in
+    # front of the lips
+    back = min(float(d[:, 2].min()), 0.0)
+    for share, depth, half_width, half_height in _BAG_RINGS:
+        ellipse = np.c_[half_width * np.cos(theta), half_height * np.sin(theta),
+                        np.full(len(theta), back)]
+        local = (1 - share) * d + share * ellipse - [0.0, 0.0, depth]
+        rings.append(frame.at(frame.mouth, local * mw))
+    V = np.vstack(rings + [frame.at(frame.mouth, np.array([[0.0, 0.0, back - 0.95]]) * mw)])
     n = len(rim)
-    F = grid(len(rings), n, True) + _fan(np.arange(len(V) - 1 - n, len(V) - 1), len(V) - 1)
+    F = grid(len(rings), n, True) + _fan(np.arange(len(V) - 1 - n, len(V) - 1), len(V) - 1,
+                                              False)
     # the bag's normals face the mouth's inside, as the lips' skin it continues
     F = outward(V, F, frame.mouth - z * 0.45 * mw)
     F = [f[::-1] for f in F]
@@ -277,10 +294,33 @@ def _mouth_parts(b: Built, frame: Frame, bag: str, rim) -> None:
         b.add(V, F, BAG)
 
 
+def _loop_angles(d) -> np.ndarray:
+    """An angle per vertex of a lip loop ``d`` (k, 3), in its own order and in the
+    mouth's frame: 0 at the right corner, π/2 mid upper lip, π at the left corner,
+    3π/2 mid lower lip, by length along the loop.  Not the angle about a centre: a
+    slit curved like a smile has upper-lip vertices below the corners' midpoint, and
+    rings laid out by such angles fold onto themselves."""
+    k = len(d)
+    right, left = int(np.argmax(d[:, 0])), int(np.argmin(d[:, 0]))
+    step = np.linalg.norm(np.roll(d, -1, axis=0) - d, axis=1)
+    theta = np.zeros(k)
+    arcs = [np.arange(right, right + ((left - right) % k) + 1) % k,
+            np.arange(left, left + ((right - left) % k) + 1) % k]
+    upper = 0 if d[arcs[0], 1].mean() > d[arcs[1], 1].mean() else 1
+    for which, arc in enumerate(arcs):
+        length = np.r_[0.0, np.cumsum(step[arc[:-1]])]
+        from_right = length if arc[0] == right else length[-1] - length
+        fraction = from_right / max(length[-1], 1e-300)
+        # the upper arc from the right corner: 0 → π; the lower: 2π → π
+        theta[arc] = np.pi * fraction if which == upper else 2 * np.pi - np.pi * fraction
+    return theta
+
+
 def _tongue_frame(frame: Frame) -> Frame:
-    """The frame with its y and z swapped (the tongue's poles point forward/back)."""
+    """The frame turned a quarter about its x axis (the tongue's poles point
+    forward/back), a rotation, so that the tongue's normals still point out."""
     x, y, z = frame.axes
-    return Frame(frame.eyes, frame.mouth, np.array([x, z, y]), frame.eye_width,
+    return Frame(frame.eyes, frame.mouth, np.array([x, z, -y]), frame.eye_width,
                  frame.mouth_width)
 
 
