@@ -55,6 +55,9 @@ class IcpStart:
         Blend weights to start from (after a blendshape pre-fit).
     landmark_matrix : (l, n) scipy.sparse.csr_matrix
     landmark_targets : (l, 3) float64
+    body : (b,) int64 or None
+        The vertices the frame is measured on and a pose turns about (the skin's;
+        None: every vertex of a face).
     """
     frame: NormalisedFrame
     base: np.ndarray
@@ -63,6 +66,7 @@ class IcpStart:
     weights: np.ndarray | None
     landmark_matrix: object
     landmark_targets: np.ndarray
+    body: np.ndarray | None = None
 
 
 @dataclass
@@ -94,7 +98,8 @@ class ModelFit:
 
 
 def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
-              spec: ModelSpec, blendshapes=None, pca_components=None) -> IcpStart:
+              spec: ModelSpec, blendshapes=None, pca_components=None, *,
+              frame_triangles=None) -> IcpStart:
     """The normalised frame, posed blendshape deltas and landmark rows of a fit.
 
     Parameters
@@ -112,6 +117,11 @@ def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
     blendshapes : dict name -> (n, 3) float64, optional
         Needed when ``spec.needs_blendshapes``.
     pca_components : int, optional
+    frame_triangles : (t', 3) int, optional
+        The triangles whose vertices the fit's normalised frame is measured on
+        and a pose turns about (default every face's:
+        :meth:`facewrap.mesh.Mesh.surface_points`;
+        :attr:`facewrap.wrapping.problem.WrapProblem.skin_triangles`: the skin's).
 
     Returns
     -------
@@ -120,7 +130,9 @@ def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
     V = np.asarray(vertices, dtype=np.float64)
     # the frame of the surface: a stray point no face uses would move its centre
     # and size (and every tolerance in it)
-    frame = NormalisedFrame.of(template.with_vertices(V).surface_points())
+    body = None if frame_triangles is None else np.unique(np.asarray(frame_triangles))
+    frame = NormalisedFrame.of(template.with_vertices(V).surface_points() if body is None
+                               else V[body])
     deltas, names = np.zeros((3 * len(V), 0)), []
     if spec.needs_blendshapes:
         D, names = blendshape_basis(template.vertices, blendshapes, pca_components)
@@ -130,7 +142,7 @@ def icp_start(template, vertices, similarity: Similarity, landmarks, targets,
                   / frame.size).reshape(3 * len(V), -1)
     L = landmark_rows(landmarks, len(V), template.triangles)
     return IcpStart(frame, frame.to_frame(V), deltas, names, None, L,
-                    frame.to_frame(targets))
+                    frame.to_frame(targets), body)
 
 
 def _engine(settings, frame: NormalisedFrame, stages) -> NonRigidICP:
@@ -182,6 +194,7 @@ def coarse_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, exclu
     coarse = MODEL_REGISTRY[spec.coarse]
     pre = coarse.build(ModelParts(start.base, template.triangles, start.deltas,
                                   scale=settings.scale, bounds=settings.blend_bounds(),
+                                  body=start.body,
                                   # with blendshapes only: without them the stretch
                                   # takes the expression (ICT's scream, graph model:
                                   # 1.41 -> 1.77 mm mean)
@@ -227,7 +240,8 @@ def stage_groups(stages, by_graph: bool) -> list[tuple[float, list]]:
 
 
 def icp_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, excluded,
-            graph_cache: GraphCache, setup_started: float) -> ModelFit:
+            graph_cache: GraphCache, setup_started: float, *,
+            graph_triangles=None) -> ModelFit:
     """Fit the model of ``spec`` by non-rigid ICP, group after group of its schedule.
 
     Parameters
@@ -243,6 +257,9 @@ def icp_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, excluded
     graph_cache : GraphCache
     setup_started : float
         ``time.perf_counter()`` when the model set-up began (for ``setup_seconds``).
+    graph_triangles : (t', 3) int, optional
+        The triangles the deformation graph is built on (default the template's;
+        :attr:`facewrap.wrapping.problem.WrapProblem.skin_triangles`: the skin's).
 
     Returns
     -------
@@ -252,13 +269,15 @@ def icp_fit(start: IcpStart, spec: ModelSpec, settings, template, tree, excluded
               for st in (settings.stages or spec.schedule())]
     groups = stage_groups(stages, spec.uses_graph)
 
+    graph_T = template.triangles if graph_triangles is None else graph_triangles
+
     def graph_of(factor):
-        return graph_cache.graph(template.vertices, template.triangles,
-                                 settings.node_spacing * factor)
+        return graph_cache.graph(template.vertices, graph_T, settings.node_spacing * factor)
 
     model = spec.build(ModelParts(start.base, template.triangles, start.deltas,
                                   graph_of(groups[0][0]) if spec.uses_graph else None,
-                                  settings.scale, settings.blend_bounds()))
+                                  settings.scale, settings.blend_bounds(),
+                                  body=start.body))
     setup = time.perf_counter() - setup_started
     params = None if start.weights is None else model.initial_params(start.weights)
     history, first = [], 0          # first: index of the group's first stage

@@ -23,7 +23,7 @@ from facewrap.wrapping.models import ModelSpec, model_spec
 from facewrap.wrapping.models.graph import DEFAULT_GRAPH_CACHE, GraphCache
 from facewrap.wrapping.plausibility import (LACY_LIMIT, border_fraction, check_landmarks,
                                            check_scale, check_unscaled_size, checked_scan)
-from facewrap.wrapping.roles import (FITTED, cached_hidden_surface, landmarks_on_parts,
+from facewrap.wrapping.roles import (FITTED, PART, cached_hidden_surface, landmarks_on_parts,
                                     vertex_roles)
 from facewrap.wrapping.settings import WrapSettings
 
@@ -81,6 +81,22 @@ class WrapProblem:
     spec: ModelSpec
     graph_cache: GraphCache
     warnings: tuple = ()
+
+    @property
+    def skin_triangles(self) -> np.ndarray:
+        """(t', 3) int64: the template triangles with no vertex of a part: what the
+        fit's frame and its deformation graph are made of.  The parts (eyeballs,
+        teeth, tongue) follow the skin at the end (:mod:`facewrap.wrapping.follow`)
+        and their positions during the fit are never used, so the skin's fit must
+        not depend on them: they moved the frame's centre and size (and every
+        tolerance in it), and as graph nodes tied to the nearest skin nodes a row of
+        teeth or a tongue held the lips' and jaw's nodes together like a strut
+        (ICT's full head opening its jaw by the graph model,
+        ``benchmarks/bench_heads.py``).  Part vertices are skinned to the nearest
+        skin nodes instead.  All triangles when the template is all parts."""
+        T = self.template.triangles
+        skin = T[(self.roles[T] != PART).all(axis=1)]
+        return skin if len(skin) else T
 
 
 def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,

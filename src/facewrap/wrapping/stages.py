@@ -161,13 +161,14 @@ def fit_model(problem: WrapProblem, vertices, similarity: Similarity,
         current = problem.landmarks.positions(vertices, template.triangles)
         return ModelFit(spec.closed_form(vertices, current, problem.targets, s))
     t0 = time.perf_counter()
+    skin = problem.skin_triangles
     start = icp_start(template, vertices, similarity, problem.landmarks, problem.targets,
-                      spec, problem.blendshapes, s.pca_components)
+                      spec, problem.blendshapes, s.pca_components, frame_triangles=skin)
     start, history = coarse_fit(start, spec, s, template, problem.tree, problem.excluded,
                                 warm_weights=None if initial is None else initial.weights,
                                 warm=initial is not None)
     fitted = icp_fit(start, spec, s, template, problem.tree, problem.excluded,
-                     problem.graph_cache, t0)
+                     problem.graph_cache, t0, graph_triangles=skin)
     fitted.history = history + fitted.history
     return fitted
 

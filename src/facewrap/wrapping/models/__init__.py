@@ -60,6 +60,9 @@ class ModelParts:
     stretch : bool
         Whether a pose may stretch along the face's principal axes (the coarse
         pre-fits; see :mod:`.blendshape`).
+    body : (b,) int64 or None
+        The vertices a pose turns about and stretches along (the skin's: the parts
+        must not move the pivot; None: all).
     """
     base: np.ndarray
     triangles: np.ndarray
@@ -68,6 +71,7 @@ class ModelParts:
     scale: bool = True
     bounds: tuple | None = None
     stretch: bool = False
+    body: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -127,7 +131,8 @@ def _rbf_warp(vertices, landmarks, targets, settings) -> np.ndarray:
 #: every model a wrap can use, by ``WrapSettings.model`` value (in the order the
 #: CLI lists them)
 MODEL_REGISTRY: dict[str, ModelSpec] = {spec.name: spec for spec in [
-    ModelSpec("rigid", build=lambda m: RigidModel(m.base, scale=m.scale, stretch=m.stretch),
+    ModelSpec("rigid", build=lambda m: RigidModel(m.base, scale=m.scale, stretch=m.stretch,
+                                               body=m.body),
               schedule=rigid_schedule, closed_form=_unchanged),
     ModelSpec("rbf", closed_form=_rbf_warp),
     ModelSpec("affine", build=lambda m: AffineModel(m.base, m.triangles),
@@ -136,7 +141,8 @@ MODEL_REGISTRY: dict[str, ModelSpec] = {spec.name: spec for spec in [
               schedule=graph_schedule, uses_graph=True, coarse="rigid"),
     ModelSpec("blendshape",
               build=lambda m: BlendshapeModel(m.base, m.deltas, scale=m.scale,
-                                              bounds=m.bounds, stretch=m.stretch),
+                                              bounds=m.bounds, stretch=m.stretch,
+                                              body=m.body),
               schedule=blendshape_schedule, needs_blendshapes=True),
     ModelSpec("hybrid",
               build=lambda m: HybridModel(m.base, m.deltas, m.graph, bounds=m.bounds),

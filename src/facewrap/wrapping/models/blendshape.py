@@ -117,6 +117,9 @@ class BlendshapeModel(DeformationModel):
     stretch : bool
         Optimise a stretch along the base's principal axes too (with ``scale``
         and ``pose`` only): the coarse pre-fits of the local models do.
+    body : (b,) int, optional
+        The vertices the pose turns about (their centroid) and stretches along
+        (their principal axes): the skin's (default all).
 
     Parameter increment order: [δθ (3), δt (3), δσ (1), δλ (3, with ``stretch``),
     δw (K)].  Regularisers: ``"blend"``, the weights themselves (eq. 5);
@@ -127,16 +130,19 @@ class BlendshapeModel(DeformationModel):
     solver = "direct"  # a small dense system
 
     def __init__(self, base, deltas, *, scale: bool = True, pose: bool = True,
-                 bounds=None, stretch: bool = False):
+                 bounds=None, stretch: bool = False, body=None):
         self.bounds = None if bounds is None else (float(bounds[0]), float(bounds[1]))
         self.base = np.asarray(base, dtype=np.float64)
         self.deltas = np.asarray(deltas, dtype=np.float64)
-        self.center = self.base.mean(axis=0)
+        # the pivot and the stretch axes of the skin alone (``body``): a template's
+        # eyeballs and teeth must not move them
+        skin = self.base if body is None else self.base[np.asarray(body, dtype=np.int64)]
+        self.center = skin.mean(axis=0)
         self.scale = scale
         self.pose = pose
         self.stretch = bool(stretch and scale and pose)
         # principal axes of the base (columns): the directions a face stretches in
-        self.axes = np.linalg.eigh(np.cov((self.base - self.center).T))[1] \
+        self.axes = np.linalg.eigh(np.cov((skin - self.center).T))[1] \
             if self.stretch else np.eye(3)
         self.n_vertices = len(self.base)
         self.n_shapes = self.deltas.shape[1]
@@ -233,8 +239,9 @@ class RigidModel(BlendshapeModel):
 
     regularizer_names = ("stretch",)
 
-    def __init__(self, base, *, scale: bool = True, stretch: bool = False):
-        super().__init__(base, np.zeros((3 * len(base), 0)), scale=scale, stretch=stretch)
+    def __init__(self, base, *, scale: bool = True, stretch: bool = False, body=None):
+        super().__init__(base, np.zeros((3 * len(base), 0)), scale=scale, stretch=stretch,
+                         body=body)
 
     def regularizers(self, p) -> dict:
         return {k: v for k, v in super().regularizers(p).items() if k == "stretch"}

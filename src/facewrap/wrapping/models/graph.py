@@ -125,9 +125,12 @@ def build_graph(V, T, spacing: float, k: int = 4, seed: int = 0) -> DeformationG
     w = np.maximum(w, 1e-12)
     w /= w.sum(axis=1, keepdims=True)
     vertex_nodes = nearest[:, :k]
-    # edges: nodes that share a vertex (the graph of the surface) ...
-    a = np.repeat(vertex_nodes, k, axis=1).ravel()
-    b = np.tile(vertex_nodes, (1, k)).ravel()
+    # edges: nodes that share a vertex of the surface (a point no face uses, or a
+    # part left out of T, is skinned by Euclidean neighbours: were those edges, a
+    # tooth between the lips would tie the lips' nodes together) ...
+    on_surface = vertex_nodes[np.diff(G.indptr) > 0] if G.nnz else vertex_nodes
+    a = np.repeat(on_surface, k, axis=1).ravel()
+    b = np.tile(on_surface, (1, k)).ravel()
     pairs = _unique_pairs(a[a != b], b[a != b], len(nodes))
     pairs = _tie_components(pairs, V[nodes])
     return DeformationGraph(nodes, vertex_nodes, w, pairs)
@@ -514,7 +517,7 @@ class GraphCache:
 #: template gets change, so no graph of the old algorithm is read back)
 _GRAPH_KIND = "deformation-graph"
 _GRAPH_FIELDS = ("nodes", "vertex_nodes", "vertex_weights", "edges")
-_GRAPH_VERSION = 1
+_GRAPH_VERSION = 2
 
 
 def _stored_graph(key: str, n_vertices: int) -> DeformationGraph | None:
