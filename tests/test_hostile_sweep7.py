@@ -322,3 +322,35 @@ def test_shared_caches_are_safe_on_threads(small, monkeypatch):
     size = float(np.ptp(tpl.mesh.vertices, axis=0).max())
     assert all(np.abs(a - b).max() <= 1e-9 * size for a, b in zip(alone, together))
 
+
+
+def test_a_wrap_with_nothing_left_to_pull_says_which_argument_left_nothing():
+    """fit_mask all False (or everything excluded) made the ICP fail naming
+    max_distance, which was not the cause; the closed-form rbf warp still runs."""
+    from facewrap.sample import make_scan, make_template
+    from facewrap.wrapping import WrapSettings, wrap
+    t = make_template(resolution=20)
+    s = make_scan(t, resolution=30)
+    n = t.mesh.n_vertices
+    with pytest.raises(ValueError, match=r"^fit_mask \(--fit-mask\).*leaves no template"):
+        wrap(t.mesh, s.mesh, t.landmarks, s.landmarks, WrapSettings(model="graph"),
+             fit_mask=np.zeros(n, bool))
+    with pytest.raises(ValueError, match=r"^exclude \(--exclude\)"):
+        wrap(t.mesh, s.mesh, t.landmarks, s.landmarks, WrapSettings(model="affine"),
+             exclude=np.arange(n))
+    r = wrap(t.mesh, s.mesh, t.landmarks, s.landmarks, WrapSettings(model="rbf"),
+             fit_mask=np.zeros(n, bool))
+    assert np.isfinite(r.vertices).all()
+
+
+def test_submesh_and_subset_refuse_ids_outside_naming_the_argument():
+    """A bare IndexError before."""
+    from facewrap.sample import make_template
+    t = make_template(resolution=20)
+    with pytest.raises(ValueError, match="faces holds polygon ids outside"):
+        t.mesh.submesh([10 ** 6])
+    with pytest.raises(ValueError, match=r"faces must have shape"):
+        t.mesh.submesh(np.array([True, False]))
+    with pytest.raises(ValueError, match="index holds landmark ids outside"):
+        t.landmarks.subset([500])
+    assert t.landmarks.subset([2, 0]).vertex.tolist() == t.landmarks.vertex[[2, 0]].tolist()

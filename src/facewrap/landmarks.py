@@ -249,8 +249,20 @@ class Landmarks:
         return out
 
     def subset(self, index) -> "Landmarks":
-        """Landmarks ``index`` (int array or bool mask), names kept."""
-        idx = np.arange(len(self))[index]
+        """Landmarks ``index`` (int array or bool mask), names kept, in the order
+        ``index`` gives; ids outside ``[0, len)`` or a mask of another length are
+        refused naming ``index``.
+
+        >>> Landmarks.from_vertices([4, 5, 6]).subset([2, 0]).vertex.tolist()
+        [6, 4]
+        """
+        from facewrap.geometry.checks import as_vertex_mask   # light: numpy only
+        m = np.asarray(index)
+        if m.dtype == bool or m.ndim != 1:
+            idx = np.flatnonzero(as_vertex_mask(m, len(self), "index", what="landmark"))
+        else:
+            as_vertex_mask(m, len(self), "index", what="landmark")     # the range check
+            idx = m.astype(np.int64)
         names = None if self.names is None else [self.names[i] for i in idx]
         return Landmarks(self.vertex[idx], self.triangle[idx], self.barycentric[idx],
                          self.points[idx], names)

@@ -435,9 +435,15 @@ class Mesh:
         mesh : Mesh
         vertex_map : (n_sub,) int64
             Original index of each vertex of ``mesh`` (increasing, so order is kept).
+
+        Raises
+        ------
+        ValueError
+            Naming ``faces``: ids outside the mesh's polygons, a mask of another
+            length.
         """
-        keep = np.zeros(self.n_faces, dtype=bool)
-        keep[np.asarray(faces)] = True
+        from facewrap.geometry.checks import as_vertex_mask   # light: numpy only
+        keep = as_vertex_mask(faces, self.n_faces, "faces", what="polygon")
         sizes = self.face_sizes[keep]
         corner_mask = np.repeat(keep, self.face_sizes)
         old = self.face_indices[corner_mask]

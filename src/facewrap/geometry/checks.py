@@ -242,11 +242,17 @@ def mesh_arrays(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     raise ValueError(f"{name} must be a Mesh or a (V, T) pair, got {type(mesh).__name__}")
 
 
-def as_vertex_mask(mask, n: int, name: str = "mask", default: bool = True) -> np.ndarray:
-    """(n,) bool from a bool mask or vertex ids; every vertex ``default`` for None.
+def as_vertex_mask(mask, n: int, name: str = "mask", default: bool = True, *,
+                   what: str = "vertex") -> np.ndarray:
+    """(n,) bool from a bool mask or ids of ``what`` (vertices, or polygons or
+    landmarks); every one ``default`` for None.
 
     >>> as_vertex_mask([0, 2], 3).tolist(), as_vertex_mask(None, 2, default=False).tolist()
     ([True, False, True], [False, False])
+    >>> as_vertex_mask([7], 3, "faces", what="polygon")
+    Traceback (most recent call last):
+    ...
+    ValueError: faces holds polygon ids outside [0, 3)
     """
     if mask is None:
         return np.full(n, default, dtype=bool)
@@ -256,9 +262,9 @@ def as_vertex_mask(mask, n: int, name: str = "mask", default: bool = True) -> np
             raise ValueError(f"{name} must have shape ({n},), got {m.shape}")
         return m.copy()
     if not np.issubdtype(m.dtype, np.integer) or m.ndim != 1:
-        raise ValueError(f"{name} must be a ({n},) bool mask or 1-D vertex ids")
+        raise ValueError(f"{name} must be a ({n},) bool mask or 1-D {what} ids")
     if len(m) and (m.min() < 0 or m.max() >= n):
-        raise ValueError(f"{name} holds vertex ids outside [0, {n})")
+        raise ValueError(f"{name} holds {what} ids outside [0, {n})")
     out = np.zeros(n, dtype=bool)
     out[m] = True
     return out

@@ -99,6 +99,21 @@ class WrapProblem:
         return skin if len(skin) else T
 
 
+def _nothing_pulled(fit_mask, exclude, pinned, model: str) -> str:
+    """Why no template vertex is left for the scan to pull, naming the argument
+    (the ICP would only find no scan point, naming ``max_distance``)."""
+    if fit_mask is not None:
+        why = ("fit_mask (--fit-mask), with exclude (--exclude) and pinned (--pin), "
+               "leaves no template vertex")
+    elif exclude is not None or pinned is not None:
+        why = "exclude (--exclude) and pinned (--pin) leave no template vertex"
+    else:
+        why = ("every template vertex is a part or a cavity (settings.fit_hidden pulls "
+               "them)")
+    return (f"{why} to pull onto the scan: the {model!r} model needs some (the 'rbf' "
+            "model warps by the landmarks alone)")
+
+
 def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                  scan_landmarks: Landmarks, settings: WrapSettings | None = None, *,
                  exclude=None, fit_mask=None, pinned=None, blendshapes=None,
@@ -140,6 +155,8 @@ def prepare_wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     roles = vertex_roles(template.n_vertices, hidden, exclude=exclude, fit_mask=fit_mask,
                          pinned=pinned)
     excluded = roles != FITTED
+    if excluded.all() and spec.fitted_by_icp:
+        raise ValueError(_nothing_pulled(fit_mask, exclude, pinned, s.model))
     notes = landmarks_on_parts(template_landmarks, roles, template.triangles)
     template_points = template_landmarks.positions(template)
     scan_points = scan_landmarks.positions(scan)
