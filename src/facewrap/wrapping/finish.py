@@ -39,7 +39,7 @@ def project(problem: WrapProblem, vertices, upright=None, reference=None
     s = problem.settings
     if not s.project:
         return None
-    return project_to_surface(problem.template, problem.tree, vertices=vertices,
+    return project_to_surface(problem.skin_mesh, problem.tree, vertices=vertices,
                               mask=~problem.excluded, max_distance=s.max_distance,
                               max_normal_angle=s.max_normal_angle,
                               blend_order=s.blend_order, upright=upright,
@@ -98,13 +98,14 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     """
     template, roles = problem.template, problem.roles
     aligned = similarity.apply(template.vertices)
+    skin = problem.skin_mesh          # the folds repaired are the skin's
     summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
     out = vertices
     if problem.settings.unfold:
         upright = aligned if rest is None else rest
         relaxed, settled = np.zeros((2, len(out)), dtype=bool)
         for extra in ({}, _WIDE_UNFOLD):
-            out, more = relax_flips(template, upright, out, fixed=roles == PINNED,
+            out, more = relax_flips(skin, upright, out, fixed=roles == PINNED,
                                     order=_UNFOLD_ORDER, **extra)
             if more.any() and projection is not None:
                 out, projection, again = _project_unfolded(
@@ -113,11 +114,11 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
             relaxed |= more
             # slivers, one corner each (the second pass would smooth wide in vain)
             out, corners = settle_turned_corners(
-                template, upright, out, movable=(roles != PINNED) & (roles != PART))
+                skin, upright, out, movable=(roles != PINNED) & (roles != PART))
             settled |= corners
         # a triangle left on the edge of a fold is one from a pose a degree away
         # (the template posed by the fitted weights alone)
-        out, edge = turn_back_within(template, upright, out, _ON_THE_EDGE,
+        out, edge = turn_back_within(skin, upright, out, _ON_THE_EDGE,
                                      fixed=roles == PINNED, order=_UNFOLD_ORDER)
         relaxed |= edge
         summary["unfolded"], summary["settled"] = int(relaxed.sum()), int(settled.sum())
@@ -148,11 +149,11 @@ def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Proje
     whichever fits tighter (:func:`~facewrap.wrapping.projection.seen_fit_p95`):
     landing everything again can lose more elsewhere than the region gains.
     Returns the positions, projection and moved vertices."""
-    T, roles = problem.template.triangles, problem.roles
+    skin, roles = problem.skin_mesh, problem.roles
+    T = skin.triangles
     again = project(problem, unfolded, upright=upright)
-    landed, moved = unfold_among(problem.template, upright, again.vertices,
-                                 (roles != PINNED) & ~again.projected,
-                                 counted=(roles[T] != PART).all(axis=1))
+    landed, moved = unfold_among(skin, upright, again.vertices,
+                                 (roles != PINNED) & ~again.projected)
     picks = [(landed, again, moved)] + ([] if region is None else [
         (np.where(region[:, None], landed, unfolded), projection, moved & region)])
     stepped = [(step_back_new_folds(T, upright, unfolded, out, roles == PINNED), kept,

@@ -10,6 +10,7 @@ role (fitted, a part that follows, pinned).  The stages of
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -97,6 +98,27 @@ class WrapProblem:
         T = self.template.triangles
         skin = T[(self.roles[T] != PART).all(axis=1)]
         return skin if len(skin) else T
+
+    @cached_property
+    def skin_mesh(self) -> Mesh:
+        """The template's vertices with the skin's polygons only: what the
+        projection and the fold repairs work on (a part's triangles, skinned to
+        the skin nodes nearest to them, may turn over in the fit, and repairing them
+        would spend the budgets the skin's folds need; the parts follow at the end)."""
+        t = self.template
+        part = self.roles == PART
+        if not part.any():
+            return t
+        # its polygons (quads stay quads: the repairs walk the polygons' rings)
+        corner_part = part[t.face_indices]
+        starts = np.r_[0, np.cumsum(t.face_sizes)[:-1]]
+        keep = ~np.logical_or.reduceat(corner_part, starts) if len(starts) else \
+            np.zeros(0, bool)
+        if not keep.any():
+            return t
+        sizes = t.face_sizes[keep]
+        offsets = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        return Mesh(t.vertices, (offsets, t.face_indices[np.repeat(keep, t.face_sizes)]))
 
 
 def _nothing_pulled(fit_mask, exclude, pinned, model: str) -> str:
