@@ -138,7 +138,7 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
             batch, alone = [isolated.pop(0)], True
         else:
             batch, todo, alone = todo, [], False
-        finished, interrupted = set(), False
+        finished = set()
         for bj in batch:
             started[bj.index] = 0
         with single_threaded_blas():
@@ -158,7 +158,6 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
         except KeyboardInterrupt:
             # Ctrl-C: stop the workers now rather than after their running jobs
             # (their outputs are staged: nothing partial is left behind)
-            interrupted = True
             for worker in multiprocessing.active_children():
                 worker.terminate()
             raise
@@ -171,7 +170,11 @@ def run_in_pool(jobs, workers: int, report, func) -> None:
                                                    idle_breaks)
             isolated += more
         finally:
-            pool.shutdown(wait=not interrupted, cancel_futures=True)
+            # waited for even when interrupted: the workers are gone by then, and a
+            # pool left running with dead workers makes its manager thread fail at
+            # the interpreter's exit ("Exception ignored in: <module 'threading'>",
+            # CPython gh-132969 on 3.11), after our one line "interrupted"
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _local_dask_task(func, bj) -> dict:
