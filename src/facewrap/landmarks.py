@@ -258,11 +258,8 @@ class Landmarks:
         """
         from facewrap.geometry.checks import as_vertex_mask   # light: numpy only
         m = np.asarray(index)
-        if m.dtype == bool or m.ndim != 1:
-            idx = np.flatnonzero(as_vertex_mask(m, len(self), "index", what="landmark"))
-        else:
-            as_vertex_mask(m, len(self), "index", what="landmark")     # the range check
-            idx = m.astype(np.int64)
+        mask = as_vertex_mask(m, len(self), "index", what="landmark")   # either form
+        idx = np.flatnonzero(mask) if m.dtype == bool else m.astype(np.int64)
         names = None if self.names is None else [self.names[i] for i in idx]
         return Landmarks(self.vertex[idx], self.triangle[idx], self.barycentric[idx],
                          self.points[idx], names)

@@ -83,42 +83,34 @@ class WrapProblem:
     graph_cache: GraphCache
     warnings: tuple = ()
 
-    @property
-    def skin_triangles(self) -> np.ndarray:
-        """(t', 3) int64: the template triangles with no vertex of a part: what the
-        fit's frame and its deformation graph are made of.  The parts (eyeballs,
-        teeth, tongue) follow the skin at the end (:mod:`facewrap.wrapping.follow`)
-        and their positions during the fit are never used, so the skin's fit must
-        not depend on them: they moved the frame's centre and size (and every
-        tolerance in it), and as graph nodes tied to the nearest skin nodes a row of
-        teeth or a tongue held the lips' and jaw's nodes together like a strut
-        (ICT's full head opening its jaw by the graph model,
-        ``benchmarks/bench_heads.py``).  Part vertices are skinned to the nearest
-        skin nodes instead.  All triangles when the template is all parts."""
-        T = self.template.triangles
-        skin = T[(self.roles[T] != PART).all(axis=1)]
-        return skin if len(skin) else T
-
     @cached_property
     def skin_mesh(self) -> Mesh:
-        """The template's vertices with the skin's polygons only: what the
-        projection and the fold repairs work on (a part's triangles, skinned to
-        the skin nodes nearest to them, may turn over in the fit, and repairing them
-        would spend the budgets the skin's folds need; the parts follow at the end)."""
+        """The template's vertices with only the skin's polygons (none with a vertex
+        of a part; all of them when the template is all parts): what the fit's
+        frame, its deformation graph, the projection and the fold repairs are made
+        of.  The parts (eyeballs, teeth, tongue) follow the skin at the end
+        (:mod:`facewrap.wrapping.follow`) and their positions during the fit are
+        never used, so the skin's fit must not depend on them: they moved the
+        frame's centre and size (and every tolerance in it); as graph nodes tied to
+        the nearest skin nodes a row of teeth or a tongue held the lips' and jaw's
+        nodes together like a strut (ICT's full head opening its jaw by the graph
+        model, ``benchmarks/bench_head_expressions.py``); and their triangles, turned
+        in the fit, spent the budgets the skin's fold repairs need.  Part vertices
+        are skinned to the nearest skin nodes instead.  Quads stay quads: the
+        repairs walk the polygons' rings."""
         t = self.template
         part = self.roles == PART
-        if not part.any():
-            return t
-        # its polygons (quads stay quads: the repairs walk the polygons' rings)
-        corner_part = part[t.face_indices]
         starts = np.r_[0, np.cumsum(t.face_sizes)[:-1]]
-        keep = ~np.logical_or.reduceat(corner_part, starts) if len(starts) else \
-            np.zeros(0, bool)
-        if not keep.any():
+        keep = ~np.logical_or.reduceat(part[t.face_indices], starts)
+        if keep.all() or not keep.any():
             return t
-        sizes = t.face_sizes[keep]
-        offsets = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        offsets = np.r_[0, np.cumsum(t.face_sizes[keep])].astype(np.int64)
         return Mesh(t.vertices, (offsets, t.face_indices[np.repeat(keep, t.face_sizes)]))
+
+    @property
+    def skin_triangles(self) -> np.ndarray:
+        """(t', 3) int64: the triangles of :attr:`skin_mesh`."""
+        return self.skin_mesh.triangles
 
 
 def _nothing_pulled(fit_mask, exclude, pinned, model: str) -> str:
