@@ -63,3 +63,34 @@ def test_smoothness_operator_vanishes_on_rigid_motion():
     X = op.extend(mesh.vertices @ R.T + 5)
     assert np.abs(D @ X).max() < 1e-9
     assert np.abs(op.matrix @ X - np.tile(R.T, (op.n_triangles, 1))).max() < 1e-9
+
+
+def test_eliminating_the_fourth_vertices_keeps_the_vertex_solution():
+    """The reduced system's minimiser is the full (n + t) system's, vertex for vertex,
+    with weighted rows and several right-hand sides, dense or sparse."""
+    import scipy.sparse as sp
+    from facewrap.transfer import FourthVertexElimination
+    mesh = make_template(16).mesh
+    V, T = mesh.vertices, mesh.triangles
+    op = gradient_operator(V, T)
+    n, t = len(V), len(T)
+    rng = np.random.default_rng(4)
+    W = sp.diags(np.repeat(rng.uniform(0.5, 2.0, t), 3))
+    H = (op.matrix.T @ W @ op.matrix).tocsr() + sp.diags(np.r_[np.ones(n), np.zeros(t)])
+    b = rng.normal(size=(n + t, 4))
+    full = np.linalg.solve(H.toarray(), b)[:n]
+    fourth = FourthVertexElimination(H, n)
+    reduced = np.linalg.solve(fourth.matrix.toarray(), fourth.reduce(b))
+    np.testing.assert_allclose(reduced, full, atol=1e-9 * np.abs(full).max())
+    sparse_b = fourth.reduce(sp.csr_matrix(b)).toarray()
+    np.testing.assert_allclose(sparse_b, fourth.reduce(b), atol=1e-12)
+
+
+def test_a_fourth_vertex_block_without_a_positive_diagonal_is_refused():
+    import pytest
+    import scipy.sparse as sp
+    from facewrap.transfer import FourthVertexElimination
+    op = gradient_operator(np.eye(3), [[0, 1, 2]])
+    H = op.matrix.T @ op.matrix
+    with pytest.raises(ValueError, match="positive diagonal"):
+        FourthVertexElimination(H - sp.diags(np.r_[0, 0, 0, 2 * H.diagonal()[3]]), 3)

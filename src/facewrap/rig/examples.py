@@ -48,8 +48,9 @@ from facewrap.geometry.checks import as_points, as_shape_dict, as_vertex_ids
 from facewrap.mesh import Mesh, check_mesh
 from facewrap.params import Interval, validate
 from facewrap.solve.fixed import FixedSystem
+from facewrap.transfer.constraints import TETHER_WEIGHT, untethered_vertices
 from facewrap.transfer.deformation import source_gradient_blocks
-from facewrap.transfer.gradients import gradient_operator
+from facewrap.transfer.gradients import FourthVertexElimination, gradient_operator
 
 __all__ = ["ExampleSettings", "ExampleFit", "fit_examples", "fit_weights"]
 
@@ -281,22 +282,29 @@ class _Poisson:
     """Vertex displacements from per-triangle gradient changes, on one neutral.
 
     ``min ‖G δ − Δ‖²`` over the displacements and fourth vertices, one vertex
-    (an anchor) held at zero; factored once.  Pieces the anchor does not reach
-    stay near zero (a ridge).
+    (an anchor) held at zero, the fourth vertices eliminated exactly
+    (:class:`~facewrap.transfer.gradients.FourthVertexElimination`); factored
+    once.  Pieces the anchor does not reach are tethered to zero, as deformation
+    transfer tethers them to rest (:data:`~facewrap.transfer.constraints.TETHER_WEIGHT`).
     """
 
     def __init__(self, neutral: Mesh, anchor: int):
         self.op = gradient_operator(neutral.vertices, neutral.triangles)
         G = self.op.matrix
-        self.system = FixedSystem((G.T @ G).tocsr(), [anchor], ridge=1e-9)
+        n = self.op.n_vertices
+        self.fourth = FourthVertexElimination(G.T @ G, n)
+        H = self.fourth.matrix
+        loose = untethered_vertices(self.op.triangles, n, [anchor])
+        tether = TETHER_WEIGHT * float(H.diagonal().mean()) * loose
+        self.system = FixedSystem((H + sp.diags(tether)).tocsr(), [anchor])
 
     def displacements(self, delta: np.ndarray) -> np.ndarray:
         """(s, t, 9) gradient changes → (s, n, 3) vertex displacements."""
         s, t = delta.shape[:2]
         blocks = delta.reshape(s, t, 3, 3).transpose(1, 2, 0, 3).reshape(3 * t, 3 * s)
-        x = self.system.solve(np.asarray(self.op.matrix.T @ blocks))
+        x = self.system.solve(self.fourth.reduce(np.asarray(self.op.matrix.T @ blocks)))
         n = self.op.n_vertices
-        return x[:n].reshape(n, s, 3).transpose(1, 0, 2)
+        return x.reshape(n, s, 3).transpose(1, 0, 2)
 
 
 def _checked(neutral: Mesh, shapes: dict, examples, masks, weights):

@@ -9,7 +9,7 @@ Avatar blendshapes (SPEC §4) build on this in :mod:`facewrap.avatar`.
 Gradients (:mod:`.gradients`)
     :func:`gradient_operator`, :class:`GradientOperator`, :func:`fourth_vertices`,
     :func:`deformation_gradients`, :func:`triangle_smoothness_operator`,
-    :func:`adjacent_triangle_pairs`
+    :func:`adjacent_triangle_pairs`, :class:`FourthVertexElimination`
 Markers and tether (:mod:`.constraints`)
     :func:`check_markers`, :func:`untethered_vertices`, :data:`TETHER_WEIGHT`
 Correspondence (:mod:`.correspondence`, :mod:`.marker_deformation`,
@@ -38,9 +38,10 @@ from facewrap.transfer.deformation import (DeformationTransfer, TransferSettings
                                            as_pose_stack, complete_pairs, pair_matrix,
                                            source_gradient_blocks)
 from facewrap.transfer.flip_repair import FlipRepair, nearest_proper_maps
-from facewrap.transfer.gradients import (GradientOperator, adjacent_triangle_pairs,
-                                         deformation_gradients, fourth_vertices,
-                                         gradient_operator, triangle_smoothness_operator)
+from facewrap.transfer.gradients import (FourthVertexElimination, GradientOperator,
+                                         adjacent_triangle_pairs, deformation_gradients,
+                                         fourth_vertices, gradient_operator,
+                                         triangle_smoothness_operator)
 from facewrap.transfer.marker_deformation import (SUMNER_SCHEDULE, CorrespondenceStage,
                                                   deform_toward)
 from facewrap.transfer.triangle_matching import match_triangles
@@ -48,7 +49,7 @@ from facewrap.transfer.triangle_matching import match_triangles
 __all__ = [
     # gradients
     "GradientOperator", "gradient_operator", "fourth_vertices", "deformation_gradients",
-    "adjacent_triangle_pairs", "triangle_smoothness_operator",
+    "adjacent_triangle_pairs", "triangle_smoothness_operator", "FourthVertexElimination",
     # markers and tether
     "check_markers", "untethered_vertices", "TETHER_WEIGHT",
     # correspondence

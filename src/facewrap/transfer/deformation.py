@@ -40,9 +40,9 @@ from facewrap.solve import FixedSystem
 from facewrap.transfer.constraints import TETHER_WEIGHT, untethered_vertices
 from facewrap.transfer.correspondence import Correspondence
 from facewrap.transfer.flip_repair import FlipRepair
-from facewrap.transfer.gradients import (GradientOperator, adjacent_triangle_pairs,
-                                         fourth_vertex_offsets, gradient_operator,
-                                         typical_edge_length)
+from facewrap.transfer.gradients import (FourthVertexElimination, GradientOperator,
+                                         adjacent_triangle_pairs, fourth_vertex_offsets,
+                                         gradient_operator, typical_edge_length)
 
 __all__ = ["DeformationTransfer", "TransferSettings", "pair_matrix", "complete_pairs",
            "source_gradient_blocks", "extend_poses", "as_pose_stack"]
@@ -286,16 +286,12 @@ class DeformationTransfer:
                                               target.triangles)
         self._orphans = orphans
         counts = np.asarray(self._pairs.sum(axis=1)).ravel() + orphans
-        # H = Gᵀ W G.  A fourth vertex only appears in its own triangle's rows, so
-        # the fourth-vertex block of H is diagonal and is eliminated exactly
-        # (Schur complement): the factor has one unknown per target vertex.
+        # H = Gᵀ W G with its fourth vertices eliminated exactly: the factor has
+        # one unknown per target vertex
         n = target.n_vertices
         G = op.matrix
-        H = (G.T @ sp.diags(np.repeat(counts, 3)) @ G).tocsc()
-        H_vv, H_vf = H[:n, :n], H[:n, n:]
-        d_ff = H[n:, n:].diagonal()
-        self._Hvf_dff = (H_vf @ sp.diags(1.0 / d_ff)).tocsr()
-        H_red = (H_vv - self._Hvf_dff @ H_vf.T).tocsr()
+        fourth = FourthVertexElimination(G.T @ sp.diags(np.repeat(counts, 3)) @ G, n)
+        H_red = fourth.matrix
         # components without the anchor: a tiny pull toward rest fixes their
         # translation (an eyeball turns about its own centre)
         loose = untethered_vertices(target.triangles, n, [anchor])
@@ -311,9 +307,8 @@ class DeformationTransfer:
         # map, built once, so a pose costs one sparse product and one back-substitution.
         K = sp.kron(self._pairs, sp.identity(3), format="csr")
         rhs_map = (G.T @ (K @ self._source_op.matrix)).tocsr()
-        self._rhs_map = (rhs_map[:n] - self._Hvf_dff @ rhs_map[n:]).tocsr()
-        self._const_rhs = (self._identity_rhs[:n] - self._Hvf_dff @ self._identity_rhs[n:]
-                           + self._tether_rhs)
+        self._rhs_map = fourth.reduce(rhs_map).tocsr()
+        self._const_rhs = fourth.reduce(self._identity_rhs) + self._tether_rhs
         m = correspondence.markers
         spread = [np.sqrt(((X[ids] - X[ids].mean(0)) ** 2).sum(1).mean())
                   for X, ids in ((source.vertices, m[:, 0]), (target.vertices, m[:, 1]))]
