@@ -108,6 +108,53 @@ def test_finish_fit_turns_triangles_on_the_edge_of_a_fold_back_a_little():
     assert np.array_equal(out[others], X[others])
 
 
+def _bowl_with_a_fold(k: int = 30, curvature: float = 0.06):
+    """A k x k grid fitted as a bowl (smooth but not harmonic: relaxing a region of
+    it moves its vertices) with one vertex pushed past its neighbour (two triangles
+    turned over), a scan plane and the grid's corners as landmarks."""
+    V, T = _grid(k)
+    X = V.copy()
+    X[:, 2] = curvature * ((V[:, 0] - k // 2) ** 2 + (V[:, 1] - k // 2) ** 2)
+    X[k // 2 * k + k // 2, 0] += 1.6
+    scan = Mesh(*_grid(k + 10, 0.8))
+    return V, T, X, scan, [0, k - 1, k * (k - 1), k * k - 1]
+
+
+@pytest.mark.parametrize("landmark", [467, 496, 405])
+def test_unfolding_a_fold_beside_a_landmark_leaves_the_landmark_where_it_was(landmark):
+    """The fold's relaxed region holds a landmark's vertex: relaxed with it, the
+    vertex moved 0.24-0.40 (the bowl's curvature); held, the fold unfolds all the
+    same and the landmark stays."""
+    V, T, X, scan, corners = _bowl_with_a_fold()
+    assert turned_triangles(X, V, T).sum() == 2
+    ids = np.array(corners + [landmark])
+    problem = prepare_wrap(Mesh(V, T), scan, Landmarks.from_vertices(ids),
+                           Landmarks.from_points(X[ids]), WrapSettings(model="rigid"))
+    out, summary = finish_fit(problem, X, Similarity(), None)
+    assert not turned_triangles(out, V, T).any()
+    assert np.array_equal(out[landmark], X[landmark])
+    assert summary["landmarks_slid"] == 0.0
+    assert summary["unfolded"] > 0
+
+
+def test_a_landmark_that_only_sliding_unfolds_slides_and_is_said():
+    """Held, the landmark at the tip of a wide fold would leave it folded: the fold
+    is unfolded and the slide reported (the wrap turns it into a warning)."""
+    from facewrap.wrapping.stages import _slide_warnings
+    V, T = _grid(40)
+    X = _pushed(V, (20.0, 20.0), 6.0)
+    scan = Mesh(*_grid(60, 0.8))
+    tip = 20 * 40 + 20
+    ids = np.array([0, 39, 1560, 1599, tip])
+    problem = prepare_wrap(Mesh(V, T), scan, Landmarks.from_vertices(ids),
+                           Landmarks.from_points(X[ids]), WrapSettings(model="rigid"))
+    out, summary = finish_fit(problem, X, Similarity(), None)
+    assert not turned_triangles(out, V, T).any()
+    assert summary["landmarks_slid"] > 5.0
+    warning, = _slide_warnings(summary, problem, out)
+    assert warning.startswith("template landmarks: unfolding the fit moved")
+
+
 @pytest.fixture(scope="module")
 def ict_face_on_james(data_dir, tmp_path_factory):
     """ICT-FaceKit's face region (9,409 v, its 68 landmarks and 53 expression

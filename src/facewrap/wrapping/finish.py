@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from facewrap.geometry import turned_triangles
 from facewrap.geometry.similarity import Similarity
 from facewrap.wrapping.blend import smooth_extension
 from facewrap.wrapping.follow import follow_skin
@@ -85,7 +86,9 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     Folds the first pass leaves (its regions share a budget) are unfolded again,
     each in a region as wide as it needs (:data:`_WIDE_UNFOLD`), and triangles
     left on the edge of a fold turned a little further back
-    (:data:`_ON_THE_EDGE`).  ``rest`` (n, 3)
+    (:data:`_ON_THE_EDGE`).  The landmarks' vertices are held where the fit put
+    them unless that leaves more folds; then they slide with the unfolding, and
+    ``landmarks_slid`` says how far (the wrap warns when it is far).  ``rest`` (n, 3)
     is the pose a triangle is turned over from: the expression the blend weights
     make (:attr:`ModelFit.rest`), so a lip rolled by a pucker shape is not
     "unfolded"; default the aligned template.
@@ -94,34 +97,31 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
     -------
     vertices : (n, 3) float64
     summary : dict
-        ``pinned`` and ``unfolded`` (vertices).
+        ``pinned``, ``unfolded`` and ``settled`` (vertices), ``landmarks_slid``
+        (scan units: how far the unfolding moved a landmark's vertex; 0 when held).
     """
+    initial_projection = projection
     template, roles = problem.template, problem.roles
     aligned = similarity.apply(template.vertices)
-    skin = problem.skin_mesh          # the folds repaired are the skin's
     summary = {"pinned": int(np.count_nonzero(roles == PINNED)), "unfolded": 0}
     out = vertices
     if problem.settings.unfold:
         upright = aligned if rest is None else rest
-        relaxed, settled = np.zeros((2, len(out)), dtype=bool)
-        for extra in ({}, _WIDE_UNFOLD):
-            out, more = relax_flips(skin, upright, out, fixed=roles == PINNED,
-                                    order=_UNFOLD_ORDER, **extra)
-            if more.any() and projection is not None:
-                out, projection, again = _project_unfolded(
-                    problem, upright, out, projection, more if extra else None)
-                more |= again
-            relaxed |= more
-            # slivers, one corner each (the second pass would smooth wide in vain)
-            out, corners = settle_turned_corners(
-                skin, upright, out, movable=(roles != PINNED) & (roles != PART))
-            settled |= corners
-        # a triangle left on the edge of a fold is one from a pose a degree away
-        # (the template posed by the fitted weights alone)
-        out, edge = turn_back_within(skin, upright, out, _ON_THE_EDGE,
-                                     fixed=roles == PINNED, order=_UNFOLD_ORDER)
-        relaxed |= edge
-        summary["unfolded"], summary["settled"] = int(relaxed.sum()), int(settled.sum())
+        pinned = roles == PINNED
+        out, projection, unfolded = _unfold(problem, upright, vertices, projection, pinned)
+        # the unfolding must not slide the landmarks along the scan (a wide region
+        # relaxed toward the unfitted skin beyond a scan's border moved the jaw
+        # points of a head of other proportions 10-33 mm): unfolded again with
+        # their vertices held, kept unless that leaves more folds
+        marked = _landmark_vertices(problem)
+        slid = float(np.linalg.norm(out[marked] - vertices[marked], axis=1).max(initial=0.0))
+        summary["landmarks_slid"] = slid
+        if slid > problem.settings.landmark_tolerance * template.with_vertices(vertices).scale():
+            held = _unfold(problem, upright, vertices, initial_projection, pinned | marked)
+            if _fold_count(problem, held[0], upright) <= _fold_count(problem, out, upright):
+                out, projection, unfolded = held
+                summary["landmarks_slid"] = 0.0
+        summary.update(unfolded)
     out = pin(problem, out, similarity, projection)
     out = follow_skin(template.triangles, aligned, out, roles)
     return out, summary
@@ -140,8 +140,54 @@ _ON_THE_EDGE = 88.0
 _WIDE_UNFOLD = {"rounds": 12, "most_relaxed": None, "each_region": True}
 
 
+def _unfold(problem: WrapProblem, upright, vertices, projection: Projection | None,
+            fixed) -> tuple[np.ndarray, Projection | None, dict]:
+    """The unfolding passes of :func:`finish_fit` with ``fixed`` (n,) bool vertices
+    held: (vertices, the projection they were landed by, ``unfolded`` and
+    ``settled`` vertex counts)."""
+    skin, roles = problem.skin_mesh, problem.roles      # the folds repaired are the skin's
+    out = vertices
+    relaxed, settled = np.zeros((2, len(out)), dtype=bool)
+    for extra in ({}, _WIDE_UNFOLD):
+        out, more = relax_flips(skin, upright, out, fixed=fixed, order=_UNFOLD_ORDER,
+                                **extra)
+        if more.any() and projection is not None:
+            out, projection, again = _project_unfolded(
+                problem, upright, out, projection, more if extra else None, fixed)
+            more |= again
+        relaxed |= more
+        # slivers, one corner each (the second pass would smooth wide in vain)
+        out, corners = settle_turned_corners(skin, upright, out,
+                                             movable=~fixed & (roles != PART))
+        settled |= corners
+    # a triangle left on the edge of a fold is one from a pose a degree away
+    # (the template posed by the fitted weights alone)
+    out, edge = turn_back_within(skin, upright, out, _ON_THE_EDGE, fixed=fixed,
+                                 order=_UNFOLD_ORDER)
+    relaxed |= edge
+    return out, projection, {"unfolded": int(relaxed.sum()), "settled": int(settled.sum())}
+
+
+def _fold_count(problem: WrapProblem, vertices, upright) -> int:
+    """Triangles of fitted skin turned past 90 degrees from ``upright``."""
+    T = problem.skin_mesh.triangles
+    fitted = (problem.roles[T] == FITTED).all(axis=1)
+    return int(turned_triangles(vertices, upright, T[fitted]).sum())
+
+
+def _landmark_vertices(problem: WrapProblem) -> np.ndarray:
+    """(n,) bool: the template vertices its paired landmarks lie on (the corners of
+    a surface landmark's triangle)."""
+    landmarks = problem.landmarks
+    out = np.zeros(problem.template.n_vertices, dtype=bool)
+    out[landmarks.vertex[landmarks.vertex >= 0]] = True
+    on = landmarks.triangle >= 0
+    out[problem.template.triangles[landmarks.triangle[on]].ravel()] = True
+    return out
+
+
 def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Projection,
-                      region=None) -> tuple[np.ndarray, Projection, np.ndarray]:
+                      region, fixed) -> tuple[np.ndarray, Projection, np.ndarray]:
     """``unfolded`` onto the scan again, keeping the orientation of ``upright``
     (what the new blend turns over unfolded among the vertices not projected,
     what still folds stepped back toward ``unfolded``).  With ``region`` (n,)
@@ -152,11 +198,12 @@ def _project_unfolded(problem: WrapProblem, upright, unfolded, projection: Proje
     skin, roles = problem.skin_mesh, problem.roles
     T = skin.triangles
     again = project(problem, unfolded, upright=upright)
-    landed, moved = unfold_among(skin, upright, again.vertices,
-                                 (roles != PINNED) & ~again.projected)
+    landed, moved = unfold_among(skin, upright,
+                                 np.where(fixed[:, None], unfolded, again.vertices),
+                                 ~fixed & ~again.projected)
     picks = [(landed, again, moved)] + ([] if region is None else [
         (np.where(region[:, None], landed, unfolded), projection, moved & region)])
-    stepped = [(step_back_new_folds(T, upright, unfolded, out, roles == PINNED), kept,
+    stepped = [(step_back_new_folds(T, upright, unfolded, out, fixed), kept,
                 moved) for out, kept, moved in picks]
     (out, back), kept, moved = min(stepped, key=lambda c: seen_fit_p95(
         problem.tree, c[0][0][roles == FITTED]))     # the first of equals: everything

@@ -349,6 +349,7 @@ def wrap(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
                       metrics, settings=problem.settings, history=fitted.history,
                       weights=fitted.weights, shape_names=fitted.shape_names,
                       warnings=list(problem.warnings) + _pull_warnings(pull, problem)
+                      + _slide_warnings(finish, problem, out)
                       + _off_scan(template_landmarks, problem, out),
                       roles=problem.roles)
 
@@ -399,6 +400,21 @@ def _off_scan(template_landmarks: Landmarks, problem: WrapProblem, vertices) -> 
         template_landmarks, paired = problem.landmarks, np.arange(len(problem.targets))
     return landmarks_off_scan(template_landmarks, vertices, problem.template.triangles,
                               problem.tree, paired, problem.targets)
+
+
+def _slide_warnings(finish: dict, problem: WrapProblem, vertices) -> list:
+    """One line when unfolding the fit moved landmark vertices far along the scan
+    (:func:`~facewrap.wrapping.finish.finish_fit` holds them unless that leaves
+    folds): the template's landmarks and the scan's disagree with the surface."""
+    slid = finish.get("landmarks_slid", 0.0)
+    size = problem.template.with_vertices(vertices).scale()
+    if slid <= _HELD_SHORT_TOLERANCES * problem.settings.landmark_tolerance * size:
+        return []
+    return [f"template landmarks: unfolding the fit moved landmark vertices up to "
+            f"{slid:.3g} scan units from where the fit put them (held there, they "
+            f"would leave the surface folded): the template's landmarks and the "
+            f"scan's seem placed differently (a jaw point on the outline in one, on "
+            f"the bone in the other?)"]
 
 
 def _pull_warnings(pull: dict | None, problem: WrapProblem) -> list:
