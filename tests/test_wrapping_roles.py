@@ -8,6 +8,7 @@ import pytest
 from conftest import DATA, needs_data
 from facewrap.geometry import flipped_triangles, sphere_directions
 from facewrap.geometry.visibility import outside_views
+from facewrap.landmarks import Landmarks
 from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template
 from facewrap.wrapping import WrapSettings, wrap
@@ -360,3 +361,53 @@ def test_a_part_inside_the_head_does_not_change_the_skins_fit(sample, model):
     for field in ("warped", "vertices"):
         moved = np.linalg.norm(getattr(runs[1], field)[:n] - getattr(runs[0], field), axis=1)
         assert moved.max() < tolerance, field
+
+
+def test_follow_skin_starts_the_parts_from_the_pose_the_blend_weights_made():
+    """A jaw opened by a shape drops the tooth under a skin patch that stays where it
+    was: the tooth stays dropped (from the neutral, the still patch held it up)."""
+    g = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), -1).reshape(-1, 2)
+    skin = np.c_[g, np.zeros(25)]
+    T = np.array([[i, i + 1, i + 6] for i in range(19) if i % 5 < 4]
+                 + [[i, i + 6, i + 5] for i in range(19) if i % 5 < 4])
+    R = np.vstack([skin, [[2.0, 2.0, -0.5]]])
+    roles = np.r_[np.zeros(25, np.int8), [PART]].astype(np.int8)
+    rest = R.copy()
+    rest[25] = [2.0, 2.0, -1.5]                          # the shape dropped the tooth
+    fit = rest.copy()
+    fit[:25, 2] += 0.25                                  # the skin a little beyond it
+    out = follow_skin(T, R, fit, roles, start=rest)
+    np.testing.assert_allclose(out[25], [2.0, 2.0, -1.25], atol=1e-6)
+    assert follow_skin(T, R, fit, roles)[25, 2] > -0.5   # from the neutral: held up
+
+
+@needs_data
+@pytest.mark.parametrize("expression", [{"eyeBlink_L": 1.0}, {"jawOpen": 0.8},
+                                        {"jawOpen": 0.6, "mouthSmile_L": 1.0}])
+def test_ict_parts_follow_its_own_shapes_onto_a_face_of_them(ict_folder, expression):
+    """ICT's full head (hybrid, four of its shapes) onto a face its shapes make:
+    the teeth where ICT's shapes put them (before: the lips carried them, 7-8 mm
+    off on average with the jaw open) and no part through the closed eyelid
+    (before: 5 vertices, the put-back at the lid's thin edge crossing it)."""
+    from facewrap.datasets import ICTFaceKit
+    from facewrap.geometry.similarity import similarity_transform
+    from facewrap.wrapping.follow import side_changes
+    kit = ICTFaceKit(ict_folder)
+    head = kit.neutral
+    V0 = head.vertices
+    shapes = {n: np.asarray(kit.shape(n))
+              for n in ("jawOpen", "eyeBlink_L", "eyeBlink_R", "mouthSmile_L")}
+    truth = np.asarray(kit.shape("identity000")) + sum(
+        w * (shapes[k] - V0) for k, w in expression.items())
+    face = kit.part_mesh("face")
+    n = face.n_vertices
+    ids = np.asarray(kit.indices["idx_to_landmark_verts"])
+    r = wrap(head, Mesh(10 * truth[:n], face.triangles), Landmarks.from_vertices(ids),
+             Landmarks.from_points(10 * truth[ids]), WrapSettings(model="hybrid"),
+             blendshapes=shapes)
+    parts = np.where(r.roles == PART, PART, 0).astype(np.int8)
+    assert not side_changes(head.triangles, r.transform.apply(V0), r.vertices,
+                            parts).any()
+    placed = similarity_transform(10 * truth[:n], r.vertices[:n], scale=False).apply(10 * truth)
+    teeth = slice(17039, 21451)                          # ICT's parts table
+    assert np.linalg.norm(r.vertices[teeth] - placed[teeth], axis=1).mean() < 1.0

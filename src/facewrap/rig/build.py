@@ -195,7 +195,9 @@ def _texture_refiner(template: Mesh, baking, textures, settings: TextureFlowSett
         reference = _reference_image(baking.result())
         roles = w.roles if w.roles is not None else np.zeros(template.n_vertices, np.int8)
         aligned = w.transform.apply(template.vertices)
-        follow = ((lambda V, a=aligned, r=roles: follow_skin(template.triangles, a, V, r))
+        # the parts move from where the wrap put them, with the skin's refinement
+        follow = ((lambda V, a=aligned, r=roles, s=w.vertices:
+                   follow_skin(template.triangles, a, V, r, start=s))
                   if (roles == PART).any() else None)
         on_scan = None if w.projection is None else w.projection.projected
         r = refine_by_texture(template, w.vertices, reference, scan, image, settings,

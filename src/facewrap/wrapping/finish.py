@@ -123,7 +123,7 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
                 summary["landmarks_slid"] = 0.0
         summary.update(unfolded)
     out = pin(problem, out, similarity, projection)
-    out = follow_skin(template.triangles, aligned, out, roles)
+    out = follow_skin(template.triangles, aligned, out, roles, start=rest)
     return out, summary
 
 
@@ -169,10 +169,9 @@ def _unfold(problem: WrapProblem, upright, vertices, projection: Projection | No
 
 
 def _fold_count(problem: WrapProblem, vertices, upright) -> int:
-    """Triangles of fitted skin turned past 90 degrees from ``upright``."""
-    T = problem.skin_mesh.triangles
-    fitted = (problem.roles[T] == FITTED).all(axis=1)
-    return int(turned_triangles(vertices, upright, T[fitted]).sum())
+    """Triangles of the skin turned past 90 degrees from ``upright``: the fitted
+    skin's and its cavities' (a fold an inner lip holds shows as much)."""
+    return int(turned_triangles(vertices, upright, problem.skin_mesh.triangles).sum())
 
 
 def _landmark_vertices(problem: WrapProblem) -> np.ndarray:

@@ -5,7 +5,12 @@ not pulled by the scan.  :func:`follow_skin` moves each piece by a smooth warp o
 space that carries the skin around it (its anchors: the skin vertices nearest to
 each of its vertices, at most 200 of them spread by farthest-point sampling) as
 the fit carried it: the biharmonic RBF warp of SPEC §1.2
-(:class:`~facewrap.wrapping.warp.RBFWarp`).  An eyeball moves with its socket and
+(:class:`~facewrap.wrapping.warp.RBFWarp`).  With a blendshape fit the parts start
+from the pose its weights made (the lower teeth dropped with the jaw its
+``jawOpen`` opened) and only the skin's motion beyond that pose carries them: from
+the neutral, the lips' motion alone carried every tooth (a pucker pushed them
+forward 4 mm, a closed mouth over an open jaw left the lower teeth 14 mm high).
+An eyeball moves with its socket and
 lids, a tooth with the mouth socket and inner lips, whatever the deformation
 model did between them, and being smooth the warp folds no triangle.  A closed
 piece (no border: an eyeball, a tooth) is a solid body: it moves by the rigid
@@ -15,7 +20,8 @@ apart bends with them instead).  A part
 vertex that still ends up on the other side of the skin than on the template
 (signed distance by libigl's pseudonormal test; the skin is every triangle that is
 not part) is put back at its template offset from the closest skin point, along
-the skin's normal there; vertices that touch the skin on the template (closer
+the skin's normal there (after three rounds ever nearer the skin: at a closed
+eyelid the full offset crosses the lid's other sheet); vertices that touch the skin on the template (closer
 than ``2e-4`` of its size) have no side to keep, nor have those whose closest skin
 point on the template lies on the skin's border (a face region cut from its head:
 an eyeball seen through the eyelids' opening lies beyond the skin, not in front of
@@ -38,6 +44,7 @@ _ANCHORS = 8           # skin vertices nearest to each part vertex that carry it
 _MOST_ANCHORS = 200    # per piece: enough to follow a socket, a small solve
 _CONTACT = 2e-4        # of the template's size: a part vertex this near touches the skin
 _ON_EDGE = 1e-9        # a barycentric coordinate this small: the closest point is on an edge
+_FULL_OFFSET_ROUNDS = 3  # put-back rounds at the template's offset, before nearer ones
 
 
 def _signed(points, V, T):
@@ -114,12 +121,14 @@ class _SkinSides:
             self.sided = (np.abs(self.s0) > contact) & ~_on_border(C, I, R, self.skin_T,
                                                                    self.border)
 
-    def wrong(self, points, X):
-        """Part vertices at ``points`` against the skin of ``X``: (wrong side,
-        closest skin points, skin normals there).  A vertex whose closest skin
-        point is on the border, on the template or here, has no side."""
+    def wrong(self, points, X, which=None):
+        """Part vertices at ``points`` (of the parts ``which``, default all) against
+        the skin of ``X``: (wrong side, closest skin points, skin normals there).  A
+        vertex whose closest skin point is on the border, on the template or here,
+        has no side."""
+        which = slice(None) if which is None else which
         s1, C, N, I = _signed(points, X, self.skin_T)
-        wrong = (np.sign(s1) != np.sign(self.s0)) & self.sided
+        wrong = (np.sign(s1) != np.sign(self.s0[which])) & self.sided[which]
         if wrong.any():
             wrong[wrong] = ~_on_border(C[wrong], I[wrong], X, self.skin_T, self.border)
         return wrong, C, N
@@ -147,7 +156,7 @@ def side_changes(template_triangles, reference, vertices, roles) -> np.ndarray:
 
 
 def follow_skin(template_triangles, reference, vertices, roles, *,
-                rounds: int = 3) -> np.ndarray:
+                rounds: int = 16, start=None) -> np.ndarray:
     """Move the template's part vertices with the skin nearest to them.
 
     Parameters
@@ -160,7 +169,12 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
     roles : (n,) int8
         :func:`facewrap.wrapping.roles.vertex_roles`.
     rounds : int
-        Passes of the side check.
+        Passes of the side check (each only of the vertices the last put back).
+    start : (n, 3) float, optional
+        The pose the parts move from, the skin's motion measured from it: the pose
+        a blendshape fit made (its jaw opened with the lower teeth, its eyes
+        closed over still eyeballs), so only the skin's motion beyond it carries
+        the parts; default ``reference``.  Sides are those of ``reference``.
 
     Returns
     -------
@@ -187,13 +201,14 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
     roles = np.asarray(roles)
     X = np.array(vertices, dtype=np.float64)
     R = np.asarray(reference, dtype=np.float64)
+    S = R if start is None else np.asarray(start, dtype=np.float64)
     part = np.flatnonzero(roles == PART)
     skin = np.flatnonzero(roles != PART)
     if len(part) == 0 or len(skin) == 0:
         return X
     k = min(_ANCHORS, len(skin))
     from scipy.spatial import cKDTree   # only a template with parts needs it
-    _, near = cKDTree(R[skin]).query(R[part], k=k)
+    _, near = cKDTree(S[skin]).query(S[part], k=k)
     near = skin[np.asarray(near).reshape(len(part), k)]
     labels = connected_components(T, len(X))
     solid = np.ones(int(labels.max()) + 1, dtype=bool)
@@ -204,12 +219,12 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
         mine = pieces == piece
         anchors = np.unique(near[mine].ravel())
         if len(anchors) > _MOST_ANCHORS:
-            anchors = anchors[farthest_point_sampling(R[anchors], _MOST_ANCHORS)]
-        warp = RBFWarp().fit(*_distinct(R[anchors], X[anchors] - R[anchors]))
-        X[part[mine]] = warp.transform(R[part[mine]])
+            anchors = anchors[farthest_point_sampling(S[anchors], _MOST_ANCHORS)]
+        warp = RBFWarp().fit(*_distinct(S[anchors], X[anchors] - S[anchors]))
+        X[part[mine]] = warp.transform(S[part[mine]])
         if solid[piece]:
-            rigid[mine] = similarity_transform(R[part[mine]], X[part[mine]],
-                                               scale=False).apply(R[part[mine]])
+            rigid[mine] = similarity_transform(S[part[mine]], X[part[mine]],
+                                               scale=False).apply(S[part[mine]])
     sides = _SkinSides(T, roles, R)
     if not sides.usable:
         return X
@@ -219,10 +234,16 @@ def follow_skin(template_triangles, reference, vertices, roles, *,
         # vertices of a rigid piece back would dent it
         whole = (solid & (kept == 0))[pieces]
         X[part[whole]] = rigid[whole]
-    for _ in range(rounds):
-        wrong, C, N = sides.wrong(X[part], X)
+    # only the vertices put back move (the skin does not), so each round checks
+    # those again; past a few rounds they are put back ever nearer the skin: at a
+    # thin sheet (an eyelid closed) the full template offset crosses the other side
+    which = np.arange(len(part))
+    for round_ in range(rounds):
+        wrong, C, N = sides.wrong(X[part[which]], X, which)
         if not wrong.any():
             break
+        which = which[wrong]
         n = N[wrong] / np.maximum(np.linalg.norm(N[wrong], axis=1, keepdims=True), 1e-300)
-        X[part[wrong]] = C[wrong] + n * sides.s0[wrong, None]
+        nearer = 0.5 ** max(0, round_ - _FULL_OFFSET_ROUNDS + 1)
+        X[part[which]] = C[wrong] + n * (nearer * sides.s0[which, None])
     return X
