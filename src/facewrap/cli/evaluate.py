@@ -332,6 +332,7 @@ def cmd_evaluate(args) -> int:
     """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
     # deferred: `facewrap evaluate --help` (and the other commands) do not pay for these
     from facewrap.evaluate import evaluate
+    from facewrap.jobs.input_checks import check_surface
     from facewrap.report import heatmap_figure, save_png
 
     if (args.result_landmarks is None) != (args.scan_landmarks is None):
@@ -346,6 +347,10 @@ def cmd_evaluate(args) -> int:
                        inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
+    # distances are measured to surfaces both ways: a point cloud (a PLY of vertices
+    # alone) or a mesh of zero-area triangles has none, and is named, not measured
+    check_surface(result, args.result, "result", "a fitted mesh is a surface")
+    check_surface(scan, args.scan, "scan", "distances are measured to its surface")
     odd = implausible_pair(result, scan, args.result, args.scan)
     gt = ref = None
     if args.ground_truth:

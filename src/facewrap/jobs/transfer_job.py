@@ -50,7 +50,7 @@ from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import check_job_fields, input_field, output_field
-from facewrap.jobs.input_checks import oversized_shapes
+from facewrap.jobs.input_checks import check_surface, oversized_shapes
 from facewrap.params import Flag, Interval, NoneAllowed, expect_instance, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -235,9 +235,11 @@ def _read_inputs(job: TransferJob) -> dict:
     """Meshes, marker ids, shapes and the cached correspondence (or None), checked."""
     source = read_mesh(job.source_neutral)
     target = read_mesh(job.target_neutral)
-    for mesh, path in ((source, job.source_neutral), (target, job.target_neutral)):
-        if len(mesh.triangles) == 0:   # a point cloud: no surface to deform
-            raise InputError("has no faces; deformation transfer needs a surface", path)
+    for mesh, path, what in ((source, job.source_neutral, "source neutral"),
+                             (target, job.target_neutral, "target neutral")):
+        # a point cloud, or triangles of zero area: no surface to deform (the
+        # latter solved silently into garbage, their gradients undefined)
+        check_surface(mesh, path, what, "deformation transfer needs a surface")
     src_ids, tgt_ids = check_markers(read_markers(job.markers), source.n_vertices,
                                      target.n_vertices, job.markers)
     # a mirrored pairing, other units, too few pairs: said, with the file
