@@ -7,7 +7,10 @@ Classes:
   file, and measured a scan whose triangles all have zero area (a mesh collapsed
   to a line) as if it were one; ``transfer`` onto or from such a mesh solved it
   silently into garbage (exit status 0).  Each is now refused naming the file, as
-  ``wrap`` refuses a scan (:func:`~facewrap.jobs.input_checks.check_surface`).
+  ``wrap`` refuses a scan (:func:`~facewrap.jobs.input_checks.check_surface`);
+- ``convert`` of a PLY point cloud to OBJ wrote a file of ``v`` lines that every
+  command, ``info`` too, then refused ("no faces ('f' lines)"); it is now refused
+  before anything is written, pointing to PLY.
 
 Inputs are the built-in sample at its smallest and tiny meshes written here.
 """
@@ -56,3 +59,13 @@ def test_evaluate_and_transfer_refuse_a_mesh_without_a_surface(sample, tmp_path,
                       "--markers", markers, "-o", out, "-q")
         error_line(capsys, rc, str(flat_template), "neutral is degenerate")
         assert not out.exists()
+
+
+def test_convert_refuses_a_point_cloud_to_obj(sample, tmp_path, capsys):
+    cloud = tmp_path / "cloud.ply"
+    write_mesh(cloud, Mesh(read_mesh(sample["scan"]).vertices, np.zeros((0, 3), int)))
+    out = tmp_path / "cloud.obj"
+    error_line(capsys, facewrap("convert", cloud, out), str(cloud), "has no faces")
+    assert not out.exists()
+    assert facewrap("convert", cloud, tmp_path / "again.ply") == 0
+    assert read_mesh(tmp_path / "again.ply").n_vertices == read_mesh(cloud).n_vertices
