@@ -10,7 +10,23 @@ Classes:
   ``wrap`` refuses a scan (:func:`~facewrap.jobs.input_checks.check_surface`);
 - ``convert`` of a PLY point cloud to OBJ wrote a file of ``v`` lines that every
   command, ``info`` too, then refused ("no faces ('f' lines)"); it is now refused
-  before anything is written, pointing to PLY.
+  before anything is written, pointing to PLY;
+- the Python library took coordinates no file may hold (beyond 1e15 in magnitude,
+  which every reader refuses): ``wrap`` of a scan with a 1e300 vertex fitted it
+  with overflow warnings (of such a template: "V must be finite", naming neither),
+  ``evaluate`` measured it, ``bake_texture`` baked it, ``find_correspondence``
+  failed with "Singular matrix", ``DeformationTransfer.transfer`` returned
+  infinities, a blendshape of 1e300 was fitted; ``write_mesh`` wrote an OBJ of a
+  NaN or a 1e300 that ``read_mesh`` then refused.  Each is now a ``ValueError``
+  naming the argument and the vertex (:func:`~facewrap.mesh.check_positions`,
+  with :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units), and
+  ``bake_texture`` names ``template``/``scan`` for a NaN ("points must be finite"
+  before).
+
+``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
+arrays); every public function that takes one checks it at its door (those above
+now; ``wrap``, ``track``, the transfers, the rig functions, ``evaluate``, the
+renderers and ``detect_landmarks`` refused a NaN already).
 
 Inputs are the built-in sample at its smallest and tiny meshes written here.
 """
@@ -21,8 +37,12 @@ import numpy as np
 import pytest
 
 from conftest import facewrap
+from facewrap import DeformationTransfer, WrapSettings, find_correspondence, wrap
+from facewrap.evaluate import evaluate
 from facewrap.io.dispatch import read_mesh, write_mesh
 from facewrap.mesh import Mesh
+from facewrap.sample import make_scan, make_template
+from facewrap.texture import bake_texture
 # the fixture: the built-in sample at its smallest (template 24, scan 40), as files
 from test_hostile_more import sample  # noqa: F401
 from test_hostile_sweep import error_line
@@ -69,3 +89,52 @@ def test_convert_refuses_a_point_cloud_to_obj(sample, tmp_path, capsys):
     assert not out.exists()
     assert facewrap("convert", cloud, tmp_path / "again.ply") == 0
     assert read_mesh(tmp_path / "again.ply").n_vertices == read_mesh(cloud).n_vertices
+
+
+# -- the Python library: positions a file could not hold -----------------------------------
+@pytest.fixture(scope="module")
+def small():
+    """The sample at its smallest, in memory: template 24, scan 40."""
+    tpl = make_template(24)
+    return {"tpl": tpl, "scan": make_scan(tpl, resolution=40, texture_size=16)}
+
+
+def moved(mesh: Mesh, value: float, vertex: int = 5) -> Mesh:
+    V = mesh.vertices.copy()
+    V[vertex] = value
+    return mesh.with_vertices(V)
+
+
+def test_the_library_refuses_positions_no_file_may_hold(small, tmp_path):
+    template, scan = small["tpl"].mesh, small["scan"].mesh
+    tl, sl = small["tpl"].landmarks, small["scan"].landmarks
+    image = np.full((8, 8, 3), 128, np.uint8)
+    for name, call in (
+            ("scan", lambda m: wrap(template, m, tl, sl, WrapSettings(model="rbf"))),
+            ("template", lambda m: wrap(m, scan, tl, sl, WrapSettings(model="rbf"))),
+            ("scan", lambda m: evaluate(template, m)),
+            ("source", lambda m: find_correspondence(m, template, [[0, 0], [50, 50],
+                                                                   [99, 99]])),
+            ("template", lambda m: bake_texture(m, scan, image, size=8)),
+            ("mesh", lambda m: write_mesh(tmp_path / "out.obj", m))):
+        mesh = template if name in ("template", "source") else scan
+        with pytest.raises(ValueError, match=rf"^{name}: vertex 5 has coordinate 1e\+300, "
+                                             "too large"):
+            call(moved(mesh, 1e300))
+    with pytest.raises(ValueError, match=r"^template: vertex 5 is not finite"):
+        bake_texture(moved(template, np.nan), scan, image, size=8)   # was "points ..."
+    for ext in (".obj", ".ply"):
+        with pytest.raises(ValueError, match=r"^mesh: vertex 5 is not finite"):
+            write_mesh(tmp_path / f"nan{ext}", moved(scan, np.nan))
+    assert not list(tmp_path.iterdir())
+    face, keep = template.submesh(template.face_groups == 0)
+    corr = find_correspondence(face, face, [[0, 0], [50, 50], [99, 99]])
+    dt = DeformationTransfer(anchor=0, fix_flips=False).fit(face, face, corr)
+    pose = face.vertices.copy()
+    pose[3] = 1e300
+    with pytest.raises(ValueError, match=r"^poses\[1\]: vertex 3 has coordinate 1e\+300"):
+        dt.transfer([face.vertices, pose])
+    shapes = {k: v.copy() for k, v in small["tpl"].blendshapes.items()}
+    shapes["smile"][7] = -1e300
+    with pytest.raises(ValueError, match=r"^blendshapes\['smile'\]: vertex 7 has"):
+        wrap(template, scan, tl, sl, WrapSettings(model="blendshape"), blendshapes=shapes)

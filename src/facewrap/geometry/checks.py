@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from facewrap.units import too_large
+
 
 def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
     """C-contiguous (k, columns) finite float64 array; raise ValueError naming ``name``."""
@@ -169,6 +171,9 @@ def as_shape_dict(shapes, n: int, name: str = "blendshapes") -> dict:
             raise ValueError(f"{where} must have shape ({n}, 3), got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{where} must be finite (found NaN or inf)")
+        problem = too_large(arr)
+        if problem is not None:
+            raise ValueError(f"{where}: {problem}")
         arr.setflags(write=False)
         out[key] = arr
     return out
@@ -235,6 +240,9 @@ def mesh_arrays(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
         V = np.asarray(mesh.vertices, dtype=np.float64)
         if not np.all(np.isfinite(V)):
             raise ValueError(f"{name} vertices must be finite (found NaN or inf)")
+        problem = too_large(V)   # as a file's reader refuses it: sizes would overflow
+        if problem is not None:
+            raise ValueError(f"{name}: {problem}")
         return V, np.asarray(mesh.triangles)
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
         V = as_vertices(mesh[0], f"{name} vertices")

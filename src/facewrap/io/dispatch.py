@@ -16,7 +16,7 @@ from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
                                          read_trimesh_format)
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_positions
 from facewrap.params import expect_instance
 
 __all__ = ["read_mesh", "write_mesh", "read_mesh_texture", "MESH_READ_EXTENSIONS",
@@ -97,11 +97,16 @@ def write_mesh(path, mesh: Mesh) -> None:
         ``path`` no path.
     InputError
         An extension it cannot write.
+    ValueError
+        A vertex that is NaN, infinite or too large
+        (:func:`~facewrap.mesh.check_positions`): no reader takes it back.
     """
     expect_instance(mesh, Mesh, "mesh")
     ext = _ext(path)
     if ext not in MESH_WRITE_EXTENSIONS:
         raise _unknown(ext, MESH_WRITE_EXTENSIONS, path)
+    # what read_mesh refuses is not written: an OBJ took a NaN or a 1e300 silently
+    check_positions(mesh.vertices, "mesh")
     if ext == ".obj":
         write_obj(path, mesh)
     else:
