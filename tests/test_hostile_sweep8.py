@@ -21,7 +21,11 @@ Classes:
   naming the argument and the vertex (:func:`~facewrap.mesh.check_positions`,
   with :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units), and
   ``bake_texture`` names ``template``/``scan`` for a NaN ("points must be finite"
-  before).
+  before);
+- an output path written on Windows (a job file's ``output = "out\\\\fit.obj"``, a
+  manifest's ``C:\\fits\\a.obj``, ``-o 'fits\\a.obj'``) was one file named with
+  backslashes, written without a word where no one would look for it; a backslash
+  in an output path is now refused where ``/`` separates folders, naming the path.
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -138,3 +142,24 @@ def test_the_library_refuses_positions_no_file_may_hold(small, tmp_path):
     shapes["smile"][7] = -1e300
     with pytest.raises(ValueError, match=r"^blendshapes\['smile'\]: vertex 7 has"):
         wrap(template, scan, tl, sl, WrapSettings(model="blendshape"), blendshapes=shapes)
+
+
+# -- Windows paths -------------------------------------------------------------------------
+def test_an_output_path_written_on_windows_is_refused(sample, tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text(
+        f'version = 1\n[inputs]\ntemplate = "{sample["template"]}"\n'
+        f'scan = "{sample["scan"]}"\nscan_landmarks = "{sample["scan_landmarks"]}"\n'
+        f'template_landmarks = "{sample["template_landmarks"]}"\n'
+        '[outputs]\noutput = "out\\\\fit.obj"\n[wrap]\nmodel = "rbf"\n')
+    error_line(capsys, facewrap("run", "-q", job), str(job), "out\\fit.obj' holds a backslash")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"scan,scan_landmarks,output\n{sample['scan']},"
+                        f"{sample['scan_landmarks']},C:\\fits\\a.obj\n")
+    error_line(capsys, facewrap("batch", "--job", job, "-q", manifest), str(manifest),
+               "a.obj' holds a backslash")
+    argv = ["wrap", sample["template"], sample["scan"], "--template-landmarks",
+            sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+            "--model", "rbf", "-q", "-o", tmp_path / "fits\\a.obj"]
+    error_line(capsys, facewrap(*argv), "holds a backslash", "use '/'")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["job.toml", "m.csv"]
