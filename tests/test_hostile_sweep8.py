@@ -26,6 +26,11 @@ Classes:
   manifest's ``C:\\fits\\a.obj``, ``-o 'fits\\a.obj'``) was one file named with
   backslashes, written without a word where no one would look for it; a backslash
   in an output path is now refused where ``/`` separates folders, naming the path.
+- ``report`` of a run report edited by hand failed naming no file: an output path
+  that is a number ("TypeError: expected str, bytes or os.PathLike object, not
+  int"), a transform that is text ("could not convert string to float: 'abc'");
+  a NaN in the transform was "must be a 4x4 matrix, got shape (4, 4)", and a
+  1e300 in it was drawn silently.  Each now names the report and the entry.
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -36,6 +41,9 @@ Inputs are the built-in sample at its smallest and tiny meshes written here.
 """
 
 from __future__ import annotations
+
+import copy
+import json
 
 import numpy as np
 import pytest
@@ -163,3 +171,34 @@ def test_an_output_path_written_on_windows_is_refused(sample, tmp_path, capsys):
             "--model", "rbf", "-q", "-o", tmp_path / "fits\\a.obj"]
     error_line(capsys, facewrap(*argv), "holds a backslash", "use '/'")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["job.toml", "m.csv"]
+
+
+# -- a run report edited by hand ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def run_report(sample, tmp_path_factory) -> dict:
+    """The JSON report of a wrap of the sample (its paths absolute)."""
+    folder = tmp_path_factory.mktemp("run")
+    argv = ["wrap", sample["template"], sample["scan"], "--template-landmarks",
+            sample["template_landmarks"], "--scan-landmarks", sample["scan_landmarks"],
+            "--model", "rbf", "-q", "-o", folder / "fit.obj", "--report", folder / "run.json"]
+    assert facewrap(*argv) == 0
+    return json.loads((folder / "run.json").read_text())
+
+
+@pytest.mark.parametrize("edit, problem", [
+    (lambda run: run["job"].update(output=5), "the run's output must be a path (a string)"),
+    (lambda run: run.update(transform="abc"), "'transform' must be a 4x4 matrix of numbers"),
+    (lambda run: run["transform"][0].__setitem__(0, float("nan")),
+     "'transform' entry [0][0] is nan"),
+    (lambda run: run["transform"][1].__setitem__(2, 1e300),
+     "'transform' entry [1][2] is 1e+300")])
+def test_report_names_the_run_report_a_hand_edit_broke(run_report, tmp_path, capsys, edit,
+                                                       problem):
+    run = copy.deepcopy(run_report)
+    edit(run)
+    run_json = tmp_path / "run.json"
+    run_json.write_text(json.dumps(run))
+    capsys.readouterr()
+    rc = facewrap("report", run_json, "-o", tmp_path / "page")
+    error_line(capsys, rc, str(run_json), problem)
+    assert not (tmp_path / "page").exists()
