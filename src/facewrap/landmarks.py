@@ -15,6 +15,7 @@ File formats live in :mod:`facewrap.io.landmarks`.
 
 from __future__ import annotations
 
+import unicodedata
 from typing import Sequence
 
 import numpy as np
@@ -115,6 +116,7 @@ class Landmarks:
         Each row in [0, 1] and summing to 1 there (:func:`barycentric_problem`).
     points : (k, 3) float, NaN where the landmark is not a free point
     names : sequence of k str, optional
+        Kept in Unicode's composed form (NFC), so that names typed either way pair.
 
     Examples
     --------
@@ -146,7 +148,10 @@ class Landmarks:
             raise ValueError(f"barycentric coordinates {problem}")
         not_one_string(names, "names")
         if names is not None:
-            names = tuple(str(n) for n in names)
+            # one spelling of each name: 'é' typed as one character (NFC) or as 'e'
+            # and an accent (NFD, as macOS tools may write) looks the same to the
+            # user, yet failed to pair with the other and was left out of the fit
+            names = tuple(unicodedata.normalize("NFC", str(n)) for n in names)
             if len(names) != k:
                 raise ValueError(f"{len(names)} names for {k} landmarks")
             if len(set(names)) != k:
