@@ -17,8 +17,10 @@ Classes:
   ``evaluate`` measured it, ``bake_texture`` baked it, ``find_correspondence``
   failed with "Singular matrix", ``DeformationTransfer.transfer`` returned
   infinities, a blendshape of 1e300 was fitted; ``write_mesh`` wrote an OBJ of a
-  NaN or a 1e300 that ``read_mesh`` then refused.  Each is now a ``ValueError``
-  naming the argument and the vertex (:func:`~facewrap.mesh.check_positions`,
+  NaN or a 1e300 that ``read_mesh`` then refused (of a NaN texture coordinate or
+  normal too; a NaN vertex colour was read back as no colours at all, and a PLY
+  refused these naming no row).  Each is now a ``ValueError`` naming the argument
+  and the vertex (:func:`~facewrap.mesh.check_positions`,
   with :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units), and
   ``bake_texture`` names ``template``/``scan`` for a NaN ("points must be finite"
   before);
@@ -222,3 +224,16 @@ def test_landmark_names_typed_in_either_unicode_form_pair():
     assert ia.tolist() == [0, 1, 2] and ib.tolist() == [2, 1, 0]
     with pytest.raises(ValueError, match="must be unique"):
         Landmarks.from_vertices([0, 1], names=[composed[0], decomposed[0]])
+
+
+@pytest.mark.parametrize("attribute, what", [
+    ({"uvs": np.full((3, 2), np.nan)}, "texture coordinate 0"),
+    ({"normals": np.full((3, 3), np.inf), "face_normals": [[0, 1, 2]]}, "normal 0"),
+    ({"vertex_colors": np.full((3, 3), np.nan)}, "vertex colour 0")])
+@pytest.mark.parametrize("ext", [".obj", ".ply"])
+def test_write_mesh_refuses_what_no_reader_takes_back(tmp_path, attribute, what, ext):
+    """An OBJ wrote them as 'nan': UVs and normals then refused by read_mesh, colours
+    dropped by it without a word."""
+    with pytest.raises(ValueError, match=rf"^mesh: {what} is not finite"):
+        write_mesh(tmp_path / f"a{ext}", Mesh(np.eye(3), [[0, 1, 2]], **attribute))
+    assert not list(tmp_path.iterdir())

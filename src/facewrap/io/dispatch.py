@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from facewrap.errors import InputError
 from facewrap.io.files import check_coordinates, not_a_file
 from facewrap.io.obj import read_obj, write_obj
@@ -99,7 +101,8 @@ def write_mesh(path, mesh: Mesh) -> None:
         An extension it cannot write.
     ValueError
         A vertex that is NaN, infinite or too large
-        (:func:`~facewrap.mesh.check_positions`): no reader takes it back.
+        (:func:`~facewrap.mesh.check_positions`), or a texture coordinate, normal or
+        vertex colour that is NaN or infinite: no reader takes it back.
     """
     expect_instance(mesh, Mesh, "mesh")
     ext = _ext(path)
@@ -107,7 +110,22 @@ def write_mesh(path, mesh: Mesh) -> None:
         raise _unknown(ext, MESH_WRITE_EXTENSIONS, path)
     # what read_mesh refuses is not written: an OBJ took a NaN or a 1e300 silently
     check_positions(mesh.vertices, "mesh")
+    _check_finite_attributes(mesh)
     if ext == ".obj":
         write_obj(path, mesh)
     else:
         write_ply(path, mesh)
+
+
+def _check_finite_attributes(mesh: Mesh) -> None:
+    """Refuse a NaN or infinite texture coordinate, normal or vertex colour: an OBJ
+    wrote it as ``nan`` (its UVs and normals then refused by the reader, its colours
+    dropped without a word), a PLY refused it naming no row."""
+    for what, values in (("texture coordinate", mesh.uvs), ("normal", mesh.normals),
+                         ("vertex colour", mesh.vertex_colors)):
+        if values is None:
+            continue
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise ValueError(f"mesh: {what} {row} is not finite ({values[row].tolist()})")
