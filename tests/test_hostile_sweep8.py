@@ -16,18 +16,23 @@ Classes:
   with overflow warnings (of such a template: "V must be finite", naming neither),
   ``evaluate`` measured it, ``bake_texture`` baked it, ``find_correspondence``
   failed with "Singular matrix", ``DeformationTransfer.transfer`` returned
-  infinities, a blendshape of 1e300 was fitted; ``write_mesh`` wrote an OBJ of a
-  NaN or a 1e300 that ``read_mesh`` then refused (of a NaN texture coordinate or
-  normal too; a NaN vertex colour was read back as no colours at all, and a PLY
-  refused these naming no row).  Each is now a ``ValueError`` naming the argument
-  and the vertex (:func:`~facewrap.mesh.check_positions`,
-  with :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units), and
-  ``bake_texture`` names ``template``/``scan`` for a NaN ("points must be finite"
-  before);
+  infinities, a blendshape of 1e300 was fitted, a landmark of 1e300 failed in the
+  fit as "weights must be (k,) non-negative with a positive sum", and
+  ``landmark_errors``, ``surface_distances``, ``similarity_transform`` and
+  ``interpolate_vertices`` overflowed into inf or NaN.  Each is now a
+  ``ValueError`` naming the argument and the row (meshes:
+  :func:`~facewrap.mesh.check_positions`; arrays of points:
+  :func:`~facewrap.geometry.checks.as_points`; :class:`~facewrap.Landmarks`), with
+  :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units; ``bake_texture``
+  now names ``template``/``scan`` for a NaN too ("points must be finite" before);
+- ``write_mesh`` wrote an OBJ of a NaN or 1e300 vertex, a NaN texture coordinate or
+  normal, that ``read_mesh`` then refused (a NaN vertex colour was read back as no
+  colours at all; a PLY refused these naming no row); each is now refused naming
+  the row;
 - an output path written on Windows (a job file's ``output = "out\\\\fit.obj"``, a
   manifest's ``C:\\fits\\a.obj``, ``-o 'fits\\a.obj'``) was one file named with
   backslashes, written without a word where no one would look for it; a backslash
-  in an output path is now refused where ``/`` separates folders, naming the path.
+  in an output path is now refused where ``/`` separates folders, naming the path;
 - ``report`` of a run report edited by hand failed naming no file: an output path
   that is a number ("TypeError: expected str, bytes or os.PathLike object, not
   int"), a transform that is text ("could not convert string to float: 'abc'");
@@ -59,7 +64,9 @@ import pytest
 from conftest import facewrap
 from facewrap import (DeformationTransfer, Landmarks, WrapSettings, find_correspondence,
                       pair_landmarks, wrap)
-from facewrap.evaluate import evaluate
+from facewrap.animation import interpolate_vertices
+from facewrap.evaluate import evaluate, landmark_errors, surface_distances
+from facewrap.geometry import similarity_transform
 from facewrap.io.dispatch import read_mesh, write_mesh
 from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template
@@ -155,6 +162,17 @@ def test_the_library_refuses_positions_no_file_may_hold(small, tmp_path):
     pose[3] = 1e300
     with pytest.raises(ValueError, match=r"^poses\[1\]: vertex 3 has coordinate 1e\+300"):
         dt.transfer([face.vertices, pose])
+    points = sl.positions(scan)
+    far = points.copy()
+    far[3] = [0.0, 1e300, 0.0]
+    with pytest.raises(ValueError, match=r"^landmark 3 has coordinate 1e\+300"):
+        Landmarks.from_points(far)   # the fit said "weights must be ... positive sum"
+    for name, call in (("positions", lambda: landmark_errors(far, points)),
+                       ("points", lambda: surface_distances(far, scan)),
+                       ("source", lambda: similarity_transform(far, points)),
+                       ("end", lambda: interpolate_vertices(points, far, 3))):
+        with pytest.raises(ValueError, match=rf"^{name}: row 3 has coordinate 1e\+300"):
+            call()   # each overflowed into inf or NaN, with a RuntimeWarning at most
     shapes = {k: v.copy() for k, v in small["tpl"].blendshapes.items()}
     shapes["smile"][7] = -1e300
     with pytest.raises(ValueError, match=r"^blendshapes\['smile'\]: vertex 7 has"):

@@ -21,6 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from facewrap.params import not_one_string
+from facewrap.units import too_large
 
 __all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES",
            "BARYCENTRIC_SLACK", "barycentric_problem"]
@@ -146,6 +147,9 @@ class Landmarks:
         problem = barycentric_problem(barycentric[triangle >= 0])
         if problem:
             raise ValueError(f"barycentric coordinates {problem}")
+        problem = too_large(points, "landmark")   # as a file's reader refuses it
+        if problem:   # (a 1e300 failed in the fit as "weights must be ... positive")
+            raise ValueError(problem)
         not_one_string(names, "names")
         if names is not None:
             # one spelling of each name: 'é' typed as one character (NFC) or as 'e'

@@ -12,7 +12,8 @@ from facewrap.units import too_large
 
 
 def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
-    """C-contiguous (k, columns) finite float64 array; raise ValueError naming ``name``."""
+    """C-contiguous (k, columns) finite float64 array, each value within
+    :data:`~facewrap.units.COORDINATE_LIMIT`; raise ValueError naming ``name``."""
     try:
         P = np.asarray(P, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -22,6 +23,9 @@ def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
         raise ValueError(f"{name} must have shape (k, {columns}), got {P.shape}")
     if not np.all(np.isfinite(P)):
         raise ValueError(f"{name} must be finite (found NaN or inf)")
+    problem = too_large(P, "row")   # a 1e300 overflowed into inf distances, silently
+    if problem is not None:
+        raise ValueError(f"{name}: {problem}")
     return np.ascontiguousarray(P)
 
 
