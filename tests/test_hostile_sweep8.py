@@ -42,7 +42,12 @@ Classes:
   character, NFC, in one file; 'e' and a combining accent, NFD, as macOS tools may
   write, in the other) look the same but did not pair: half the sample's 68
   landmarks were left out of the fit (a warning naming 'jaw_1_é', the very name
-  the other file holds).  :class:`~facewrap.Landmarks` keeps names in NFC.
+  the other file holds).  :class:`~facewrap.Landmarks` keeps names in NFC;
+- ``transfer --correspondence F.npz`` reused a cache made with other markers (the
+  marker file edited since) in their place: the new markers were ignored and the
+  shapes came out byte for byte as before, without a word.  A cache of other
+  marker pairs is now refused naming it (the same pairs in another order are
+  still reused).
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -255,3 +260,20 @@ def test_write_mesh_refuses_what_no_reader_takes_back(tmp_path, attribute, what,
     with pytest.raises(ValueError, match=rf"^mesh: {what} is not finite"):
         write_mesh(tmp_path / f"a{ext}", Mesh(np.eye(3), [[0, 1, 2]], **attribute))
     assert not list(tmp_path.iterdir())
+
+
+# -- a cache of an earlier run -----------------------------------------------------------
+def test_a_correspondence_made_with_other_markers_is_not_reused(sample, tmp_path, capsys):
+    markers, cache = tmp_path / "markers.txt", tmp_path / "corr.npz"
+    argv = ["transfer", sample["template"], sample["template"], "--source-shapes",
+            sample["blendshapes/blink"].parent, "--markers", markers, "--correspondence",
+            cache, "-q", "-o"]
+    markers.write_text("0 0\n50 50\n99 99\n")
+    assert facewrap(*argv, tmp_path / "first") == 0
+    markers.write_text("99 99\n0 0\n50 50\n")        # the same pairs: reused
+    assert facewrap(*argv, tmp_path / "again") == 0
+    markers.write_text("0 10\n50 60\n99 200\n300 400\n")
+    capsys.readouterr()
+    rc = facewrap(*argv, tmp_path / "edited")
+    error_line(capsys, rc, str(cache), "made with other marker pairs (3) than those given (4)")
+    assert not (tmp_path / "edited").exists()

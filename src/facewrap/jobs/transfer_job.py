@@ -17,9 +17,9 @@ particular to a transfer (``"shapes"``, ``"outputs"``, ``"correspondence"``,
 ``"flip_repairs"``, ``"ambiguity"``).
 
 A correspondence file (``correspondence``) is a cache: read when it exists (and
-checked against the meshes), else computed and written there.  It is neither an
-input nor an output of the job for batches: finding it or not gives the same
-result up to the solver's round-off.
+checked against the meshes and the marker pairs), else computed and written there.
+It is neither an input nor an output of the job for batches: finding it or not
+gives the same result up to the solver's round-off.
 
 As for :class:`~facewrap.jobs.wrap_job.WrapJob`, each path field says in its
 ``metadata`` which job-file table it belongs to (:mod:`facewrap.jobs.fields`); the
@@ -259,7 +259,10 @@ def _read_inputs(job: TransferJob) -> dict:
     corr = None
     if job.correspondence and Path(job.correspondence).is_file():
         corr = Correspondence.load(job.correspondence)
-        corr.check(source, target, job.correspondence)
+        # made with other markers (the file edited since), it answered for the old
+        # ones: the new markers were ignored without a word
+        corr.check(source, target, job.correspondence,
+                   markers=np.column_stack([src_ids, tgt_ids]))
     return {"source": source, "target": target, "markers": (src_ids, tgt_ids),
             "shapes": shapes, "correspondence": corr, "warnings": notes}
 
