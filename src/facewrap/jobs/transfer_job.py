@@ -50,7 +50,7 @@ from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import check_job_fields, input_field, output_field
-from facewrap.jobs.input_checks import check_surface, oversized_shapes
+from facewrap.jobs.input_checks import check_surface, oversized_shapes, survey_mesh
 from facewrap.params import Flag, Interval, NoneAllowed, expect_instance, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -235,16 +235,20 @@ def _read_inputs(job: TransferJob) -> dict:
     """Meshes, marker ids, shapes and the cached correspondence (or None), checked."""
     source = read_mesh(job.source_neutral)
     target = read_mesh(job.target_neutral)
+    notes = []
     for mesh, path, what in ((source, job.source_neutral, "source neutral"),
                              (target, job.target_neutral, "target neutral")):
         # a point cloud, or triangles of zero area: no surface to deform (the
         # latter solved silently into garbage, their gradients undefined)
-        check_surface(mesh, path, what, "deformation transfer needs a surface")
+        areas = check_surface(mesh, path, what, "deformation transfer needs a surface")
+        # some such triangles, repeated or non-manifold ones: said, as a wrap's
+        # template (a third of a target's triangles flat moved the shapes by mm)
+        notes += survey_mesh(mesh, path, what, pieces=False, areas=areas)
     src_ids, tgt_ids = check_markers(read_markers(job.markers), source.n_vertices,
                                      target.n_vertices, job.markers)
     # a mirrored pairing, other units, too few pairs: said, with the file
-    notes = [f"{job.markers}: {w}" for w in marker_placement(source.vertices[src_ids],
-                                                              target.vertices[tgt_ids])]
+    notes += [f"{job.markers}: {w}" for w in marker_placement(source.vertices[src_ids],
+                                                               target.vertices[tgt_ids])]
     anchor = job.settings.anchor
     if anchor is not None and not job.settings.landmark_guided \
             and anchor >= target.n_vertices:
