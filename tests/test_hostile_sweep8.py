@@ -52,7 +52,10 @@ Classes:
   (a repeated corner, zero area, an edge of three or more triangles) without a
   word, though a third of them with a repeated corner moved the shapes by
   millimetres; each is now one warning line naming the file, as for a wrap's
-  template (:func:`~facewrap.jobs.input_checks.survey_mesh`).
+  template (:func:`~facewrap.jobs.input_checks.survey_mesh`);
+- ``run_wrap_job`` took ``WrapJob(texture_size=True)`` as 1 (a bool is an int to
+  Python) and baked a 1 x 1 texture without a word; it is refused as other
+  non-integers are.
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -72,8 +75,8 @@ import numpy as np
 import pytest
 
 from conftest import facewrap
-from facewrap import (DeformationTransfer, Landmarks, WrapSettings, find_correspondence,
-                      pair_landmarks, wrap)
+from facewrap import (DeformationTransfer, InputError, Landmarks, WrapJob, WrapSettings,
+                      find_correspondence, pair_landmarks, run_wrap_job, wrap)
 from facewrap.animation import interpolate_vertices
 from facewrap.evaluate import evaluate, landmark_errors, surface_distances
 from facewrap.geometry import similarity_transform
@@ -303,3 +306,15 @@ def test_transfer_says_odd_triangles_of_its_neutrals(sample, tmp_path, capsys):
     hits = warning_lines(capsys, rc, str(target), "target neutral has",
                          "triangle(s) with a repeated vertex")
     assert len(hits) == 1
+
+
+def test_a_texture_size_of_true_is_refused(sample, tmp_path):
+    """True is an int to Python: a job's ``texture_size=True`` baked a 1 x 1 texture."""
+    job = WrapJob(template=str(sample["template"]), scan=str(sample["scan"]),
+                  template_landmarks=str(sample["template_landmarks"]),
+                  scan_landmarks=str(sample["scan_landmarks"]),
+                  texture=str(sample["scan_texture"]), texture_size=True,
+                  output=str(tmp_path / "fit.obj"))
+    with pytest.raises(InputError, match=r"texture_size .* must be an integer .* got True"):
+        run_wrap_job(job, WrapSettings(model="rbf"))
+    assert not list(tmp_path.iterdir())
