@@ -55,7 +55,11 @@ Classes:
   template (:func:`~facewrap.jobs.input_checks.survey_mesh`);
 - ``run_wrap_job`` took ``WrapJob(texture_size=True)`` as 1 (a bool is an int to
   Python) and baked a 1 x 1 texture without a word; it is refused as other
-  non-integers are.
+  non-integers are;
+- a scan whose material names a texture that is not there (moved, a folder, a
+  fifo) had its landmarks found on the shaded mesh (``landmarks``, a ``wrap``
+  without scan landmarks) without a word; it is now one warning line naming the
+  scan and the texture (:func:`~facewrap.detection.mesh_texture`).
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -69,7 +73,10 @@ from __future__ import annotations
 
 import copy
 import json
+import os
+import re
 import unicodedata
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -77,6 +84,8 @@ import pytest
 from conftest import facewrap
 from facewrap import (DeformationTransfer, InputError, Landmarks, WrapJob, WrapSettings,
                       find_correspondence, pair_landmarks, run_wrap_job, wrap)
+from facewrap.detection import mesh_texture
+from facewrap.errors import InputWarning
 from facewrap.animation import interpolate_vertices
 from facewrap.evaluate import evaluate, landmark_errors, surface_distances
 from facewrap.geometry import similarity_transform
@@ -318,3 +327,17 @@ def test_a_texture_size_of_true_is_refused(sample, tmp_path):
     with pytest.raises(InputError, match=r"texture_size .* must be an integer .* got True"):
         run_wrap_job(job, WrapSettings(model="rbf"))
     assert not list(tmp_path.iterdir())
+
+
+# -- a texture named but not there -------------------------------------------------------
+@pytest.mark.parametrize("make", [lambda p: None, os.mkdir, os.mkfifo],
+                         ids=["missing", "folder", "fifo"])
+def test_a_texture_its_material_names_but_is_not_there_is_said(sample, tmp_path, make):
+    """Landmarks were found on the shaded mesh instead, without a word."""
+    scan = tmp_path / "scan.obj"
+    scan.write_bytes(Path(sample["scan"]).read_bytes())
+    (tmp_path / "scan.mtl").write_text("newmtl skin\nmap_Kd skin.png\n")
+    make(tmp_path / "skin.png")
+    with pytest.warns(InputWarning, match=rf"^{re.escape(str(scan))}: its texture "
+                                          r".*skin\.png: .*drawn shaded"):
+        assert mesh_texture(scan, read_mesh(scan)) is None
