@@ -18,11 +18,11 @@ Classes:
   failed with "Singular matrix", ``DeformationTransfer.transfer`` returned
   infinities, a blendshape of 1e300 was fitted, a landmark of 1e300 failed in the
   fit as "weights must be (k,) non-negative with a positive sum", and
-  ``landmark_errors``, ``surface_distances``, ``similarity_transform`` and
+  ``landmark_errors``, ``surface_distances``, ``ground_truth_errors`` and
   ``interpolate_vertices`` overflowed into inf or NaN.  Each is now a
   ``ValueError`` naming the argument and the row (meshes:
-  :func:`~facewrap.mesh.check_positions`; arrays of points:
-  :func:`~facewrap.geometry.checks.as_points`; :class:`~facewrap.Landmarks`), with
+  :func:`~facewrap.mesh.check_positions`; a head's arrays of points:
+  :func:`~facewrap.geometry.checks.as_positions`; :class:`~facewrap.Landmarks`), with
   :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units; ``bake_texture``
   now names ``template``/``scan`` for a NaN too ("points must be finite" before);
 - ``write_mesh`` wrote an OBJ of a NaN or 1e300 vertex, a NaN texture coordinate or
@@ -87,8 +87,8 @@ from facewrap import (DeformationTransfer, InputError, Landmarks, WrapJob, WrapS
 from facewrap.detection import mesh_texture
 from facewrap.errors import InputWarning
 from facewrap.animation import interpolate_vertices
-from facewrap.evaluate import evaluate, landmark_errors, surface_distances
-from facewrap.geometry import similarity_transform
+from facewrap.evaluate import (evaluate, ground_truth_errors, landmark_errors,
+                               surface_distances)
 from facewrap.io.dispatch import read_mesh, write_mesh
 from facewrap.mesh import Mesh
 from facewrap.sample import make_scan, make_template
@@ -191,7 +191,7 @@ def test_the_library_refuses_positions_no_file_may_hold(small, tmp_path):
         Landmarks.from_points(far)   # the fit said "weights must be ... positive sum"
     for name, call in (("positions", lambda: landmark_errors(far, points)),
                        ("points", lambda: surface_distances(far, scan)),
-                       ("source", lambda: similarity_transform(far, points)),
+                       ("vertices", lambda: ground_truth_errors(far, points)),
                        ("end", lambda: interpolate_vertices(points, far, 3))):
         with pytest.raises(ValueError, match=rf"^{name}: row 3 has coordinate 1e\+300"):
             call()   # each overflowed into inf or NaN, with a RuntimeWarning at most

@@ -12,8 +12,7 @@ from facewrap.units import too_large
 
 
 def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
-    """C-contiguous (k, columns) finite float64 array, each value within
-    :data:`~facewrap.units.COORDINATE_LIMIT`; raise ValueError naming ``name``."""
+    """C-contiguous (k, columns) finite float64 array; raise ValueError naming ``name``."""
     try:
         P = np.asarray(P, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -23,10 +22,28 @@ def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
         raise ValueError(f"{name} must have shape (k, {columns}), got {P.shape}")
     if not np.all(np.isfinite(P)):
         raise ValueError(f"{name} must be finite (found NaN or inf)")
-    problem = too_large(P, "row")   # a 1e300 overflowed into inf distances, silently
+    return np.ascontiguousarray(P)
+
+
+def as_positions(P, name: str = "points") -> np.ndarray:
+    """:func:`as_points` of a head's positions, each coordinate also within
+    :data:`~facewrap.units.COORDINATE_LIMIT` as a file's reader requires (a 1e300
+    overflows into inf distances); raise ValueError naming ``name`` and the row.
+
+    The geometry itself takes any finite coordinates (its trees answer far from the
+    origin); the functions that measure or move a head check with this.
+
+    >>> as_positions([[0, 1e300, 0]], "targets")
+    Traceback (most recent call last):
+    ...
+    ValueError: targets: row 0 has coordinate 1e+300, too large (more than 1e+15 in \
+magnitude in any unit: not a scan, and its sizes would overflow)
+    """
+    P = as_points(P, name)
+    problem = too_large(P, "row")
     if problem is not None:
         raise ValueError(f"{name}: {problem}")
-    return np.ascontiguousarray(P)
+    return P
 
 
 def as_vertices(V, name: str = "V") -> np.ndarray:

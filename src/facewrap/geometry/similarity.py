@@ -12,8 +12,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from facewrap.geometry.checks import as_points
-
 __all__ = ["Similarity", "similarity_transform", "mirror_fit", "MIRROR_RATIO",
            "PoseChange", "pose_change"]
 
@@ -114,8 +112,6 @@ def similarity_transform(source, target, weights=None, scale: bool = True) -> Si
         raise ValueError("need at least one point pair")
     if not (np.isfinite(X).all() and np.isfinite(Y).all()):   # else "SVD did not converge"
         raise ValueError("source and target must be finite (found NaN or inf)")
-    for name, points in (("source", X), ("target", Y)):   # a 1e300 overflowed silently
-        as_points(points, name)
     w = np.ones(len(X)) if weights is None else np.asarray(weights, dtype=np.float64)
     if w.shape != (len(X),) or not np.isfinite(w).all() or np.any(w < 0) or w.sum() <= 0:
         raise ValueError("weights must be (k,) non-negative with a positive sum")
