@@ -59,7 +59,11 @@ Classes:
 - a scan whose material names a texture that is not there (moved, a folder, a
   fifo) had its landmarks found on the shaded mesh (``landmarks``, a ``wrap``
   without scan landmarks) without a word; it is now one warning line naming the
-  scan and the texture (:func:`~facewrap.detection.mesh_texture`).
+  scan and the texture (:func:`~facewrap.detection.mesh_texture`);
+- a bake from or into a UV layout of no area (every texture coordinate at one
+  point, or on a line) was written without a word: the template's as an all-black
+  image, the scan's as one flat colour; both are now refused naming the mesh
+  (:func:`~facewrap.jobs.input_checks.check_uv_layouts`).
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -341,3 +345,29 @@ def test_a_texture_its_material_names_but_is_not_there_is_said(sample, tmp_path,
     with pytest.warns(InputWarning, match=rf"^{re.escape(str(scan))}: its texture "
                                           r".*skin\.png: .*drawn shaded"):
         assert mesh_texture(scan, read_mesh(scan)) is None
+
+
+# -- a UV layout of no area ------------------------------------------------------------
+def collapsed_uvs(path, out):
+    """The mesh at ``path`` with every texture coordinate at (0.5, 0.5)."""
+    mesh = read_mesh(path)
+    corners = mesh.corner_attributes()
+    corners["uvs"] = np.full_like(mesh.uvs, 0.5)
+    write_mesh(out, Mesh(mesh.vertices, (mesh.face_offsets, mesh.face_indices), **corners))
+    return out
+
+
+@pytest.mark.parametrize("which, problem", [("template", "nothing would be baked"),
+                                            ("scan", "would be one colour")])
+def test_a_bake_refuses_a_uv_layout_of_no_area(sample, tmp_path, capsys, which, problem):
+    """The template's baked into an all-black image, the scan's into one flat colour,
+    without a word."""
+    paths = {k: sample[k] for k in ("template", "scan")}
+    paths[which] = collapsed_uvs(sample[which], tmp_path / f"{which}.obj")
+    out = tmp_path / "out" / "fit.obj"
+    rc = facewrap("wrap", paths["template"], paths["scan"], "--template-landmarks",
+                  sample["template_landmarks"], "--scan-landmarks",
+                  sample["scan_landmarks"], "--model", "rbf", "-q", "-o", out,
+                  "--texture", sample["scan_texture"], "--texture-size", "16")
+    error_line(capsys, rc, str(paths[which]), "texture coordinates have zero area", problem)
+    assert not out.parent.exists()

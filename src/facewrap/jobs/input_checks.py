@@ -443,13 +443,22 @@ def check_uv_layouts(template: Mesh, scan: Mesh, template_path, scan_path) -> li
     Raises
     ------
     InputError
-        When either mesh has no texture coordinates, or no template triangle lies in
-        a tile (the baked images would be empty).
+        When either mesh has no texture coordinates or a layout of zero area, or no
+        template triangle lies in a tile (the baked images would be empty).
     """
     if scan.triangle_uvs is None:
         raise InputError("the scan has no texture coordinates to bake from", scan_path)
     if template.triangle_uvs is None:
         raise InputError("the template has no UV layout to bake into", template_path)
+    # a layout collapsed to points or lines: the template's baked into nothing (an
+    # all-black image), the scan's read as one texel (one flat colour), silently
+    for mesh, path, what in ((template, template_path, "nothing would be baked"),
+                             (scan, scan_path, "the baked texture would be one colour")):
+        uv = mesh.uvs[mesh.triangle_uvs]
+        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        if not np.any(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 1e-12):
+            raise InputError("every triangle's texture coordinates have zero area (the UV "
+                             f"layout is collapsed to points or lines): {what}", path)
     outside = int(np.count_nonzero(triangle_tiles(template) < 0))
     total = len(template.triangles)
     if outside == total:
