@@ -63,7 +63,10 @@ Classes:
 - a bake from or into a UV layout of no area (every texture coordinate at one
   point, or on a line) was written without a word: the template's as an all-black
   image, the scan's as one flat colour; both are now refused naming the mesh
-  (:func:`~facewrap.jobs.input_checks.check_uv_layouts`).
+  (:func:`~facewrap.jobs.input_checks.check_uv_layouts`);
+- a ground truth (``evaluate``/``report --ground-truth``) whose every row is NaN
+  (no vertex with a known position) was measured as "correspondence mean n/a"
+  without a word; it is now refused naming the file.
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -371,3 +374,12 @@ def test_a_bake_refuses_a_uv_layout_of_no_area(sample, tmp_path, capsys, which, 
                   "--texture", sample["scan_texture"], "--texture-size", "16")
     error_line(capsys, rc, str(paths[which]), "texture coordinates have zero area", problem)
     assert not out.parent.exists()
+
+
+def test_a_ground_truth_without_a_known_row_is_refused(sample, tmp_path, capsys):
+    """It was measured as "correspondence mean n/a", without a word."""
+    truth = tmp_path / "truth.npy"
+    np.save(truth, np.full((read_mesh(sample["template"]).n_vertices, 3), np.nan))
+    rc = facewrap("evaluate", sample["template"], sample["scan"], "-q",
+                  "--ground-truth", truth)
+    error_line(capsys, rc, str(truth), "no known position (every row is NaN)")

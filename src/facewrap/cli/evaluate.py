@@ -50,7 +50,8 @@ def read_ground_truth(path, result):
     Raises
     ------
     InputError
-        Naming ``path``: unreadable, or not one row per vertex of ``result``.
+        Naming ``path``: unreadable, not one row per vertex of ``result``, or
+        without a single known (non-NaN) row.
     """
     if str(path).lower().endswith(".npy"):
         if not Path(path).is_file():   # np.load would wait on a fifo forever
@@ -71,6 +72,9 @@ def read_ground_truth(path, result):
         if not np.isfinite(known).all() or first_too_large(known) is not None:
             raise InputError(f"ground truth holds an infinite or too large value (more "
                              f"than {COORDINATE_LIMIT:g} in magnitude)", path)
+        if len(known) == 0:   # measured as "correspondence mean n/a", without a word
+            raise InputError("ground truth has no known position (every row is NaN): "
+                             "there is nothing to measure against", path)
         return G
     gt = read_mesh(path)
     _same_topology(result, gt, path, "the ground truth")
