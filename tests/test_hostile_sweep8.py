@@ -24,7 +24,9 @@ Classes:
   :func:`~facewrap.mesh.check_positions`; a head's arrays of points:
   :func:`~facewrap.geometry.checks.as_positions`; :class:`~facewrap.Landmarks`), with
   :data:`~facewrap.units.COORDINATE_LIMIT` moved to the units; ``bake_texture``
-  now names ``template``/``scan`` for a NaN too ("points must be finite" before);
+  now names ``template``/``scan`` for a NaN too ("points must be finite" before),
+  and so does ``build_rig`` ("V must be finite"); ``snap_to_surface`` snapped to a
+  1e300 vertex with "invalid value" warnings;
 - ``write_mesh`` wrote an OBJ of a NaN or 1e300 vertex, a NaN texture coordinate or
   normal, that ``read_mesh`` then refused (a NaN vertex colour was read back as no
   colours at all; a PLY refused these naming no row); each is now refused naming
@@ -93,6 +95,8 @@ from facewrap import (DeformationTransfer, InputError, Landmarks, WrapJob, WrapS
                       find_correspondence, pair_landmarks, run_wrap_job, wrap)
 from facewrap.detection import mesh_texture
 from facewrap.errors import InputWarning
+from facewrap.landmarks import snap_to_surface
+from facewrap.rig import build_rig
 from facewrap.animation import interpolate_vertices
 from facewrap.evaluate import (evaluate, ground_truth_errors, landmark_errors,
                                surface_distances)
@@ -383,3 +387,17 @@ def test_a_ground_truth_without_a_known_row_is_refused(sample, tmp_path, capsys)
     rc = facewrap("evaluate", sample["template"], sample["scan"], "-q",
                   "--ground-truth", truth)
     error_line(capsys, rc, str(truth), "no known position (every row is NaN)")
+
+
+def test_build_rig_and_snapping_name_what_they_refuse(small):
+    """build_rig built the scan's tree first ("V must be finite", naming neither
+    mesh); snap_to_surface snapped to a 1e300 vertex with "invalid value" warnings."""
+    template, scan = small["tpl"].mesh, small["scan"].mesh
+    with pytest.raises(ValueError, match=r"^scan: vertex 5 is not finite"):
+        build_rig(template, moved(scan, np.nan), small["tpl"].landmarks,
+                  small["scan"].landmarks, small["tpl"].blendshapes,
+                  settings=WrapSettings(model="rbf"))
+    free = Landmarks.from_points(small["scan"].landmarks.positions(scan))
+    far = moved(scan, 1e300)
+    with pytest.raises(ValueError, match=r"^vertices: row 5 has coordinate 1e\+300"):
+        snap_to_surface(free, far.vertices, far.triangles)

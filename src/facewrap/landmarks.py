@@ -304,7 +304,10 @@ def snap_to_surface(landmarks: Landmarks, vertices, triangles
     dist = np.zeros(len(landmarks))
     if not free.any():
         return landmarks, dist
-    cp = ClosestPointTree(vertices, triangles).query(landmarks.points[free])
+    from facewrap.geometry.checks import as_positions   # light: numpy only
+    # a head's positions: a 1e300 snapped with "invalid value" warnings, silently
+    cp = ClosestPointTree(as_positions(vertices, "vertices"), triangles).query(
+        landmarks.points[free])
     tri = np.array(landmarks.triangle)
     bary = np.array(landmarks.barycentric)
     points = np.array(landmarks.points)
