@@ -17,11 +17,12 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file, read_json
+from facewrap.io.files import not_a_file, read_json
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
-from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
-                            infer_units, resolve_units, units_conflict, units_note)
+from facewrap.units import (COORDINATE_LIMIT, UNIT_NAMES, UNKNOWN, add_units_argument,
+                            first_too_large, format_distance, infer_units, resolve_units,
+                            units_conflict, units_note)
 
 __all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "landmarks_mispaired",
            "ground_truth_unlike", "TRUTH_SIZE_LIMIT", "TRUTH_SHIFT_LIMIT", "TRUTH_TURN_LIMIT",

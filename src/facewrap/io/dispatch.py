@@ -48,7 +48,7 @@ def read_mesh(path) -> Mesh:
     ------
     InputError
         For a missing file, an unknown extension, malformed content or
-        coordinates beyond :data:`~facewrap.io.files.COORDINATE_LIMIT`, naming
+        coordinates beyond :data:`~facewrap.units.COORDINATE_LIMIT`, naming
         the file.
     """
     ext = _ext(path)
