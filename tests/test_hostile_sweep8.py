@@ -68,7 +68,10 @@ Classes:
   (:func:`~facewrap.jobs.input_checks.check_uv_layouts`);
 - a ground truth (``evaluate``/``report --ground-truth``) whose every row is NaN
   (no vertex with a known position) was measured as "correspondence mean n/a"
-  without a word; it is now refused naming the file.
+  without a word; it is now refused naming the file;
+- ``animate`` of one mesh given as both ends (the same file twice, or a copy)
+  wrote a sequence of identical frames without a word; it is now one warning
+  line naming the end.
 
 ``facewrap.Mesh`` itself still holds what it is given (a container, as a reader's
 arrays); every public function that takes one checks it at its door (those above
@@ -401,3 +404,12 @@ def test_build_rig_and_snapping_name_what_they_refuse(small):
     far = moved(scan, 1e300)
     with pytest.raises(ValueError, match=r"^vertices: row 5 has coordinate 1e\+300"):
         snap_to_surface(free, far.vertices, far.triangles)
+
+
+def test_animate_says_one_mesh_given_as_both_ends(sample, tmp_path, capsys):
+    """Every frame was the same, written without a word."""
+    copy_ = tmp_path / "again.obj"
+    copy_.write_bytes(Path(sample["template"]).read_bytes())
+    rc = facewrap("animate", sample["template"], copy_, "--frames", "3", "-o",
+                  tmp_path / "frames")
+    warning_lines(capsys, rc, str(copy_), "again (every vertex alike)")
