@@ -64,10 +64,12 @@ def test_template_round_trips_and_resolves_paths(tmp_path, monkeypatch):
 
 
 def test_job_to_toml_round_trips_every_value(tmp_path):
-    job = WrapJob(template=str(tmp_path / "a b" / "t.obj"), scan=str(tmp_path / "s.ply"),
+    # (the backslash in an input: in an output it is refused, a Windows path)
+    job = WrapJob(template=str(tmp_path / "a b" / "t.obj"),
+                  scan=str(tmp_path / 'we"ird\\name.ply'),
                   template_landmarks=str(tmp_path / "t.json"),
                   scan_landmarks=str(tmp_path / "s.txt"),
-                  output=str(tmp_path / "out" / 'we"ird\\name.obj'),
+                  output=str(tmp_path / "out" / 'we"ird name.obj'),
                   blendshapes=str(tmp_path / "shapes"), texture_size=256,
                   report=str(tmp_path / "r.json"))
     s = WrapSettings(model="graph", smoothing=0.25, max_distance=1e-7, blend_order=1,

@@ -19,7 +19,7 @@ from facewrap.io.atomic import atomic_write
 from facewrap.io.files import memory_budget
 from facewrap.io.obj import write_obj
 from facewrap.io.paths import staged_outputs
-from facewrap.geometry.checks import as_points
+from facewrap.geometry.checks import as_positions
 from facewrap.mesh import Mesh
 from facewrap.texture import interpolate_images, save_png
 
@@ -129,7 +129,7 @@ def interpolate_vertices(start, end, frames: int) -> np.ndarray:
     >>> S.shape, S[:, 0, 2].tolist()
     ((5, 1, 3), [0.0, 1.0, 2.0, 3.0, 4.0])
     """
-    start, end = as_points(start, "start"), as_points(end, "end")
+    start, end = as_positions(start, "start"), as_positions(end, "end")
     if start.shape != end.shape:
         raise ValueError(f"start and end must have the same shape, got {start.shape} "
                          f"and {end.shape}")

@@ -29,7 +29,7 @@ import numpy as np
 
 from facewrap.geometry import (ClosestPointTree, TriangleQuality, triangle_quality,
                                triangle_to_vertex)
-from facewrap.geometry.checks import as_points, as_vertex_mask, mesh_arrays
+from facewrap.geometry.checks import as_positions, as_vertex_mask, mesh_arrays
 from facewrap.landmarks import Landmarks, pair_landmarks
 
 __all__ = ["SurfaceDistances", "LandmarkErrors", "GroundTruthErrors", "Evaluation",
@@ -181,7 +181,7 @@ def surface_distances(points, surface, *, exclude_border: bool = True,
     >>> d.distances.tolist(), d.signed.tolist(), d.summary()["mean"]
     ([0.5, 1.0], [0.5, -1.0], 0.75)
     """
-    P = as_points(points, "points")
+    P = as_positions(points, "points")
     tree = surface if isinstance(surface, ClosestPointTree) else \
         ClosestPointTree(*mesh_arrays(surface, "surface"))
     eligible = as_vertex_mask(mask, len(P))
@@ -248,8 +248,8 @@ def landmark_errors(positions, targets, names=None) -> LandmarkErrors:
     >>> e.errors.tolist(), e.targets[0].tolist()
     ([5.0, 0.0], [3.0, 4.0, 0.0])
     """
-    A = as_points(positions, "positions")
-    B = as_points(targets, "targets")
+    A = as_positions(positions, "positions")
+    B = as_positions(targets, "targets")
     if A.shape != B.shape:
         raise ValueError(f"positions {A.shape} and targets {B.shape} must match")
     names = tuple(str(i) for i in range(len(A))) if names is None else \
@@ -312,7 +312,7 @@ def ground_truth_errors(vertices, ground_truth, mask=None) -> GroundTruthErrors:
     >>> e.errors.tolist()[0], e.count
     (2.0, 1)
     """
-    V = as_points(vertices, "vertices")
+    V = as_positions(vertices, "vertices")
     G = np.asarray(ground_truth, dtype=np.float64)
     if G.shape != V.shape:
         raise ValueError(f"ground_truth must have shape {V.shape}, got {G.shape}")
@@ -396,7 +396,7 @@ class Evaluation:
 def _landmark_positions(lm, mesh_v, mesh_t, name):
     if isinstance(lm, Landmarks):
         return lm.positions(mesh_v, mesh_t)
-    return as_points(lm, name)
+    return as_positions(lm, name)
 
 
 def evaluate(result, scan, *, ground_truth=None, result_landmarks=None,

@@ -15,11 +15,13 @@ File formats live in :mod:`facewrap.io.landmarks`.
 
 from __future__ import annotations
 
+import unicodedata
 from typing import Sequence
 
 import numpy as np
 
 from facewrap.params import not_one_string
+from facewrap.units import too_large
 
 __all__ = ["Landmarks", "pair_landmarks", "snap_to_surface", "IBUG68_NAMES",
            "BARYCENTRIC_SLACK", "barycentric_problem"]
@@ -115,6 +117,7 @@ class Landmarks:
         Each row in [0, 1] and summing to 1 there (:func:`barycentric_problem`).
     points : (k, 3) float, NaN where the landmark is not a free point
     names : sequence of k str, optional
+        Kept in Unicode's composed form (NFC), so that names typed either way pair.
 
     Examples
     --------
@@ -144,9 +147,15 @@ class Landmarks:
         problem = barycentric_problem(barycentric[triangle >= 0])
         if problem:
             raise ValueError(f"barycentric coordinates {problem}")
+        problem = too_large(points, "landmark")   # as a file's reader refuses it
+        if problem:   # (a 1e300 failed in the fit as "weights must be ... positive")
+            raise ValueError(problem)
         not_one_string(names, "names")
         if names is not None:
-            names = tuple(str(n) for n in names)
+            # one spelling of each name: 'é' typed as one character (NFC) or as 'e'
+            # and an accent (NFD, as macOS tools may write) looks the same to the
+            # user, yet failed to pair with the other and was left out of the fit
+            names = tuple(unicodedata.normalize("NFC", str(n)) for n in names)
             if len(names) != k:
                 raise ValueError(f"{len(names)} names for {k} landmarks")
             if len(set(names)) != k:
@@ -295,7 +304,10 @@ def snap_to_surface(landmarks: Landmarks, vertices, triangles
     dist = np.zeros(len(landmarks))
     if not free.any():
         return landmarks, dist
-    cp = ClosestPointTree(vertices, triangles).query(landmarks.points[free])
+    from facewrap.geometry.checks import as_positions   # light: numpy only
+    # a head's positions: a 1e300 snapped with "invalid value" warnings, silently
+    cp = ClosestPointTree(as_positions(vertices, "vertices"), triangles).query(
+        landmarks.points[free])
     tri = np.array(landmarks.triangle)
     bary = np.array(landmarks.barycentric)
     points = np.array(landmarks.points)

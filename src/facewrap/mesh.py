@@ -26,8 +26,10 @@ from typing import Sequence
 import numpy as np
 
 from facewrap.params import not_one_string
+from facewrap.units import too_large
 
-__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons", "check_mesh"]
+__all__ = ["Mesh", "polygons_from_list", "triangulate_polygons", "check_positions",
+           "check_mesh"]
 
 
 def _indices(a, name: str) -> np.ndarray:
@@ -482,9 +484,41 @@ class Mesh:
         return f"<Mesh {self.n_vertices} vertices, {self.n_faces} {kind}{uv}>"
 
 
+def check_positions(vertices: np.ndarray, name: str) -> None:
+    """Raise unless every vertex is finite and within
+    :data:`~facewrap.units.COORDINATE_LIMIT`, as the file readers require.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    name : str
+        What they are: errors start ``"{name}: "``.
+
+    Raises
+    ------
+    ValueError
+        Naming the first vertex that is NaN, infinite or too large.
+
+    Examples
+    --------
+    >>> check_positions(np.array([[0.0, 1e300, 0.0]]), "scan")
+    Traceback (most recent call last):
+    ...
+    ValueError: scan: vertex 0 has coordinate 1e+300, too large (more than 1e+15 in \
+magnitude in any unit: not a scan, and its sizes would overflow)
+    """
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{name}: vertex {i} is not finite ({vertices[i].tolist()})")
+    problem = too_large(vertices)   # as a file's reader refuses it
+    if problem is not None:
+        raise ValueError(f"{name}: {problem}")
+
+
 def check_mesh(mesh, name: str) -> None:
     """Raise unless ``mesh`` is a :class:`~facewrap.mesh.Mesh` with finite vertices
-    and at least one face.
+    within :data:`~facewrap.units.COORDINATE_LIMIT` and at least one face.
 
     Parameters
     ----------
@@ -498,7 +532,7 @@ def check_mesh(mesh, name: str) -> None:
     TypeError
         Not a Mesh.
     ValueError
-        A NaN or infinite coordinate, or no faces.
+        A NaN, infinite or too large coordinate, or no faces.
 
     Examples
     --------
@@ -510,9 +544,6 @@ def check_mesh(mesh, name: str) -> None:
     """
     if not isinstance(mesh, Mesh):
         raise TypeError(f"{name} must be a Mesh, got {type(mesh).__name__}")
-    bad = ~np.isfinite(mesh.vertices).all(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{name}: vertex {i} is not finite ({mesh.vertices[i].tolist()})")
+    check_positions(mesh.vertices, name)
     if mesh.n_faces == 0:
         raise ValueError(f"{name}: has no faces ({mesh.n_vertices} vertices)")

@@ -37,7 +37,7 @@ __all__ = ["UNITS", "UNIT_NAMES", "UNIT_CHOICES", "UNKNOWN", "HEAD_SIZE_M",
            "metres_per_unit", "check_units_choice", "head_size", "infer_units",
            "resolve_units", "units_conflict", "describe_units", "units_note",
            "format_distance", "distance_decimals", "resolution_decimals",
-           "add_units_argument"]
+           "add_units_argument", "COORDINATE_LIMIT", "first_too_large", "too_large"]
 
 #: Metres per unit of each known unit of length.
 UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254}
@@ -55,8 +55,59 @@ UNIT_CHOICES = ("auto",) + UNIT_NAMES
 #: at most one of mm, cm and m fits (a cropped face to a head with shoulders).
 HEAD_SIZE_M = (0.08, 0.8)
 
+#: Largest coordinate magnitude a mesh, shape or landmark may hold. Far beyond any
+#: head in any unit (10^15 mm is a light-hour), yet small enough that the squares
+#: and products of sizes that normals, areas and distances take (up to the fourth
+#: power) stay finite: a 1e308 vertex would otherwise pass the NaN check and turn
+#: into overflow warnings, NaN normals and a silent fit.
+COORDINATE_LIMIT = 1e15
+
 # decimals of the unit's resolution (about a micrometre); UNKNOWN gets 4
 _DECIMALS = {"mm": 3, "cm": 4, "m": 6, "in": 5, UNKNOWN: 4}
+
+
+def first_too_large(values) -> int | None:
+    """Row of the first value beyond :data:`COORDINATE_LIMIT` in magnitude, or None.
+
+    Parameters
+    ----------
+    values : (n, k) float64
+        Finite coordinates, one row per vertex or point.
+
+    Examples
+    --------
+    >>> first_too_large(np.array([[0.0, 1.0], [2.0, -1e308]])), first_too_large(np.ones((2, 3)))
+    (1, None)
+    """
+    big = np.abs(values) > COORDINATE_LIMIT
+    if not big.any():
+        return None
+    return int(np.argmax(big.reshape(len(values), -1).any(axis=1)))
+
+
+def too_large(values, what: str = "vertex") -> str | None:
+    """The first row of ``values`` beyond :data:`COORDINATE_LIMIT`, as the problem in
+    words (for an error to name its file or argument), or None.
+
+    Parameters
+    ----------
+    values : (n, k) float64
+    what : str
+        What a row is ("vertex", "landmark").
+
+    Examples
+    --------
+    >>> too_large(np.array([[0.0, 1e30, 0.0]]))[:40]
+    'vertex 0 has coordinate 1e+30, too large'
+    >>> too_large(np.zeros((2, 3))) is None
+    True
+    """
+    row = first_too_large(values)
+    if row is None:
+        return None
+    return (f"{what} {row} has coordinate {np.abs(values[row]).max():g}, too large (more "
+            f"than {COORDINATE_LIMIT:g} in magnitude in any unit: not a scan, and its "
+            "sizes would overflow)")
 
 
 def metres_per_unit(unit: str) -> float | None:

@@ -68,7 +68,7 @@ SIZE_LIMIT = 1.25
 def unlike_ends(start, end, start_path, end_path) -> list[str]:
     """Warnings for two meshes that cannot be two poses of one head: one a mirror
     image of the other, one in other units, or turned so far that the straight
-    in-between frames shrink the head.
+    in-between frames shrink the head; and for one mesh given as both ends.
 
     Parameters
     ----------
@@ -82,6 +82,9 @@ def unlike_ends(start, end, start_path, end_path) -> list[str]:
     list of str
         One line each.
     """
+    if np.array_equal(start, end):   # a mesh given twice: a still, not an animation
+        return [f"{end_path}: is {start_path} again (every vertex alike): every frame "
+                "is the same"]
     # deferred: `facewrap animate --help` loads no geometry
     from facewrap.geometry.similarity import pose_change
     change = pose_change(start, end)

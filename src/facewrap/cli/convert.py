@@ -37,6 +37,11 @@ def cmd_convert(args) -> int:
         raise InputError(f"unknown mesh format {ext or '(no extension)'!r}; use "
                          + ", ".join(MESH_WRITE_EXTENSIONS), args.output)
     mesh = read_mesh(args.input)
+    if is_obj and mesh.n_faces == 0:
+        # an OBJ of 'v' lines alone is refused by every reader of ours ("no faces"):
+        # written, it would be a file no facewrap command reads back
+        raise InputError("has no faces (a point cloud): an OBJ of it would not be read "
+                         "back; convert it to .ply", args.input)
     with staged_outputs() as stage:
         if is_obj:
             mesh, library = library_beside(mesh, args.input, args.output)

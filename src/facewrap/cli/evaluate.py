@@ -17,11 +17,12 @@ import numpy as np
 from facewrap.errors import InputError
 from facewrap.io import read_mesh
 from facewrap.io.atomic import atomic_write
-from facewrap.io.files import COORDINATE_LIMIT, first_too_large, not_a_file, read_json
+from facewrap.io.files import not_a_file, read_json
 from facewrap.io.landmarks import read_landmarks, read_vertex_indices
 from facewrap.io.paths import check_output_paths, staged_outputs
-from facewrap.units import (UNIT_NAMES, UNKNOWN, add_units_argument, format_distance,
-                            infer_units, resolve_units, units_conflict, units_note)
+from facewrap.units import (COORDINATE_LIMIT, UNIT_NAMES, UNKNOWN, add_units_argument,
+                            first_too_large, format_distance, infer_units, resolve_units,
+                            units_conflict, units_note)
 
 __all__ = ["view_axes", "implausible_pair", "landmarks_off_scan", "landmarks_mispaired",
            "ground_truth_unlike", "TRUTH_SIZE_LIMIT", "TRUTH_SHIFT_LIMIT", "TRUTH_TURN_LIMIT",
@@ -50,7 +51,8 @@ def read_ground_truth(path, result):
     Raises
     ------
     InputError
-        Naming ``path``: unreadable, or not one row per vertex of ``result``.
+        Naming ``path``: unreadable, not one row per vertex of ``result``, or
+        without a single known (non-NaN) row.
     """
     if str(path).lower().endswith(".npy"):
         if not Path(path).is_file():   # np.load would wait on a fifo forever
@@ -71,6 +73,9 @@ def read_ground_truth(path, result):
         if not np.isfinite(known).all() or first_too_large(known) is not None:
             raise InputError(f"ground truth holds an infinite or too large value (more "
                              f"than {COORDINATE_LIMIT:g} in magnitude)", path)
+        if len(known) == 0:   # measured as "correspondence mean n/a", without a word
+            raise InputError("ground truth has no known position (every row is NaN): "
+                             "there is nothing to measure against", path)
         return G
     gt = read_mesh(path)
     _same_topology(result, gt, path, "the ground truth")
@@ -332,6 +337,7 @@ def cmd_evaluate(args) -> int:
     """Evaluate a fitted mesh against its scan (and truth, landmarks, reference)."""
     # deferred: `facewrap evaluate --help` (and the other commands) do not pay for these
     from facewrap.evaluate import evaluate
+    from facewrap.jobs.input_checks import check_surface
     from facewrap.report import heatmap_figure, save_png
 
     if (args.result_landmarks is None) != (args.scan_landmarks is None):
@@ -346,6 +352,10 @@ def cmd_evaluate(args) -> int:
                        inputs=[p for p in inputs if p])
     result = read_mesh(args.result)
     scan = read_mesh(args.scan)
+    # distances are measured to surfaces both ways: a point cloud (a PLY of vertices
+    # alone) or a mesh of zero-area triangles has none, and is named, not measured
+    check_surface(result, args.result, "result", "a fitted mesh is a surface")
+    check_surface(scan, args.scan, "scan", "distances are measured to its surface")
     odd = implausible_pair(result, scan, args.result, args.scan)
     gt = ref = None
     if args.ground_truth:

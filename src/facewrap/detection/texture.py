@@ -4,8 +4,11 @@ library (OBJ ``map_Kd``) or its header (PLY ``TextureFile``)."""
 from __future__ import annotations
 
 import os
+import warnings
 
+from facewrap.errors import InputWarning
 from facewrap.io.dispatch import read_mesh_texture
+from facewrap.io.files import not_a_file
 from facewrap.io.images import load_image
 from facewrap.io.mtl import read_libraries
 
@@ -16,7 +19,9 @@ def mesh_texture(path, mesh):
     """The image a mesh read from ``path`` refers to, or None.
 
     The first material whose library names a ``map_Kd`` image that exists gives it;
-    a mesh without texture coordinates has none (it is drawn shaded).
+    a mesh without texture coordinates has none (it is drawn shaded).  A mesh that
+    names images none of which is there (moved, a folder, a fifo) has none either,
+    said in an :class:`~facewrap.errors.InputWarning` naming the first.
 
     Parameters
     ----------
@@ -54,4 +59,8 @@ def mesh_texture(path, mesh):
     for image in candidates:
         if os.path.isfile(image):
             return load_image(image)
+    if candidates:   # named but not there: drawn shaded all the same, but not silently
+        warnings.warn(f"{path}: its texture {candidates[0]}: "
+                      f"{not_a_file(candidates[0]).problem}; the mesh is drawn shaded to "
+                      "find its landmarks", InputWarning, stacklevel=2)
     return None

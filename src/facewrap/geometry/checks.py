@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from facewrap.units import too_large
+
 
 def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
     """C-contiguous (k, columns) finite float64 array; raise ValueError naming ``name``."""
@@ -21,6 +23,27 @@ def as_points(P, name: str = "points", columns: int = 3) -> np.ndarray:
     if not np.all(np.isfinite(P)):
         raise ValueError(f"{name} must be finite (found NaN or inf)")
     return np.ascontiguousarray(P)
+
+
+def as_positions(P, name: str = "points") -> np.ndarray:
+    """:func:`as_points` of a head's positions, each coordinate also within
+    :data:`~facewrap.units.COORDINATE_LIMIT` as a file's reader requires (a 1e300
+    overflows into inf distances); raise ValueError naming ``name`` and the row.
+
+    The geometry itself takes any finite coordinates (its trees answer far from the
+    origin); the functions that measure or move a head check with this.
+
+    >>> as_positions([[0, 1e300, 0]], "targets")
+    Traceback (most recent call last):
+    ...
+    ValueError: targets: row 0 has coordinate 1e+300, too large (more than 1e+15 in \
+magnitude in any unit: not a scan, and its sizes would overflow)
+    """
+    P = as_points(P, name)
+    problem = too_large(P, "row")
+    if problem is not None:
+        raise ValueError(f"{name}: {problem}")
+    return P
 
 
 def as_vertices(V, name: str = "V") -> np.ndarray:
@@ -169,6 +192,9 @@ def as_shape_dict(shapes, n: int, name: str = "blendshapes") -> dict:
             raise ValueError(f"{where} must have shape ({n}, 3), got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{where} must be finite (found NaN or inf)")
+        problem = too_large(arr)
+        if problem is not None:
+            raise ValueError(f"{where}: {problem}")
         arr.setflags(write=False)
         out[key] = arr
     return out
@@ -235,6 +261,9 @@ def mesh_arrays(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
         V = np.asarray(mesh.vertices, dtype=np.float64)
         if not np.all(np.isfinite(V)):
             raise ValueError(f"{name} vertices must be finite (found NaN or inf)")
+        problem = too_large(V)   # as a file's reader refuses it: sizes would overflow
+        if problem is not None:
+            raise ValueError(f"{name}: {problem}")
         return V, np.asarray(mesh.triangles)
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
         V = as_vertices(mesh[0], f"{name} vertices")

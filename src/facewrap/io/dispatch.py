@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from facewrap.errors import InputError
 from facewrap.io.files import check_coordinates, not_a_file
 from facewrap.io.obj import read_obj, write_obj
 from facewrap.io.ply import read_ply, write_ply
 from facewrap.io.trimesh_formats import (TRIMESH_EXTENSIONS, read_scene_texture,
                                          read_trimesh_format)
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_positions
 from facewrap.params import expect_instance
 
 __all__ = ["read_mesh", "write_mesh", "read_mesh_texture", "MESH_READ_EXTENSIONS",
@@ -46,7 +48,7 @@ def read_mesh(path) -> Mesh:
     ------
     InputError
         For a missing file, an unknown extension, malformed content or
-        coordinates beyond :data:`~facewrap.io.files.COORDINATE_LIMIT`, naming
+        coordinates beyond :data:`~facewrap.units.COORDINATE_LIMIT`, naming
         the file.
     """
     ext = _ext(path)
@@ -97,12 +99,33 @@ def write_mesh(path, mesh: Mesh) -> None:
         ``path`` no path.
     InputError
         An extension it cannot write.
+    ValueError
+        A vertex that is NaN, infinite or too large
+        (:func:`~facewrap.mesh.check_positions`), or a texture coordinate, normal or
+        vertex colour that is NaN or infinite: no reader takes it back.
     """
     expect_instance(mesh, Mesh, "mesh")
     ext = _ext(path)
     if ext not in MESH_WRITE_EXTENSIONS:
         raise _unknown(ext, MESH_WRITE_EXTENSIONS, path)
+    # what read_mesh refuses is not written: an OBJ took a NaN or a 1e300 silently
+    check_positions(mesh.vertices, "mesh")
+    _check_finite_attributes(mesh)
     if ext == ".obj":
         write_obj(path, mesh)
     else:
         write_ply(path, mesh)
+
+
+def _check_finite_attributes(mesh: Mesh) -> None:
+    """Refuse a NaN or infinite texture coordinate, normal or vertex colour: an OBJ
+    wrote it as ``nan`` (its UVs and normals then refused by the reader, its colours
+    dropped without a word), a PLY refused it naming no row."""
+    for what, values in (("texture coordinate", mesh.uvs), ("normal", mesh.normals),
+                         ("vertex colour", mesh.vertex_colors)):
+        if values is None:
+            continue
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise ValueError(f"mesh: {what} {row} is not finite ({values[row].tolist()})")

@@ -10,17 +10,13 @@ from pathlib import Path
 
 from facewrap.errors import InputError
 from facewrap.io.paths import special_kind
+# the limit is the units' (meshes and the geometry check it too); kept importable here
+from facewrap.units import COORDINATE_LIMIT, first_too_large, too_large
 
 __all__ = ["read_file_bytes", "read_file_head", "file_size", "nul_at_ends", "read_json",
            "read_format_items", "memory_budget", "not_a_file", "COORDINATE_LIMIT",
            "first_too_large", "check_coordinates", "folder_files", "natural_key"]
 
-#: Largest coordinate magnitude a mesh or landmark file may hold. Far beyond any
-#: head in any unit (10^15 mm is a light-hour), yet small enough that the squares
-#: and products of sizes that normals, areas and distances take (up to the fourth
-#: power) stay finite: a 1e308 vertex would otherwise pass the NaN check and turn
-#: into overflow warnings, NaN normals and a silent fit.
-COORDINATE_LIMIT = 1e15
 
 # How much of each end of a file is looked at before the whole is read: enough to
 # catch a binary or sparse (zero-filled) file handed to a text reader, small enough
@@ -55,27 +51,6 @@ def not_a_file(path) -> InputError:
     return InputError("no such file", path)
 
 
-def first_too_large(values) -> int | None:
-    """Row of the first value beyond :data:`COORDINATE_LIMIT` in magnitude, or None.
-
-    Parameters
-    ----------
-    values : (n, k) float64
-        Finite coordinates, one row per vertex or point.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> first_too_large(np.array([[0.0, 1.0], [2.0, -1e308]])), first_too_large(np.ones((2, 3)))
-    (1, None)
-    """
-    import numpy as np
-    big = np.abs(values) > COORDINATE_LIMIT
-    if not big.any():
-        return None
-    return int(np.argmax(big.reshape(len(values), -1).any(axis=1)))
-
-
 def check_coordinates(values, path, what: str = "vertex") -> None:
     """Refuse coordinates beyond :data:`COORDINATE_LIMIT` in magnitude.
 
@@ -95,12 +70,9 @@ def check_coordinates(values, path, what: str = "vertex") -> None:
     InputError
         ``path: vertex 5 has coordinate 1e+30, too large (...)``.
     """
-    import numpy as np
-    row = first_too_large(values)
-    if row is not None:
-        raise InputError(f"{what} {row} has coordinate {np.abs(values[row]).max():g}, too "
-                         f"large (more than {COORDINATE_LIMIT:g} in magnitude in any "
-                         "unit: not a scan, and its sizes would overflow)", path)
+    problem = too_large(values, what)
+    if problem is not None:
+        raise InputError(problem, path)
 
 
 def memory_budget() -> int:

@@ -290,14 +290,21 @@ def check_writable(files=(), folders=(), source=None) -> None:
     ------
     InputError
         One line naming the output and what is in its way: a file where a folder is
-        needed (the path runs through a file), a folder where a file is needed, or
-        a folder that cannot be written.
+        needed (the path runs through a file), a folder where a file is needed, a
+        folder that cannot be written, or a backslash (a Windows path) where ``/``
+        separates folders.
     """
     asked = [(d, True) for d in folders] + [(f, False) for f in files]
     for path, is_folder in asked:
         if not os.fspath(path):   # "" would be the current folder: never what was meant
             raise InputError(f"the output {'folder' if is_folder else 'file'} name is "
                              "empty", source or "''")
+        if os.sep == "/" and "\\" in os.fspath(path):
+            # a job file or manifest written on Windows ("out\\fit.obj"): here a
+            # backslash is part of a name, and one oddly named file was written
+            raise InputError(f"output '{os.fspath(path)}' holds a backslash, which is no "
+                             "folder separator here (a Windows path?); use '/'",
+                             source or path)
         p = os.path.abspath(os.fspath(path))
         kind = special_kind(p)
         if kind:   # replacing a device or a fifo with a file is never what was meant

@@ -39,7 +39,7 @@ from facewrap.texture.udim import triangle_tiles
 from facewrap.units import UNKNOWN, format_distance, head_size, resolve_units
 from facewrap.wrapping.models import model_spec
 
-__all__ = ["doubled_areas", "survey_mesh", "weld_duplicates", "check_landmark_spread",
+__all__ = ["doubled_areas", "check_surface", "survey_mesh", "weld_duplicates", "check_landmark_spread",
            "check_distinct_landmarks", "check_template_landmarks", "unpaired_landmarks",
            "nothing_to_fit", "oversized_shapes", "check_landmarks_on_scan", "check_scan",
            "check_uv_layouts", "check_model_settings", "repeated_scans",
@@ -62,6 +62,43 @@ SCAN_SIZE_RATIO = 2.0
 def doubled_areas(mesh) -> np.ndarray:
     """(t,) float64: twice the area of each of ``mesh.triangles``."""
     return 2.0 * trusted_face_areas(mesh.vertices, mesh.triangles)
+
+
+def check_surface(mesh: Mesh, path, what: str, purpose: str) -> np.ndarray:
+    """Refuse a mesh that has no surface: no faces (a point cloud), coordinates
+    whose size overflows, or every triangle of zero area.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    path : path
+        Named in the error.
+    what : str
+        What the mesh is ("scan", "result"), the error's subject.
+    purpose : str
+        Why it needs a surface, said after "has no faces; ".
+
+    Returns
+    -------
+    (t,) float64
+        Twice the area of each triangle (:func:`doubled_areas`), for the checks that
+        follow.
+
+    Raises
+    ------
+    InputError
+        Naming the file.
+    """
+    if len(mesh.triangles) == 0:
+        raise InputError(f"has no faces; {purpose}", path)
+    size = mesh.scale()
+    if not np.isfinite(size):
+        raise InputError("coordinates are too large (the bounding box overflows)", path)
+    area2 = doubled_areas(mesh)
+    # relative to the size: a scan in metres has areas a million times a scan in mm's
+    if size == 0 or not np.any(area2 > 1e-12 * size * size):
+        raise InputError(f"{what} is degenerate: every triangle has zero area", path)
+    return area2
 
 
 def survey_mesh(mesh, path, what: str, pieces: bool = True, *,
@@ -365,21 +402,15 @@ def check_scan(scan: Mesh, landmarks: Landmarks | None, path, landmarks_path=Non
         Naming the file: no faces, coordinates whose size overflows, every
         triangle of zero area, landmarks in a line or off the surface.
     """
-    if len(scan.triangles) == 0:
-        raise InputError("has no faces; a scan must be a surface", path)
+    area2 = check_surface(scan, path, "scan", "a scan must be a surface")
     size = scan.scale()
-    if not np.isfinite(size):
-        raise InputError("coordinates are too large (the bounding box overflows)", path)
     notes = []
     if survey and landmarks is not None:
         scan, landmarks, welded = weld_duplicates(scan, landmarks, path)
         notes += [welded] if welded else []
-    # the tree's areas and edge runs serve the checks too (one pass over a million
-    # triangles, one sort of their edges); welding kept the triangles as they were
+    # the tree's edge runs serve the survey too (one sort of a million triangles'
+    # edges); welding kept the triangles, and so their areas, as they were
     tree = None if landmarks is None else ClosestPointTree(scan.vertices, scan.triangles)
-    area2 = doubled_areas(scan) if tree is None else tree.doubled_areas
-    if size == 0 or not np.any(area2 > 1e-12 * size * size):
-        raise InputError("scan is degenerate: every triangle has zero area", path)
     if survey:
         notes += survey_mesh(scan, path, "scan", areas=area2,
                              runs=None if tree is None else tree.edge_runs)
@@ -412,13 +443,22 @@ def check_uv_layouts(template: Mesh, scan: Mesh, template_path, scan_path) -> li
     Raises
     ------
     InputError
-        When either mesh has no texture coordinates, or no template triangle lies in
-        a tile (the baked images would be empty).
+        When either mesh has no texture coordinates or a layout of zero area, or no
+        template triangle lies in a tile (the baked images would be empty).
     """
     if scan.triangle_uvs is None:
         raise InputError("the scan has no texture coordinates to bake from", scan_path)
     if template.triangle_uvs is None:
         raise InputError("the template has no UV layout to bake into", template_path)
+    # a layout collapsed to points or lines: the template's baked into nothing (an
+    # all-black image), the scan's read as one texel (one flat colour), silently
+    for mesh, path, what in ((template, template_path, "nothing would be baked"),
+                             (scan, scan_path, "the baked texture would be one colour")):
+        uv = mesh.uvs[mesh.triangle_uvs]
+        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        if not np.any(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 1e-12):
+            raise InputError("every triangle's texture coordinates have zero area (the UV "
+                             f"layout is collapsed to points or lines): {what}", path)
     outside = int(np.count_nonzero(triangle_tiles(template) < 0))
     total = len(template.triangles)
     if outside == total:

@@ -17,9 +17,9 @@ particular to a transfer (``"shapes"``, ``"outputs"``, ``"correspondence"``,
 ``"flip_repairs"``, ``"ambiguity"``).
 
 A correspondence file (``correspondence``) is a cache: read when it exists (and
-checked against the meshes), else computed and written there.  It is neither an
-input nor an output of the job for batches: finding it or not gives the same
-result up to the solver's round-off.
+checked against the meshes and the marker pairs), else computed and written there.
+It is neither an input nor an output of the job for batches: finding it or not
+gives the same result up to the solver's round-off.
 
 As for :class:`~facewrap.jobs.wrap_job.WrapJob`, each path field says in its
 ``metadata`` which job-file table it belongs to (:mod:`facewrap.jobs.fields`); the
@@ -50,7 +50,7 @@ from facewrap.io.obj import read_obj_vertices, write_obj
 from facewrap.io.paths import check_output_paths, staged_outputs
 from facewrap.texture.tiles import file_textures
 from facewrap.jobs.fields import check_job_fields, input_field, output_field
-from facewrap.jobs.input_checks import oversized_shapes
+from facewrap.jobs.input_checks import check_surface, oversized_shapes, survey_mesh
 from facewrap.params import Flag, Interval, NoneAllowed, expect_instance, validate
 from facewrap.transfer import (Correspondence, DeformationTransfer, ambiguity_summary,
                                check_markers, find_correspondence, partner_ambiguity)
@@ -235,14 +235,20 @@ def _read_inputs(job: TransferJob) -> dict:
     """Meshes, marker ids, shapes and the cached correspondence (or None), checked."""
     source = read_mesh(job.source_neutral)
     target = read_mesh(job.target_neutral)
-    for mesh, path in ((source, job.source_neutral), (target, job.target_neutral)):
-        if len(mesh.triangles) == 0:   # a point cloud: no surface to deform
-            raise InputError("has no faces; deformation transfer needs a surface", path)
+    notes = []
+    for mesh, path, what in ((source, job.source_neutral, "source neutral"),
+                             (target, job.target_neutral, "target neutral")):
+        # a point cloud, or triangles of zero area: no surface to deform (the
+        # latter solved silently into garbage, their gradients undefined)
+        areas = check_surface(mesh, path, what, "deformation transfer needs a surface")
+        # some such triangles, repeated or non-manifold ones: said, as a wrap's
+        # template (a third of a target's triangles flat moved the shapes by mm)
+        notes += survey_mesh(mesh, path, what, pieces=False, areas=areas)
     src_ids, tgt_ids = check_markers(read_markers(job.markers), source.n_vertices,
                                      target.n_vertices, job.markers)
     # a mirrored pairing, other units, too few pairs: said, with the file
-    notes = [f"{job.markers}: {w}" for w in marker_placement(source.vertices[src_ids],
-                                                              target.vertices[tgt_ids])]
+    notes += [f"{job.markers}: {w}" for w in marker_placement(source.vertices[src_ids],
+                                                               target.vertices[tgt_ids])]
     anchor = job.settings.anchor
     if anchor is not None and not job.settings.landmark_guided \
             and anchor >= target.n_vertices:
@@ -257,7 +263,10 @@ def _read_inputs(job: TransferJob) -> dict:
     corr = None
     if job.correspondence and Path(job.correspondence).is_file():
         corr = Correspondence.load(job.correspondence)
-        corr.check(source, target, job.correspondence)
+        # made with other markers (the file edited since), it answered for the old
+        # ones: the new markers were ignored without a word
+        corr.check(source, target, job.correspondence,
+                   markers=np.column_stack([src_ids, tgt_ids]))
     return {"source": source, "target": target, "markers": (src_ids, tgt_ids),
             "shapes": shapes, "correspondence": corr, "warnings": notes}
 

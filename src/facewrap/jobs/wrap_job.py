@@ -239,7 +239,10 @@ def check_job_paths(job: WrapJob, source=None) -> None:
                          "use .obj or .ply", source or job.output)
     check_output_paths(files=job_outputs(job), inputs=job_inputs(job), source=source)
     # a setting's problem: named with the job file, or alone (not as the output's)
-    if not isinstance(job.texture_size, int) or not 1 <= job.texture_size <= MAX_SIDE:
+    # a Python int, not True (an int to Python: it baked a 1 x 1 texture without a
+    # word) nor a numpy integer (which the job's JSON report cannot hold)
+    size = job.texture_size
+    if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= MAX_SIDE:
         raise InputError(f"texture_size (--texture-size) must be an integer in [1, "
                          f"{MAX_SIDE}], got {job.texture_size!r}", source)
     need = bake_memory(job.texture_size)

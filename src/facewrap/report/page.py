@@ -58,7 +58,8 @@ from facewrap.report.cameras import frame_from_axes
 from facewrap.report.figures import side_by_side
 from facewrap.report.landmark_figure import landmark_picture
 from facewrap.report.run_tables import landmark_source, run_summary
-from facewrap.units import UNIT_NAMES, UNKNOWN, format_distance, resolve_units, units_conflict
+from facewrap.units import (COORDINATE_LIMIT, UNIT_NAMES, UNKNOWN, format_distance,
+                            resolve_units, units_conflict)
 
 __all__ = ["build_report_page", "load_run_report", "run_meshes", "run_vertex_roles",
            "WORST_LANDMARKS_LABELLED"]
@@ -81,6 +82,9 @@ def _existing(path, report_path: Path, key: str) -> Path:
     folder (another run's ``out.obj``) is never shown instead of the run's own; the
     current folder is still tried for reports written with paths relative to it.
     """
+    if not isinstance(path, str):   # a hand-edited report: Path(5) named no file
+        raise InputError(f"the run's {key} must be a path (a string), got {path!r}",
+                         report_path)
     p = Path(path)
     for candidate in (report_path.parent / p, p):
         if candidate.is_file():
@@ -129,9 +133,18 @@ def load_run_report(report_path) -> dict:
 
 def _similarity(run: dict, report_path: Path) -> np.ndarray:
     """The run's (4, 4) template → scan similarity."""
-    M = np.asarray(run.get("transform", np.eye(4)), dtype=np.float64)
-    if M.shape != (4, 4) or not np.isfinite(M).all():
-        raise InputError(f"'transform' must be a 4x4 matrix, got shape {M.shape}",
+    try:
+        M = np.asarray(run.get("transform", np.eye(4)), dtype=np.float64)
+    except (TypeError, ValueError):   # text or ragged rows: numpy's words named no file
+        M = None
+    if M is None or M.shape != (4, 4):
+        raise InputError("'transform' must be a 4x4 matrix of numbers, got "
+                         f"{str(run.get('transform'))[:60]}", report_path)
+    bad = ~(np.abs(M) <= COORDINATE_LIMIT)   # NaN too
+    if bad.any():
+        i, j = divmod(int(np.argmax(bad)), 4)
+        raise InputError(f"'transform' entry [{i}][{j}] is {float(M[i, j])!r}: a finite "
+                         f"number no larger than {COORDINATE_LIMIT:g} expected",
                          report_path)
     return M
 

@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.similarity import Similarity
 from facewrap.landmarks import Landmarks, pair_landmarks
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_mesh
 from facewrap.parallel import run_on, usable_threads
 from facewrap.rig.examples import ExampleFit, ExampleSettings, fit_examples, fit_weights
 from facewrap.rig.personalise import personalise_shapes
@@ -417,6 +417,9 @@ def build_rig(template: Mesh, scan: Mesh, template_landmarks: Landmarks,
     >>> rig.examples is None
     True
     """
+    # before the scan's tree, whose own check names neither mesh ("V must be finite")
+    check_mesh(template, "template")
+    check_mesh(scan, "scan")
     scans, exp_landmarks, exp_weights, exp_textures, exp_trees = _checked_expressions(
         expression_scans, ("expression_landmarks", expression_landmarks),
         ("expression_weights", expression_weights),

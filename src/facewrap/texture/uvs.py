@@ -12,22 +12,27 @@ import numpy as np
 
 from facewrap.geometry import ClosestPointTree
 from facewrap.geometry.checks import as_points
-from facewrap.mesh import Mesh
+from facewrap.mesh import Mesh, check_mesh
 
 __all__ = ["checked_uv_mesh", "scan_uvs_at", "trusted_scan_uvs", "cylindrical_uvs",
            "transfer_uvs"]
 
 
 def checked_uv_mesh(mesh, name: str) -> Mesh:
-    """``mesh`` checked to be a :class:`~facewrap.mesh.Mesh` with finite texture coordinates.
+    """``mesh`` checked to be a :class:`~facewrap.mesh.Mesh` with faces, finite
+    positions (:func:`~facewrap.mesh.check_mesh`) and finite texture coordinates.
 
     Raises
     ------
     ValueError
-        Naming ``name``, when it is not a Mesh or its UVs are missing or not finite.
+        Naming ``name``, when it is not a Mesh, its positions are not finite or too
+        large, or its UVs are missing or not finite.
     """
     if not isinstance(mesh, Mesh):
         raise ValueError(f"{name} must be a facewrap Mesh, got {type(mesh).__name__}")
+    # its positions too: a NaN was refused as "points" or "V" (naming neither mesh),
+    # a 1e300 baked with overflow warnings
+    check_mesh(mesh, name)
     if mesh.uvs is None or mesh.face_uvs is None:
         raise ValueError(f"{name} has no texture coordinates (uvs/face_uvs)")
     if not np.all(np.isfinite(mesh.uvs)):

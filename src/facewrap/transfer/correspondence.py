@@ -134,14 +134,18 @@ class Correspondence:
         return np.flatnonzero(~used)
 
     def check(self, source: Mesh | None = None, target: Mesh | None = None,
-              path=None) -> None:
-        """Raise :class:`InputError` when the meshes are not the ones it was made for.
+              path=None, *, markers=None) -> None:
+        """Raise :class:`InputError` when the meshes or the marker pairs are not the
+        ones it was made for.
 
         Parameters
         ----------
         source, target : Mesh, optional
         path : str, optional
             File to name in the message (the correspondence file).
+        markers : (m, 2) int array_like, optional
+            The (source, target) vertex pairs it must have been made with, in any
+            order: a cache made with others would be reused in their place.
         """
         for name, mesh, nv, nt in (("source", source, self.n_source_vertices,
                                     self.n_source_triangles),
@@ -153,6 +157,13 @@ class Correspondence:
                 raise InputError(f"correspondence was made for a {name} with {nv} "
                                  f"vertices and {nt} triangles, got "
                                  f"{mesh.n_vertices} and {len(mesh.triangles)}", path)
+        if markers is not None:
+            given = np.unique(np.asarray(markers, dtype=np.int64).reshape(-1, 2), axis=0)
+            made = np.unique(self.markers.reshape(-1, 2), axis=0)
+            if not np.array_equal(given, made):
+                raise InputError(f"correspondence was made with other marker pairs "
+                                 f"({len(made)}) than those given ({len(given)}): a cache "
+                                 "of an earlier run; delete it to find a new one", path)
 
     def save(self, path) -> None:
         """Write to an ``.npz`` file (atomically)."""

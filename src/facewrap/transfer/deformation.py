@@ -43,6 +43,7 @@ from facewrap.transfer.flip_repair import FlipRepair
 from facewrap.transfer.gradients import (FourthVertexElimination, GradientOperator,
                                          adjacent_triangle_pairs, fourth_vertex_offsets,
                                          gradient_operator, typical_edge_length)
+from facewrap.units import too_large
 
 __all__ = ["DeformationTransfer", "TransferSettings", "pair_matrix", "complete_pairs",
            "source_gradient_blocks", "extend_poses", "as_pose_stack"]
@@ -75,6 +76,10 @@ def as_pose_stack(poses, n_vertices: int, name: str = "poses") -> tuple[np.ndarr
                          f"({n_vertices}, 3), got {np.shape(poses)}")
     if not np.isfinite(P).all():
         raise ValueError(f"{name} contain NaN or infinite coordinates")
+    for k, pose in enumerate(P):   # a 1e300 was solved into inf, with a warning
+        problem = too_large(pose)
+        if problem is not None:
+            raise ValueError(f"{name}[{k}]: {problem}")
     return P, single
 
 
