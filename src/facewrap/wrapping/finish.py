@@ -112,13 +112,15 @@ def finish_fit(problem: WrapProblem, vertices, similarity: Similarity,
         # the unfolding must not slide the landmarks along the scan (a wide region
         # relaxed toward the unfitted skin beyond a scan's border moved the jaw
         # points of a head of other proportions 10-33 mm): unfolded again with
-        # their vertices held, kept unless that leaves more folds
+        # their vertices held, kept if that leaves no more folds and the landmarks
+        # nearer their targets
         marked = _landmark_vertices(problem)
         slid = float(np.linalg.norm(out[marked] - vertices[marked], axis=1).max(initial=0.0))
         summary["landmarks_slid"] = slid
         if slid > problem.settings.landmark_tolerance * template.with_vertices(vertices).scale():
             held = _unfold(problem, upright, vertices, initial_projection, pinned | marked)
-            if _fold_count(problem, held[0], upright) <= _fold_count(problem, out, upright):
+            if (_fold_count(problem, held[0], upright) <= _fold_count(problem, out, upright)
+                    and _landmark_error(problem, held[0]) < _landmark_error(problem, out)):
                 out, projection, unfolded = held
                 summary["landmarks_slid"] = 0.0
         summary.update(unfolded)
@@ -172,6 +174,12 @@ def _fold_count(problem: WrapProblem, vertices, upright) -> int:
     """Triangles of the skin turned past 90 degrees from ``upright``: the fitted
     skin's and its cavities' (a fold an inner lip holds shows as much)."""
     return int(turned_triangles(vertices, upright, problem.skin_mesh.triangles).sum())
+
+
+def _landmark_error(problem: WrapProblem, vertices) -> float:
+    """The largest distance of a landmark on ``vertices`` from its target."""
+    at = problem.landmarks.positions(vertices, problem.template.triangles)
+    return float(np.linalg.norm(at - problem.targets, axis=1).max(initial=0.0))
 
 
 def _landmark_vertices(problem: WrapProblem) -> np.ndarray:
