@@ -660,7 +660,8 @@ def _corner_uvs(table: _Table, offsets: np.ndarray):
         r = int(np.argmax(bad))
         raise table.error(r, f"texcoord has {t_sizes[r]} values, expected 2 per corner "
                           f"({2 * (offsets[r + 1] - offsets[r])})")
-    corner_uv = values.astype(np.float64).reshape(-1, 2)
+    with np.errstate(invalid="ignore"):   # a garbled value: refused just below
+        corner_uv = values.astype(np.float64).reshape(-1, 2)
     bad = ~np.isfinite(corner_uv).all(axis=1)
     if bad.any():
         r = int(np.searchsorted(offsets, int(np.argmax(bad)), side="right")) - 1
