@@ -105,8 +105,6 @@ def scanned_head(identity: str, seed: int = 0):
     S = S + rng.normal(scale=0.02, size=(len(S), 1)) * C._vertex_normals(S, G)
     truth = 10.0 * P
     landmarks = truth[lmv] + rng.normal(scale=0.5, size=(len(lmv), 3))
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, scan_v=10.0 * S, scan_f=G, landmarks=landmarks, truth=truth)
-    tmp.replace(path)
+    C.save_npz(path, scan_v=10.0 * S, scan_f=G, landmarks=landmarks, truth=truth)
     return (Mesh(10.0 * S, G), Landmarks.from_points(landmarks, names=IBUG68_NAMES),
             truth)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,13 +118,19 @@ def _seen_mask(scan: Mesh, truth, tol=1.0):
     return mask
 
 
+def save_npz(path: Path, **arrays) -> None:
+    """Write a cached case whole: to a file of this process's own, then renamed (two
+    benchmarks building one case at once each wrote the same temporary file, and the
+    second rename found it gone)."""
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    tmp.replace(path)
+
+
 def _save(path: Path, case: Case):
-    d = dict(template_v=case.template.vertices, scan_v=case.scan.vertices,
+    save_npz(path, template_v=case.template.vertices, scan_v=case.scan.vertices,
              scan_f=case.scan.triangles, scan_lm=case.scan_landmarks.positions(case.scan),
              truth=case.truth, mask=case.mask)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, **d)
-    tmp.replace(path)
 
 
 def ict_case(name: str, identity: str, expression: dict, *, n_triangles: int = 60000,
