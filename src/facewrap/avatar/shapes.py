@@ -43,12 +43,13 @@ from facewrap.mesh import Mesh, check_mesh
 from facewrap.params import (Constraint, Flag, Instances, Interval, NoneAllowed,
                              expect_instance, validate)
 from facewrap.solve import factorize
-from facewrap.transfer import (TETHER_WEIGHT, Correspondence, CorrespondenceSettings,
+from facewrap.transfer import (Correspondence, CorrespondenceSettings,
                                CorrespondenceStage, DeformationTransfer, FlipRepair,
                                adjacent_triangle_pairs, as_pose_stack, check_markers,
                                complete_pairs, find_correspondence, gradient_operator,
                                pair_matrix, source_gradient_blocks,
-                               triangle_smoothness_operator, untethered_vertices)
+                               tether_weights, triangle_smoothness_operator,
+                               untethered_vertices)
 
 __all__ = ["ONIZUKA_SCHEDULE", "AvatarSettings", "AvatarTransfer"]
 
@@ -258,7 +259,7 @@ class AvatarTransfer:
         loose = np.zeros(op.n_unknowns)
         loose[:aligned.n_vertices] = untethered_vertices(aligned.triangles,
                                                          aligned.n_vertices, la)
-        tether = TETHER_WEIGHT * float(H.diagonal().mean()) * loose
+        tether = tether_weights(H, loose)
         H = H + sp.diags(tether)
         self._tether_rhs = tether[:, None] * op.extend(aligned.vertices)
         self._identity_rhs = s.identity_weight * np.asarray(

@@ -48,7 +48,7 @@ from facewrap.geometry.checks import as_points, as_shape_dict, as_vertex_ids
 from facewrap.mesh import Mesh, check_mesh
 from facewrap.params import Interval, validate
 from facewrap.solve.fixed import FixedSystem
-from facewrap.transfer.constraints import TETHER_WEIGHT, untethered_vertices
+from facewrap.transfer.constraints import tether_weights, untethered_vertices
 from facewrap.transfer.deformation import source_gradient_blocks
 from facewrap.transfer.gradients import FourthVertexElimination, gradient_operator
 
@@ -295,7 +295,7 @@ class _Poisson:
         self.fourth = FourthVertexElimination(G.T @ G, n)
         H = self.fourth.matrix
         loose = untethered_vertices(self.op.triangles, n, [anchor])
-        tether = TETHER_WEIGHT * float(H.diagonal().mean()) * loose
+        tether = tether_weights(H, loose)
         self.system = FixedSystem((H + sp.diags(tether)).tocsr(), [anchor])
 
     def displacements(self, delta: np.ndarray) -> np.ndarray:

@@ -11,7 +11,8 @@ Gradients (:mod:`.gradients`)
     :func:`deformation_gradients`, :func:`triangle_smoothness_operator`,
     :func:`adjacent_triangle_pairs`, :class:`FourthVertexElimination`
 Markers and tether (:mod:`.constraints`)
-    :func:`check_markers`, :func:`untethered_vertices`, :data:`TETHER_WEIGHT`
+    :func:`check_markers`, :func:`untethered_vertices`, :func:`tether_weights`,
+    :data:`TETHER_WEIGHT`
 Correspondence (:mod:`.correspondence`, :mod:`.marker_deformation`,
 :mod:`.triangle_matching`)
     :func:`find_correspondence`, :class:`Correspondence`,
@@ -31,7 +32,8 @@ Flipped triangles are counted by :func:`facewrap.geometry.flipped_triangles`.
 """
 
 from facewrap.transfer.ambiguity import ambiguity_summary, partner_ambiguity
-from facewrap.transfer.constraints import TETHER_WEIGHT, check_markers, untethered_vertices
+from facewrap.transfer.constraints import (TETHER_WEIGHT, check_markers, tether_weights,
+                                           untethered_vertices)
 from facewrap.transfer.correspondence import (Correspondence, CorrespondenceSettings,
                                               find_correspondence)
 from facewrap.transfer.deformation import (DeformationTransfer, TransferSettings,
@@ -51,7 +53,7 @@ __all__ = [
     "GradientOperator", "gradient_operator", "fourth_vertices", "deformation_gradients",
     "adjacent_triangle_pairs", "triangle_smoothness_operator", "FourthVertexElimination",
     # markers and tether
-    "check_markers", "untethered_vertices", "TETHER_WEIGHT",
+    "check_markers", "untethered_vertices", "tether_weights", "TETHER_WEIGHT",
     # correspondence
     "Correspondence", "CorrespondenceSettings", "CorrespondenceStage",
     "SUMNER_SCHEDULE", "find_correspondence", "deform_toward", "match_triangles",

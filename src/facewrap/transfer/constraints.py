@@ -18,8 +18,8 @@ from facewrap.geometry.checks import as_whole_indices
 from facewrap.geometry.similarity import MIRROR_RATIO, mirror_fit, similarity_transform
 from facewrap.wrapping.plausibility import landmark_spread, robust_similarity, swapped_pairs
 
-__all__ = ["check_markers", "marker_placement", "untethered_vertices", "TETHER_WEIGHT",
-           "SIZE_RATIO"]
+__all__ = ["check_markers", "marker_placement", "untethered_vertices", "tether_weights",
+           "TETHER_WEIGHT", "SIZE_RATIO"]
 
 #: the markers put the target at more than this many times the source's size, or
 #: less than its inverse: other units, most likely (cm to mm, 10, is common and fine;
@@ -166,3 +166,26 @@ def untethered_vertices(T, n: int, fixed_ids) -> np.ndarray:
     has = np.zeros(int(comp.max()) + 1 if n else 0, dtype=bool)
     has[comp[np.asarray(fixed_ids, dtype=np.int64)]] = True
     return ~has[comp]
+
+
+def tether_weights(matrix, loose) -> np.ndarray:
+    """The diagonal that tethers the ``loose`` unknowns of a normal matrix to their
+    rest values: :data:`TETHER_WEIGHT` of its mean diagonal on each.
+
+    Parameters
+    ----------
+    matrix : (m, m) scipy.sparse matrix
+    loose : (m,) bool or float
+        The unknowns to tether (:func:`untethered_vertices`, padded to ``m``).
+
+    Returns
+    -------
+    (m,) float64
+
+    Examples
+    --------
+    >>> import scipy.sparse as sp
+    >>> tether_weights(sp.diags([1.0, 3.0]), np.array([False, True])).tolist()
+    [0.0, 2e-08]
+    """
+    return TETHER_WEIGHT * float(matrix.diagonal().mean()) * loose

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from facewrap.mesh import Mesh, check_mesh
 from facewrap.params import Flag, Interval, Options, expect_instance, validate
 from facewrap.solve import FixedSystem
-from facewrap.transfer.constraints import TETHER_WEIGHT, untethered_vertices
+from facewrap.transfer.constraints import tether_weights, untethered_vertices
 from facewrap.transfer.correspondence import Correspondence
 from facewrap.transfer.flip_repair import FlipRepair
 from facewrap.transfer.gradients import (FourthVertexElimination, GradientOperator,
@@ -300,7 +300,7 @@ class DeformationTransfer:
         # components without the anchor: a tiny pull toward rest fixes their
         # translation (an eyeball turns about its own centre)
         loose = untethered_vertices(target.triangles, n, [anchor])
-        tether = TETHER_WEIGHT * float(H_red.diagonal().mean()) * loose
+        tether = tether_weights(H_red, loose)
         H_red = (H_red + sp.diags(tether)).tocsr()
         self._H_red = H_red
         self._tether_rhs = tether[:, None] * target.vertices

@@ -21,8 +21,8 @@ vertex that still ends up on the other side of the skin than on the template
 (signed distance by libigl's pseudonormal test; the skin is every triangle that is
 not part) is put back at its template offset from the closest skin point, along
 the skin's normal there (after three rounds ever nearer the skin: at a closed
-eyelid the full offset crosses the lid's other sheet); vertices that touch the skin on the template (closer
-than ``2e-4`` of its size) have no side to keep, nor have those whose closest skin
+eyelid the full offset crosses the lid's other sheet); vertices that touch the
+skin on the template (closer than ``2e-4`` of its size) have no side to keep, nor have those whose closest skin
 point on the template lies on the skin's border (a face region cut from its head:
 an eyeball seen through the eyelids' opening lies beyond the skin, not in front of
 or behind it, and putting it back "in front" along a border normal throws it
